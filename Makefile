@@ -1,0 +1,105 @@
+# Tessera - build, test, benchmark.
+#
+#   make            install missing Debian packages, build build/bin/tessera
+#   make run        render the Cornell box and print where the image went
+#   make test       build and run every test (ends with "N passed, N failed")
+#   make test-asan  the tests under AddressSanitizer + UndefinedBehaviorSanitizer
+#   make test-tsan  the threaded tests under ThreadSanitizer
+#   make bench      speed figures (printed, not asserted)
+#   make reference  regenerate tests/data/cornell-ref-64.pfm.gz (slow)
+
+# Debian packages the build needs; `make deps` installs what is missing.
+DEB_PACKAGES := gcc make pkg-config libcjson-dev libuv1-dev libjpeg-dev libopenexr-dev libpng-dev libsodium-dev
+
+CC ?= cc
+VARIANT ?= release
+BUILD := build/$(VARIANT)
+
+# Determinism across hosts: no fast-math, no FMA contraction, no -march=native.
+# (Add your own -march with EXTRA_CFLAGS; the bytes may then differ from other hosts.)
+CFLAGS_COMMON := -std=c11 -D_DEFAULT_SOURCE -g -Wall -Wextra -Werror -ffp-contract=off -fno-fast-math \
+                 -MMD -MP $(EXTRA_CFLAGS)
+ifeq ($(VARIANT),asan)
+  CFLAGS_OPT := -O1 -fno-omit-frame-pointer -fsanitize=address,undefined -fno-sanitize-recover=all
+  LDFLAGS_V := -fsanitize=address,undefined
+else ifeq ($(VARIANT),tsan)
+  CFLAGS_OPT := -O1 -fsanitize=thread
+  LDFLAGS_V := -fsanitize=thread
+else
+  CFLAGS_OPT := -O2
+  LDFLAGS_V :=
+endif
+CFLAGS := $(CFLAGS_COMMON) $(CFLAGS_OPT)
+LDLIBS := -lcjson -lpthread -lm
+LDFLAGS := $(LDFLAGS_V)
+
+COMMON_SRC := $(wildcard common/*.c)
+COMMON_OBJ := $(COMMON_SRC:%.c=$(BUILD)/%.o)
+TEST_SRC := $(wildcard tests/*.c)
+TEST_OBJ := $(TEST_SRC:%.c=$(BUILD)/%.o)
+BENCH_SRC := $(wildcard bench/*.c)
+
+TESSERA := $(BUILD)/bin/tessera
+TEST_BIN := $(BUILD)/bin/run-tests
+BENCH_BIN := $(BUILD)/bin/bench-render
+
+.PHONY: all deps run test test-asan test-tsan bench reference clean
+all: $(TESSERA)
+
+DEPS_STAMP := build/.deps-ok
+deps: $(DEPS_STAMP)
+$(DEPS_STAMP): Makefile
+	@missing=""; for p in $(DEB_PACKAGES); do \
+	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "install ok installed" || missing="$$missing $$p"; \
+	done; \
+	if [ -n "$$missing" ]; then \
+	  echo "installing missing Debian packages:$$missing"; \
+	  SUDO=""; [ "$$(id -u)" -ne 0 ] && SUDO=sudo; \
+	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq $$missing \
+	    || { echo "error: could not install:$$missing" >&2; exit 1; }; \
+	fi
+	@mkdir -p build && touch $@
+
+$(BUILD)/%.o: %.c | $(DEPS_STAMP)
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) -c $< -o $@
+
+$(TESSERA): $(BUILD)/coordinator/tessera.o $(COMMON_OBJ)
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
+
+$(TEST_BIN): $(TEST_OBJ) $(COMMON_OBJ)
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
+
+$(BENCH_BIN): $(BUILD)/bench/bench_render.o $(COMMON_OBJ)
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
+
+run: $(TESSERA)
+	@mkdir -p out
+	$(TESSERA) render scenes/cornell-box.json -o out/cornell-box.ppm
+
+test: $(TESSERA) $(TEST_BIN)
+	TESSERA_BIN=$(TESSERA) $(TEST_BIN)
+
+test-asan:
+	$(MAKE) VARIANT=asan test
+
+# ThreadSanitizer on the tests that run several render threads.
+test-tsan:
+	$(MAKE) VARIANT=tsan $(BUILD:build/$(VARIANT)=build/tsan)/bin/run-tests build/tsan/bin/tessera
+	TESSERA_BIN=build/tsan/bin/tessera build/tsan/bin/run-tests --filter thread
+
+bench: $(TESSERA) $(BENCH_BIN)
+	$(BENCH_BIN) scenes/cornell-box.json
+
+reference: $(TESSERA)
+	@mkdir -p tests/data
+	$(TESSERA) render tests/scenes/cornell-small.json --spp 65536 --seed 999 --workers 0 -o tests/data/cornell-ref-64.pfm
+	gzip -9 -f tests/data/cornell-ref-64.pfm
+
+clean:
+	rm -rf build out
+
+-include $(COMMON_OBJ:.o=.d) $(TEST_OBJ:.o=.d)

@@ -1,0 +1,20 @@
+/* camera.h - primary rays for the perspective and environment cameras.
+ *
+ * Pixel (x, y) with jitter (u, v) in [0,1)^2 covers the film point
+ * (x + u, y + v); row 0 is the top of the image. Directions are in the
+ * scene's internal frame (see scene.h), which only translates and scales
+ * the world, so world-space formulas apply unchanged. */
+#ifndef TESSERA_CAMERA_H
+#define TESSERA_CAMERA_H
+
+#include "scene.h"
+
+/* Unit direction of the ray through film point (x + u, y + v) of a width x
+ * height image. Perspective: vertical field of view, square pixels.
+ * Environment (equirectangular, 360 x 180 degrees):
+ *   theta = pi (y + v) / H, phi = 2 pi (x + u) / W,
+ *   dir = (sin theta cos phi, cos theta, sin theta sin phi).
+ * Can't fail. */
+vec3 camera_direction(const camera *c, int width, int height, int x, int y, float u, float v);
+
+#endif

@@ -1,0 +1,137 @@
+/* integrator.c - unidirectional path tracing with NEE and MIS.
+ *
+ * The estimator, for a path x0 (camera) x1 x2 ...:
+ *   L = sum over vertices k of beta_k [ w_bsdf Le(x_k)            (hit)
+ *                                      + w_light f Le cos / p_l ]  (NEE)
+ * where beta_k is the product of f cos / p over the earlier bounces and the
+ * weights are the power heuristic between the two densities that could have
+ * produced the same emitter point. Delta vertices (mirror, glass) and point
+ * lights take weight 1, as only one strategy can reach them. */
+#include "integrator.h"
+
+#include "bsdf.h"
+#include "bvh.h"
+#include "lights.h"
+#include "offset.h"
+#include "warp.h"
+
+/* Geometry at a hit: precise position and unit geometric normal (front face
+ * for triangles by winding order, outward for spheres). */
+typedef struct {
+    vec3 p, ng;
+    const prim_info *info;
+} surface;
+
+static void surface_at(const scene *s, const ray *r, const hit *h, surface *out) {
+    if (h->prim < s->triangle_count) {
+        const triangle *t = &s->triangles[h->prim];
+        float b0 = 1.0f - h->b1 - h->b2;
+        /* From the barycentrics, not o + t d: the error is then relative to
+         * the triangle's coordinates, not to the ray's length. */
+        out->p = vec3_add(vec3_add(vec3_scale(t->v0, b0), vec3_scale(t->v1, h->b1)), vec3_scale(t->v2, h->b2));
+        out->ng = vec3_normalize(vec3_cross(vec3_sub(t->v1, t->v0), vec3_sub(t->v2, t->v0)));
+        out->info = &s->triangle_info[h->prim];
+    } else {
+        uint32_t i = h->prim - s->triangle_count;
+        const sphere *sp = &s->spheres[i];
+        vec3 p = vec3_add(r->o, vec3_scale(r->d, h->t));
+        out->ng = vec3_normalize(vec3_sub(p, sp->center));
+        out->p = vec3_add(sp->center, vec3_scale(out->ng, sp->radius)); /* back onto the surface */
+        out->info = &s->sphere_info[i];
+    }
+}
+
+/* A ray leaving surface point p of primitive prim in direction d. */
+static ray spawn(vec3 p, vec3 ng, uint32_t prim, vec3 d) {
+    ray r;
+    r.o = offset_ray_origin(p, vec3_dot(d, ng) > 0.0f ? ng : vec3_neg(ng));
+    r.d = d;
+    r.skip = prim;
+    return r;
+}
+
+/* Light sampling at a non-delta vertex: the direct-light term with its MIS
+ * weight. wo and the frame are in world / local space as the caller has
+ * them. */
+static vec3 direct_light(const scene *s, const integrator_options *opt, const material *m, const surface *sf,
+                         uint32_t prim, const frame *fr, vec3 wo_local, const float u[3], trace_stats *st) {
+    light_sample ls;
+    if (!lights_sample(s, sf->p, u[0], u[1], u[2], &ls)) return vec3_splat(0.0f);
+    vec3 wi_local = frame_to_local(fr, ls.wi);
+    vec3 f = bsdf_eval(m, wo_local, wi_local);
+    if (vec3_is_zero(f)) return vec3_splat(0.0f);
+    /* Shadow ray between the two offset end points, so it neither starts
+     * inside this surface nor ends inside the light's. */
+    ray sh = spawn(sf->p, sf->ng, prim, ls.wi);
+    vec3 target = ls.p;
+    if (!ls.is_delta) target = offset_ray_origin(ls.p, vec3_dot(ls.n, ls.wi) < 0.0f ? ls.n : vec3_neg(ls.n));
+    vec3 to = vec3_sub(target, sh.o);
+    float len = vec3_length(to);
+    if (!(len > 0.0f)) return vec3_splat(0.0f);
+    sh.d = vec3_scale(to, 1.0f / len);
+    st->shadow_rays++;
+    if (bvh_occluded(s->bvh, s, &sh, len)) return vec3_splat(0.0f);
+    float w = (ls.is_delta || opt->no_mis) ? 1.0f : mis_power(ls.pdf, bsdf_pdf(m, wo_local, wi_local));
+    return vec3_scale(vec3_mul(f, ls.radiance), fabsf(wi_local.z) * w / ls.pdf);
+}
+
+/* Emission picked up by a ray that hit an emitter after a bounce from
+ * prev_p with BSDF density prev_pdf (0 = delta or camera). */
+static vec3 hit_emission(const scene *s, const integrator_options *opt, const surface *sf, const ray *r,
+                         float t, vec3 prev_p, float prev_pdf) {
+    const light *l = &s->lights[sf->info->light];
+    vec3 Le = lights_emitted(l, sf->ng, vec3_neg(r->d));
+    if (vec3_is_zero(Le) || prev_pdf == 0.0f || opt->no_nee) return Le;
+    if (opt->no_mis) return vec3_splat(0.0f); /* light sampling already counted it */
+    float light_pdf = lights_pdf(s, l, prev_p, sf->p, sf->ng, t);
+    return vec3_scale(Le, mis_power(prev_pdf, light_pdf));
+}
+
+vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ray *camera_ray, rng_stream *rng,
+                         trace_stats *st) {
+    vec3 L = vec3_splat(0.0f), beta = vec3_splat(1.0f), prev_p = camera_ray->o;
+    float prev_pdf = 0.0f; /* the camera ray counts as a delta event */
+    ray r = *camera_ray;
+    for (int depth = 0;; depth++) {
+        hit h;
+        st->rays++;
+        if (!bvh_intersect(s->bvh, s, &r, INFINITY, &h)) {
+            L = vec3_add(L, vec3_mul(beta, s->background));
+            break;
+        }
+        surface sf;
+        surface_at(s, &r, &h, &sf);
+        if (sf.info->light >= 0)
+            L = vec3_add(L, vec3_mul(beta, hit_emission(s, opt, &sf, &r, h.t, prev_p, prev_pdf)));
+        const material *m = &s->materials[sf.info->material];
+        if (depth >= s->settings.max_depth || m->kind == MATERIAL_NONE) break;
+
+        float u[INTEGRATOR_DIMS_PER_BOUNCE];
+        for (int k = 0; k < INTEGRATOR_DIMS_PER_BOUNCE; k++) u[k] = rng_next(rng);
+        vec3 wo = vec3_neg(r.d);
+        /* Opaque materials reflect on whichever side the ray arrived. */
+        vec3 n = (m->kind != MATERIAL_GLASS && vec3_dot(sf.ng, wo) < 0.0f) ? vec3_neg(sf.ng) : sf.ng;
+        frame fr = frame_from_normal(n);
+        vec3 wo_local = frame_to_local(&fr, wo);
+        if (bsdf_is_smooth(m) && !opt->no_nee)
+            L = vec3_add(L, vec3_mul(beta, direct_light(s, opt, m, &sf, h.prim, &fr, wo_local, u, st)));
+
+        bsdf_sample bs;
+        if (!bsdf_sample_wi(m, wo_local, u[3], u[4], u[5], &bs)) break;
+        beta = vec3_mul(beta, bs.weight);
+        prev_pdf = bs.pdf;
+        prev_p = sf.p;
+        if (depth >= 3) { /* Russian roulette */
+            float survive = fminf(1.0f, vec3_max_comp(beta));
+            if (!(u[6] < survive)) break;
+            beta = vec3_scale(beta, 1.0f / survive);
+        }
+        r = spawn(sf.p, sf.ng, h.prim, vec3_normalize(frame_to_world(&fr, bs.wi)));
+    }
+    st->samples++;
+    if (!vec3_is_finite(L) || L.x < 0.0f || L.y < 0.0f || L.z < 0.0f) {
+        st->bad_samples++;
+        return vec3_splat(0.0f);
+    }
+    return L;
+}

@@ -1,0 +1,160 @@
+/* obj.c - a reader for the geometry part of Wavefront OBJ files.
+ *
+ * One pass over the text, line by line. Indices are resolved as they are
+ * read (OBJ allows negative indices relative to the vertices so far), so a
+ * face that names a vertex not yet defined is an error on its own line. */
+#include "obj.h"
+
+#include <ctype.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fileio.h"
+
+#define OBJ_MAX_FILE (1u << 30) /* 1 GiB of text */
+#define OBJ_MAX_POLY 64         /* vertices per face */
+
+/* Make room for `need` elements of `size` bytes in *arr (capacity *cap).
+ * Returns 0, or -1 when out of memory (then *arr is unchanged). */
+static int grow(void **arr, size_t *cap, size_t need, size_t size) {
+    if (need <= *cap) return 0;
+    size_t n = *cap ? *cap : 256;
+    while (n < need) n *= 2;
+    void *p = realloc(*arr, n * size);
+    if (!p) return -1;
+    *arr = p;
+    *cap = n;
+    return 0;
+}
+
+typedef struct {
+    const char *name;
+    size_t line;
+    char *err;
+    size_t err_len;
+    obj_mesh *m;
+    size_t pos_cap, idx_cap;
+} obj_reader;
+
+static int obj_fail(obj_reader *r, const char *what) {
+    snprintf(r->err, r->err_len, "%s:%zu: %s", r->name, r->line, what);
+    return -1;
+}
+
+/* Parse "v x y z [w]". */
+static int read_vertex(obj_reader *r, const char *s) {
+    double p[3];
+    for (int i = 0; i < 3; i++) {
+        char *end;
+        p[i] = strtod(s, &end);
+        if (end == s) return obj_fail(r, "vertex needs three numbers");
+        if (!isfinite(p[i])) return obj_fail(r, "vertex coordinate is not finite");
+        s = end;
+    }
+    obj_mesh *m = r->m;
+    if (grow((void **)&m->positions, &r->pos_cap, 3 * (m->vertex_count + 1), sizeof(double)))
+        return obj_fail(r, "out of memory");
+    memcpy(m->positions + 3 * m->vertex_count, p, sizeof p);
+    m->vertex_count++;
+    return 0;
+}
+
+/* Parse one face corner "i", "i/t", "i//n" or "i/t/n" into a 0-based vertex
+ * index; *s is advanced past it. Returns 1 for a corner, 0 at the end of the
+ * line, -1 on error. */
+static int read_corner(obj_reader *r, const char **s, uint32_t *out) {
+    const char *p = *s;
+    while (*p == ' ' || *p == '\t') p++;
+    if (*p == '\0' || *p == '\r' || *p == '\n' || *p == '#') return 0;
+    char *end;
+    long v = strtol(p, &end, 10);
+    if (end == p) return obj_fail(r, "face corner is not an index");
+    long n = (long)r->m->vertex_count;
+    long idx = v > 0 ? v - 1 : n + v;
+    if (v == 0 || idx < 0 || idx >= n) return obj_fail(r, "face refers to a vertex that does not exist");
+    while (*end && !isspace((unsigned char)*end)) end++; /* skip /t/n */
+    *s = end;
+    *out = (uint32_t)idx;
+    return 1;
+}
+
+/* Parse "f a b c ..." and fan-triangulate it. */
+static int read_face(obj_reader *r, const char *s) {
+    uint32_t corner[OBJ_MAX_POLY];
+    int count = 0, rc;
+    uint32_t idx;
+    while ((rc = read_corner(r, &s, &idx)) == 1) {
+        if (count == OBJ_MAX_POLY) return obj_fail(r, "face has more than 64 vertices");
+        corner[count++] = idx;
+    }
+    if (rc < 0) return -1;
+    if (count < 3) return obj_fail(r, "face needs at least three vertices");
+    obj_mesh *m = r->m;
+    size_t tris = (size_t)count - 2;
+    if (grow((void **)&m->indices, &r->idx_cap, 3 * (m->triangle_count + tris), sizeof(uint32_t)))
+        return obj_fail(r, "out of memory");
+    for (int i = 1; i + 1 < count; i++) {
+        uint32_t *t = m->indices + 3 * m->triangle_count++;
+        t[0] = corner[0];
+        t[1] = corner[i];
+        t[2] = corner[i + 1];
+    }
+    return 0;
+}
+
+int obj_parse(const char *buf, size_t len, const char *name, obj_mesh *out, char *err, size_t err_len) {
+    obj_reader r = {name, 0, err, err_len, out, 0, 0};
+    memset(out, 0, sizeof *out);
+    char line[4096];
+    size_t pos = 0;
+    while (pos < len) {
+        size_t end = pos;
+        while (end < len && buf[end] != '\n') end++;
+        r.line++;
+        size_t n = end - pos;
+        if (n >= sizeof line) {
+            obj_fail(&r, "line longer than 4095 characters");
+            goto fail;
+        }
+        memcpy(line, buf + pos, n);
+        line[n] = '\0';
+        if (memchr(line, '\0', n)) {
+            obj_fail(&r, "NUL byte in text");
+            goto fail;
+        }
+        pos = end + 1;
+        const char *s = line;
+        while (*s == ' ' || *s == '\t') s++;
+        int rc = 0;
+        if (s[0] == 'v' && (s[1] == ' ' || s[1] == '\t'))
+            rc = read_vertex(&r, s + 2);
+        else if (s[0] == 'f' && (s[1] == ' ' || s[1] == '\t'))
+            rc = read_face(&r, s + 2);
+        if (rc) goto fail;
+    }
+    if (out->triangle_count == 0) {
+        snprintf(err, err_len, "%s: no faces", name);
+        goto fail;
+    }
+    return 0;
+fail:
+    obj_mesh_free(out);
+    return -1;
+}
+
+int obj_load(const char *path, obj_mesh *out, char *err, size_t err_len) {
+    size_t len;
+    char *buf = file_read_all(path, OBJ_MAX_FILE, &len, err, err_len);
+    if (!buf) return -1;
+    int rc = obj_parse(buf, len, path, out, err, err_len);
+    free(buf);
+    return rc;
+}
+
+void obj_mesh_free(obj_mesh *m) {
+    free(m->positions);
+    free(m->indices);
+    memset(m, 0, sizeof *m);
+}

@@ -1,0 +1,55 @@
+/* render.h - the tile renderer every process runs, and a threaded renderer
+ * of whole frames built on it.
+ *
+ * render_tile() is the unit of work of the whole system: a rectangle of
+ * pixels and a range of sample indices. Each pixel's sum is accumulated in
+ * double, in sample-index order, starting from what the accumulator already
+ * holds; so rendering samples [0, 64) in one call, or [0, 16) then [16, 64)
+ * into the same accumulator, gives the same bits, and no pixel depends on
+ * any other pixel, tile, thread or process. */
+#ifndef TESSERA_RENDER_H
+#define TESSERA_RENDER_H
+
+#include <stdint.h>
+
+#include "integrator.h"
+#include "scene.h"
+
+typedef struct {
+    int x0, y0, x1, y1; /* half-open pixel rectangle */
+} tile_rect;
+
+static inline int tile_width(const tile_rect *t) { return t->x1 - t->x0; }
+static inline int tile_height(const tile_rect *t) { return t->y1 - t->y0; }
+
+/* Add samples [first, first + count) of every pixel of tile to accum, which
+ * holds 3 doubles (r, g, b sums) per pixel, row-major over the tile. Counts
+ * go to stats. Can't fail. */
+void render_tile(const scene *s, const integrator_options *opt, const tile_rect *tile, uint32_t first,
+                 uint32_t count, double *accum, trace_stats *stats);
+
+/* Split a width x height image into tile_size squares (clipped at the
+ * edges), row by row. Returns the number of tiles; writes at most max of
+ * them to out (out may be NULL to count). */
+int render_split_tiles(int width, int height, int tile_size, tile_rect *out, int max);
+
+/* Called from the rendering threads' coordinator (the calling thread) about
+ * ten times a second with tiles done so far; may be NULL. */
+typedef void (*render_progress_cb)(void *ctx, int tiles_done, int tiles_total, const trace_stats *so_far);
+
+typedef struct {
+    int threads;   /* >= 1 */
+    int tile_size; /* >= 1 */
+    int passes;    /* split each pixel's samples into this many sequential calls (>= 1) */
+    integrator_options integrator;
+    render_progress_cb progress;
+    void *progress_ctx;
+} render_options;
+
+/* Render s->settings.spp samples of every pixel with a pool of threads and
+ * write the mean radiance, 3 floats per pixel, row 0 at the top, into rgb
+ * (width * height * 3 floats, the caller's). Returns 0, or -1 if the threads
+ * or their memory could not be had (then rgb is unspecified). */
+int render_frame(const scene *s, const render_options *opt, float *rgb, trace_stats *stats);
+
+#endif

@@ -1,0 +1,134 @@
+/* scene.h - the in-memory scene every renderer module reads: camera,
+ * materials, triangles, spheres, lights, render settings.
+ *
+ * A scene is built once by scene_load() (scene_load.c) and is immutable and
+ * shared by all render threads afterwards. Geometry is stored in internal
+ * units: world coordinates are translated to the centre of the geometry's
+ * bounds and divided by a power of two so that the scene spans about [-1, 1].
+ * That makes a box modelled in millimetres, in kilometres or 1e5 units from
+ * the origin the same problem for single-precision floats. Radiance is
+ * invariant under that change; point-light intensities are rescaled. */
+#ifndef TESSERA_SCENE_H
+#define TESSERA_SCENE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "vec.h"
+
+typedef enum {
+    MATERIAL_NONE,    /* reflects nothing (a bare emitter) */
+    MATERIAL_DIFFUSE, /* Lambert */
+    MATERIAL_GLOSSY,  /* normalised Phong: diffuse + specular lobe */
+    MATERIAL_MIRROR,  /* ideal specular reflection */
+    MATERIAL_GLASS    /* smooth dielectric */
+} material_kind;
+
+typedef struct {
+    material_kind kind;
+    vec3 kd;          /* diffuse albedo (diffuse, glossy) */
+    vec3 ks;          /* specular colour (glossy), reflectance (mirror) */
+    vec3 kt;          /* transmission colour (glass) */
+    float exponent;   /* Phong exponent (glossy) */
+    float ior;        /* index of refraction inside / outside (glass) */
+    float p_specular; /* glossy: probability of sampling the specular lobe */
+} material;
+
+typedef enum { CAMERA_PERSPECTIVE, CAMERA_ENVIRONMENT } camera_kind;
+
+typedef struct {
+    camera_kind kind;
+    vec3 position;          /* internal units */
+    vec3 forward, right, up; /* orthonormal; right = forward x up */
+    float tan_half_fov;     /* perspective: tan(vertical fov / 2) */
+} camera;
+
+typedef struct {
+    int width, height;
+    int spp;       /* samples per pixel */
+    int max_depth; /* maximum number of path segments after the camera ray */
+    uint64_t seed;
+} render_settings;
+
+/* Command-line overrides; a negative value (or has_seed == 0) means "keep
+ * what the scene file says". */
+typedef struct {
+    int width, height, spp, max_depth;
+    int has_seed;
+    uint64_t seed;
+} scene_overrides;
+
+typedef struct {
+    vec3 v0, v1, v2;
+} triangle;
+
+typedef struct {
+    vec3 center;
+    float radius;
+} sphere;
+
+/* Per-primitive shading data, indexed like the primitive itself. */
+typedef struct {
+    uint32_t material;
+    int32_t light; /* index into scene.lights, or -1 */
+} prim_info;
+
+typedef enum { LIGHT_TRIANGLE, LIGHT_SPHERE, LIGHT_POINT } light_kind;
+
+typedef struct {
+    light_kind kind;
+    uint32_t prim;    /* triangle or sphere index (area lights) */
+    int two_sided;    /* area lights: emits from both faces */
+    vec3 radiance;    /* area lights: emitted radiance */
+    vec3 intensity;   /* point lights: radiant intensity, internal units */
+    vec3 position;    /* point lights */
+    float area;       /* area lights, internal units */
+    float select_pdf; /* probability that light sampling picks this light */
+} light;
+
+struct bvh;
+
+typedef struct scene {
+    char *path; /* as given to scene_load */
+    render_settings settings;
+    camera cam;
+    vec3 background; /* radiance of rays that escape */
+
+    material *materials;
+    uint32_t material_count;
+
+    triangle *triangles;
+    prim_info *triangle_info;
+    uint32_t triangle_count;
+
+    sphere *spheres;
+    prim_info *sphere_info;
+    uint32_t sphere_count;
+
+    light *lights;
+    float *light_cdf; /* light_count + 1 entries, last is 1 */
+    uint32_t light_count;
+
+    struct bvh *bvh;
+
+    /* World = internal * world_scale + world_center. */
+    double world_center[3];
+    double world_scale;
+
+    size_t degenerate_triangles; /* skipped at load, reported with -v */
+} scene;
+
+/* Load and validate a scene file. On success returns the scene (free it with
+ * scene_free). On any error returns NULL and writes one line to err naming
+ * the file and, where it applies, the line and column or the JSON field,
+ * e.g. "scenes/x.json: shapes[3].material: unknown material \"whte\"".
+ * `overrides` may be NULL. */
+scene *scene_load(const char *path, const scene_overrides *overrides, char *err, size_t err_len);
+
+/* Free a scene and everything it owns; NULL is allowed. */
+void scene_free(scene *s);
+
+/* Index of the first primitive id that is a sphere: ids below are triangles. */
+static inline uint32_t scene_sphere_base(const scene *s) { return s->triangle_count; }
+
+#endif

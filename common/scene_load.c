@@ -1,0 +1,652 @@
+/* scene_load.c - read a JSON scene file into a validated `scene`.
+ *
+ * Parsing happens in double precision into temporary lists (triangles,
+ * spheres, emitters); once the bounds of all geometry are known the whole
+ * scene is moved into internal units (see scene.h) and only then rounded to
+ * float. Every refusal names the file and the field; docs/scene-format.md
+ * describes the format. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "bvh.h"
+#include "fileio.h"
+#include "json_field.h"
+#include "obj.h"
+#include "scene.h"
+
+#define SCENE_MAX_FILE (64u << 20)
+#define MAX_RESOLUTION 32768
+#define MAX_SPP (1 << 24)
+#define MAX_DEPTH 1024
+#define BIG 1e30 /* bound for coordinates: anything larger is surely a mistake */
+
+typedef struct {
+    double p[3][3];
+    uint32_t material;
+    int emitter; /* index into loader.emitters, or -1 */
+} tri_d;
+
+typedef struct {
+    double c[3], r;
+    uint32_t material;
+    int emitter;
+} sphere_d;
+
+typedef struct {
+    vec3 radiance;
+    int two_sided;
+} emitter_d;
+
+typedef struct {
+    double position[3];
+    vec3 intensity;
+} point_d;
+
+typedef struct {
+    json_ctx j;
+    char dir[4096]; /* folder of the scene file, for OBJ paths */
+    const char **material_names;
+    tri_d *tris;
+    size_t tri_count, tri_cap;
+    sphere_d *spheres;
+    size_t sphere_count, sphere_cap;
+    emitter_d *emitters;
+    size_t emitter_count, emitter_cap;
+    point_d *points;
+    size_t point_count;
+    scene *s;
+} loader;
+
+/* Make room for one more element; returns the slot or NULL (out of memory). */
+static void *push(void **arr, size_t *count, size_t *cap, size_t size) {
+    if (*count == *cap) {
+        size_t n = *cap ? 2 * *cap : 64;
+        void *p = realloc(*arr, n * size);
+        if (!p) return NULL;
+        *arr = p;
+        *cap = n;
+    }
+    return (char *)*arr + size * (*count)++;
+}
+
+static vec3 to_vec3(const double d[3]) { return vec3_make((float)d[0], (float)d[1], (float)d[2]); }
+
+static void dsub(const double a[3], const double b[3], double o[3]) {
+    for (int i = 0; i < 3; i++) o[i] = a[i] - b[i];
+}
+static void dcross(const double a[3], const double b[3], double o[3]) {
+    o[0] = a[1] * b[2] - a[2] * b[1];
+    o[1] = a[2] * b[0] - a[0] * b[2];
+    o[2] = a[0] * b[1] - a[1] * b[0];
+}
+static double ddot(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+static double dlen(const double a[3]) { return sqrt(ddot(a, a)); }
+
+/* ---- render settings ---------------------------------------------------- */
+
+static int load_render(loader *L, const cJSON *root, const scene_overrides *ov) {
+    static const char *const keys[] = {"width", "height", "spp", "max_depth", "seed", NULL};
+    const cJSON *r = cJSON_GetObjectItemCaseSensitive(root, "render");
+    cJSON empty = {0};
+    empty.type = cJSON_Object;
+    if (!r) r = &empty;
+    if (jf_check_object(&L->j, r, "render", keys)) return -1;
+    long long w, h, spp, depth, seed;
+    if (jf_int(&L->j, r, "render", "width", 0, 512, 1, MAX_RESOLUTION, &w) ||
+        jf_int(&L->j, r, "render", "height", 0, 512, 1, MAX_RESOLUTION, &h) ||
+        jf_int(&L->j, r, "render", "spp", 0, 16, 1, MAX_SPP, &spp) ||
+        jf_int(&L->j, r, "render", "max_depth", 0, 64, 1, MAX_DEPTH, &depth) ||
+        jf_int(&L->j, r, "render", "seed", 0, 0, 0, (1ll << 53), &seed))
+        return -1;
+    render_settings *st = &L->s->settings;
+    st->width = (int)w;
+    st->height = (int)h;
+    st->spp = (int)spp;
+    st->max_depth = (int)depth;
+    st->seed = (uint64_t)seed;
+    if (ov) {
+        if (ov->width > 0) st->width = ov->width;
+        if (ov->height > 0) st->height = ov->height;
+        if (ov->spp > 0) st->spp = ov->spp;
+        if (ov->max_depth > 0) st->max_depth = ov->max_depth;
+        if (ov->has_seed) st->seed = ov->seed;
+    }
+    if (st->width > MAX_RESOLUTION || st->height > MAX_RESOLUTION || st->spp > MAX_SPP ||
+        st->max_depth > MAX_DEPTH)
+        return jf_fail(&L->j, "render", NULL, "command-line override out of range");
+    return 0;
+}
+
+/* ---- materials ---------------------------------------------------------- */
+
+static int load_material(loader *L, const cJSON *m, const char *where, material *out) {
+    static const char *const keys[] = {"type", "albedo", "diffuse", "specular", "exponent",
+                                       "reflectance", "ior", "transmission", NULL};
+    static const double zero[3] = {0, 0, 0}, one[3] = {1, 1, 1};
+    json_ctx *j = &L->j;
+    const char *type;
+    double kd[3] = {0}, ks[3] = {0}, kt[3] = {0}, exponent = 0, ior = 1;
+    if (jf_check_object(j, m, where, keys) || jf_string(j, m, where, "type", 1, &type)) return -1;
+    memset(out, 0, sizeof *out);
+    if (strcmp(type, "diffuse") == 0) {
+        out->kind = MATERIAL_DIFFUSE;
+        if (jf_vec3(j, m, where, "albedo", 1, zero, 0, 1, kd)) return -1;
+    } else if (strcmp(type, "glossy") == 0) {
+        out->kind = MATERIAL_GLOSSY;
+        if (jf_vec3(j, m, where, "diffuse", 1, zero, 0, 1, kd) ||
+            jf_vec3(j, m, where, "specular", 1, zero, 0, 1, ks) ||
+            jf_number(j, m, where, "exponent", 1, 0, 0, 1e6, &exponent))
+            return -1;
+        for (int i = 0; i < 3; i++)
+            if (kd[i] + ks[i] > 1.0)
+                return jf_fail(j, where, "specular", "diffuse + specular exceeds 1 in channel %d: "
+                               "the material would create energy", i);
+    } else if (strcmp(type, "mirror") == 0) {
+        out->kind = MATERIAL_MIRROR;
+        if (jf_vec3(j, m, where, "reflectance", 0, one, 0, 1, ks)) return -1;
+    } else if (strcmp(type, "glass") == 0) {
+        out->kind = MATERIAL_GLASS;
+        if (jf_number(j, m, where, "ior", 0, 1.5, 1.0001, 10, &ior) ||
+            jf_vec3(j, m, where, "transmission", 0, one, 0, 1, kt))
+            return -1;
+    } else {
+        return jf_fail(j, where, "type", "unknown material type \"%s\" (expected diffuse, glossy, "
+                       "mirror or glass)", type);
+    }
+    /* Fields that belong to another type are mistakes worth reporting. */
+    static const char *const used[][4] = {
+        [MATERIAL_DIFFUSE] = {"albedo"}, [MATERIAL_GLOSSY] = {"diffuse", "specular", "exponent"},
+        [MATERIAL_MIRROR] = {"reflectance"}, [MATERIAL_GLASS] = {"ior", "transmission"}};
+    for (const cJSON *f = m->child; f; f = f->next) {
+        int ok = strcmp(f->string, "type") == 0;
+        for (int i = 0; i < 4 && used[out->kind][i]; i++) ok |= strcmp(f->string, used[out->kind][i]) == 0;
+        if (!ok) return jf_fail(j, where, f->string, "not a field of a %s material", type);
+    }
+    out->kd = to_vec3(kd);
+    out->ks = to_vec3(ks);
+    out->kt = to_vec3(kt);
+    out->exponent = (float)exponent;
+    out->ior = (float)ior;
+    float sd = vec3_luminance(out->kd), ss = vec3_luminance(out->ks);
+    out->p_specular = (out->kind == MATERIAL_GLOSSY && sd + ss > 0) ? ss / (sd + ss) : 0;
+    return 0;
+}
+
+static int load_materials(loader *L, const cJSON *root) {
+    const cJSON *ms = cJSON_GetObjectItemCaseSensitive(root, "materials");
+    scene *s = L->s;
+    int n = ms ? cJSON_GetArraySize(ms) : 0;
+    if (ms && !cJSON_IsObject(ms)) return jf_fail(&L->j, "materials", NULL, "expected an object of named materials");
+    /* Slot 0 is the implicit "reflects nothing" material of bare emitters. */
+    s->materials = calloc((size_t)n + 1, sizeof(material));
+    L->material_names = calloc((size_t)n + 1, sizeof(char *));
+    if (!s->materials || !L->material_names) return jf_fail(&L->j, "materials", NULL, "out of memory");
+    s->materials[0].kind = MATERIAL_NONE;
+    L->material_names[0] = "";
+    s->material_count = 1;
+    for (const cJSON *m = ms ? ms->child : NULL; m; m = m->next) {
+        char where[320];
+        snprintf(where, sizeof where, "materials.%s", m->string);
+        for (uint32_t i = 1; i < s->material_count; i++)
+            if (strcmp(L->material_names[i], m->string) == 0)
+                return jf_fail(&L->j, where, NULL, "material defined twice");
+        if (load_material(L, m, where, &s->materials[s->material_count])) return -1;
+        L->material_names[s->material_count++] = m->string;
+    }
+    return 0;
+}
+
+/* ---- shapes ------------------------------------------------------------- */
+
+/* Resolve a shape's "material" name; absent is allowed only for emitters,
+ * which then reflect nothing. */
+static int shape_material(loader *L, const cJSON *sh, const char *where, int emits, uint32_t *out) {
+    const char *name;
+    if (jf_string(&L->j, sh, where, "material", 0, &name)) return -1;
+    if (!name) {
+        if (!emits) return jf_fail(&L->j, where, "material", "missing (a shape that emits nothing needs a material)");
+        *out = 0;
+        return 0;
+    }
+    for (uint32_t i = 1; i < L->s->material_count; i++)
+        if (strcmp(L->material_names[i], name) == 0) {
+            *out = i;
+            return 0;
+        }
+    return jf_fail(&L->j, where, "material", "unknown material \"%s\"", name);
+}
+
+/* Parse "emission" and "two_sided"; *emitter becomes an index or -1. */
+static int shape_emission(loader *L, const cJSON *sh, const char *where, int *emitter) {
+    static const double zero[3] = {0, 0, 0};
+    double e[3];
+    int two_sided;
+    if (jf_vec3(&L->j, sh, where, "emission", 0, zero, 0, BIG, e) ||
+        jf_bool(&L->j, sh, where, "two_sided", 0, &two_sided))
+        return -1;
+    *emitter = -1;
+    if (e[0] == 0 && e[1] == 0 && e[2] == 0) {
+        if (cJSON_GetObjectItemCaseSensitive(sh, "two_sided"))
+            return jf_fail(&L->j, where, "two_sided", "only meaningful with a non-zero emission");
+        return 0;
+    }
+    emitter_d *em = push((void **)&L->emitters, &L->emitter_count, &L->emitter_cap, sizeof *em);
+    if (!em) return jf_fail(&L->j, where, NULL, "out of memory");
+    em->radiance = to_vec3(e);
+    em->two_sided = two_sided;
+    *emitter = (int)(L->emitter_count - 1);
+    return 0;
+}
+
+/* Append a triangle. `strict`: a degenerate triangle is an error naming the
+ * shape; otherwise (meshes) it is skipped and counted. */
+static int add_triangle(loader *L, const double *a, const double *b, const double *c, uint32_t mat,
+                        int emitter, int strict, const char *where) {
+    double e1[3], e2[3], n[3];
+    dsub(b, a, e1);
+    dsub(c, a, e2);
+    dcross(e1, e2, n);
+    if (!(dlen(n) > 1e-12 * dlen(e1) * dlen(e2))) {
+        if (strict) return jf_fail(&L->j, where, "vertices", "degenerate triangle (zero area)");
+        L->s->degenerate_triangles++;
+        return 0;
+    }
+    tri_d *t = push((void **)&L->tris, &L->tri_count, &L->tri_cap, sizeof *t);
+    if (!t) return jf_fail(&L->j, where, NULL, "out of memory");
+    memcpy(t->p[0], a, sizeof t->p[0]);
+    memcpy(t->p[1], b, sizeof t->p[1]);
+    memcpy(t->p[2], c, sizeof t->p[2]);
+    t->material = mat;
+    t->emitter = emitter;
+    return 0;
+}
+
+/* Read "vertices": an array of exactly n points. */
+static int read_vertices(loader *L, const cJSON *sh, const char *where, int n, double v[][3]) {
+    const cJSON *vs = cJSON_GetObjectItemCaseSensitive(sh, "vertices");
+    if (!cJSON_IsArray(vs) || cJSON_GetArraySize(vs) != n)
+        return jf_fail(&L->j, where, "vertices", "expected an array of %d points [x, y, z]", n);
+    int i = 0;
+    for (const cJSON *p = vs->child; p; p = p->next, i++) {
+        char w[320];
+        snprintf(w, sizeof w, "%s.vertices[%d]", where, i);
+        if (!cJSON_IsArray(p) || cJSON_GetArraySize(p) != 3)
+            return jf_fail(&L->j, w, NULL, "expected a point [x, y, z]");
+        int k = 0;
+        for (const cJSON *c = p->child; c; c = c->next, k++) {
+            if (!cJSON_IsNumber(c) || !isfinite(c->valuedouble) || fabs(c->valuedouble) > BIG)
+                return jf_fail(&L->j, w, NULL, "coordinate %d is not a finite number", k);
+            v[i][k] = c->valuedouble;
+        }
+    }
+    return 0;
+}
+
+static int load_quad(loader *L, const cJSON *sh, const char *where, uint32_t mat, int em) {
+    double v[4][3], e1[3], e2[3], n[3], d[3];
+    if (read_vertices(L, sh, where, 4, v)) return -1;
+    dsub(v[1], v[0], e1);
+    dsub(v[2], v[0], e2);
+    dcross(e1, e2, n);
+    double nl = dlen(n), longest = 0;
+    for (int i = 0; i < 4; i++) {
+        dsub(v[(i + 1) % 4], v[i], d);
+        longest = fmax(longest, dlen(d));
+    }
+    if (!(nl > 1e-12 * longest * longest)) return jf_fail(&L->j, where, "vertices", "degenerate quad (zero area)");
+    dsub(v[3], v[0], d);
+    if (fabs(ddot(d, n)) / nl > 0.01 * longest)
+        return jf_fail(&L->j, where, "vertices", "quad is not planar (4th vertex %.3g from the plane "
+                       "of the first three)", fabs(ddot(d, n)) / nl);
+    for (int i = 0; i < 4; i++) { /* convex: every corner turns the same way */
+        double a[3], b[3], c[3];
+        dsub(v[(i + 1) % 4], v[i], a);
+        dsub(v[(i + 2) % 4], v[(i + 1) % 4], b);
+        dcross(a, b, c);
+        if (ddot(c, n) <= 0) return jf_fail(&L->j, where, "vertices", "quad is not convex, or its corners are not in order");
+    }
+    return add_triangle(L, v[0], v[1], v[2], mat, em, 1, where) ||
+           add_triangle(L, v[0], v[2], v[3], mat, em, 1, where);
+}
+
+static int load_sphere(loader *L, const cJSON *sh, const char *where, uint32_t mat, int em) {
+    double c[3], r;
+    if (jf_vec3(&L->j, sh, where, "center", 1, NULL, -BIG, BIG, c) ||
+        jf_number(&L->j, sh, where, "radius", 1, 0, 0, BIG, &r))
+        return -1;
+    if (!(r > 0)) return jf_fail(&L->j, where, "radius", "must be greater than 0");
+    sphere_d *sp = push((void **)&L->spheres, &L->sphere_count, &L->sphere_cap, sizeof *sp);
+    if (!sp) return jf_fail(&L->j, where, NULL, "out of memory");
+    memcpy(sp->c, c, sizeof c);
+    sp->r = r;
+    sp->material = mat;
+    sp->emitter = em;
+    return 0;
+}
+
+static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat, int em) {
+    static const double zero[3] = {0, 0, 0};
+    const char *file;
+    double scale, translate[3];
+    if (jf_string(&L->j, sh, where, "file", 1, &file) ||
+        jf_number(&L->j, sh, where, "scale", 0, 1, 0, BIG, &scale) ||
+        jf_vec3(&L->j, sh, where, "translate", 0, zero, -BIG, BIG, translate))
+        return -1;
+    if (!(scale > 0)) return jf_fail(&L->j, where, "scale", "must be greater than 0");
+    char path[8192], oerr[512];
+    if (file[0] == '/')
+        snprintf(path, sizeof path, "%s", file);
+    else
+        snprintf(path, sizeof path, "%s/%s", L->dir, file);
+    obj_mesh m;
+    if (obj_load(path, &m, oerr, sizeof oerr)) return jf_fail(&L->j, where, "file", "%s", oerr);
+    int rc = 0;
+    for (size_t t = 0; t < m.triangle_count && !rc; t++) {
+        double p[3][3];
+        for (int k = 0; k < 3; k++)
+            for (int a = 0; a < 3; a++) p[k][a] = m.positions[3 * m.indices[3 * t + k] + a] * scale + translate[a];
+        rc = add_triangle(L, p[0], p[1], p[2], mat, em, 0, where);
+    }
+    obj_mesh_free(&m);
+    return rc;
+}
+
+static int load_shape(loader *L, const cJSON *sh, const char *where) {
+    static const char *const keys[] = {"type", "name", "material", "emission", "two_sided", "vertices",
+                                       "center", "radius", "file", "scale", "translate", NULL};
+    const char *type, *name;
+    int em = -1;
+    uint32_t mat = 0;
+    if (jf_check_object(&L->j, sh, where, keys) || jf_string(&L->j, sh, where, "type", 1, &type) ||
+        jf_string(&L->j, sh, where, "name", 0, &name) || shape_emission(L, sh, where, &em) ||
+        shape_material(L, sh, where, em >= 0, &mat))
+        return -1;
+    if (strcmp(type, "triangle") == 0) {
+        double v[3][3];
+        return read_vertices(L, sh, where, 3, v) || add_triangle(L, v[0], v[1], v[2], mat, em, 1, where);
+    }
+    if (strcmp(type, "quad") == 0) return load_quad(L, sh, where, mat, em);
+    if (strcmp(type, "sphere") == 0) return load_sphere(L, sh, where, mat, em);
+    if (strcmp(type, "mesh") == 0) return load_mesh(L, sh, where, mat, em);
+    return jf_fail(&L->j, where, "type", "unknown shape type \"%s\" (expected triangle, quad, sphere or mesh)", type);
+}
+
+static int load_shapes(loader *L, const cJSON *root) {
+    const cJSON *shapes = cJSON_GetObjectItemCaseSensitive(root, "shapes");
+    if (!shapes) return 0;
+    if (!cJSON_IsArray(shapes)) return jf_fail(&L->j, "shapes", NULL, "expected an array of shapes");
+    int i = 0;
+    for (const cJSON *sh = shapes->child; sh; sh = sh->next, i++) {
+        char where[64];
+        snprintf(where, sizeof where, "shapes[%d]", i);
+        if (load_shape(L, sh, where)) return -1;
+    }
+    return 0;
+}
+
+static int load_lights(loader *L, const cJSON *root) {
+    static const char *const keys[] = {"type", "position", "intensity", NULL};
+    const cJSON *lights = cJSON_GetObjectItemCaseSensitive(root, "lights");
+    if (!lights) return 0;
+    if (!cJSON_IsArray(lights)) return jf_fail(&L->j, "lights", NULL, "expected an array of lights");
+    int n = cJSON_GetArraySize(lights), i = 0;
+    L->points = calloc((size_t)n + 1, sizeof(point_d));
+    if (!L->points) return jf_fail(&L->j, "lights", NULL, "out of memory");
+    for (const cJSON *l = lights->child; l; l = l->next, i++) {
+        char where[64];
+        const char *type;
+        double I[3];
+        snprintf(where, sizeof where, "lights[%d]", i);
+        point_d *p = &L->points[L->point_count];
+        if (jf_check_object(&L->j, l, where, keys) || jf_string(&L->j, l, where, "type", 1, &type)) return -1;
+        if (strcmp(type, "point") != 0)
+            return jf_fail(&L->j, where, "type", "unknown light type \"%s\" (expected point; area lights "
+                           "are shapes with an emission)", type);
+        if (jf_vec3(&L->j, l, where, "position", 1, NULL, -BIG, BIG, p->position) ||
+            jf_vec3(&L->j, l, where, "intensity", 1, NULL, 0, BIG, I))
+            return -1;
+        p->intensity = to_vec3(I);
+        L->point_count++;
+    }
+    return 0;
+}
+
+/* ---- camera and units --------------------------------------------------- */
+
+/* Pick the internal frame: centre of the geometry's bounds, and a power of
+ * two (exact to divide by) at least half the largest extent. */
+static void choose_units(loader *L) {
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t t = 0; t < L->tri_count; t++)
+        for (int k = 0; k < 3; k++)
+            for (int a = 0; a < 3; a++) {
+                lo[a] = fmin(lo[a], L->tris[t].p[k][a]);
+                hi[a] = fmax(hi[a], L->tris[t].p[k][a]);
+            }
+    for (size_t i = 0; i < L->sphere_count; i++)
+        for (int a = 0; a < 3; a++) {
+            lo[a] = fmin(lo[a], L->spheres[i].c[a] - L->spheres[i].r);
+            hi[a] = fmax(hi[a], L->spheres[i].c[a] + L->spheres[i].r);
+        }
+    scene *s = L->s;
+    double half = 0;
+    for (int a = 0; a < 3; a++) {
+        s->world_center[a] = L->tri_count + L->sphere_count ? 0.5 * (lo[a] + hi[a]) : 0;
+        if (L->tri_count + L->sphere_count) half = fmax(half, 0.5 * (hi[a] - lo[a]));
+    }
+    int e = 1;
+    if (half > 0) frexp(half, &e);
+    s->world_scale = ldexp(1.0, e);
+}
+
+static vec3 to_internal(const scene *s, const double w[3]) {
+    double p[3];
+    for (int a = 0; a < 3; a++) p[a] = (w[a] - s->world_center[a]) / s->world_scale;
+    return to_vec3(p);
+}
+
+static int load_camera(loader *L, const cJSON *root) {
+    static const char *const keys[] = {"type", "position", "look_at", "up", "fov", NULL};
+    static const double yup[3] = {0, 1, 0};
+    const cJSON *c = cJSON_GetObjectItemCaseSensitive(root, "camera");
+    json_ctx *j = &L->j;
+    const char *type;
+    double pos[3], at[3], up[3], fov, f[3], r[3], u[3];
+    if (!c) return jf_fail(j, "camera", NULL, "missing");
+    if (jf_check_object(j, c, "camera", keys) || jf_string(j, c, "camera", "type", 1, &type) ||
+        jf_vec3(j, c, "camera", "position", 1, NULL, -BIG, BIG, pos))
+        return -1;
+    camera *cam = &L->s->cam;
+    cam->position = to_internal(L->s, pos);
+    if (strcmp(type, "environment") == 0) {
+        for (const char *const *k = keys + 2; *k; k++)
+            if (cJSON_GetObjectItemCaseSensitive(c, *k))
+                return jf_fail(j, "camera", *k, "not a field of an environment camera");
+        cam->kind = CAMERA_ENVIRONMENT;
+        cam->forward = vec3_make(0, 0, 1);
+        cam->right = vec3_make(1, 0, 0);
+        cam->up = vec3_make(0, 1, 0);
+        return 0;
+    }
+    if (strcmp(type, "perspective") != 0)
+        return jf_fail(j, "camera", "type", "unknown camera type \"%s\" (expected perspective or environment)", type);
+    if (jf_vec3(j, c, "camera", "look_at", 1, NULL, -BIG, BIG, at) ||
+        jf_vec3(j, c, "camera", "up", 0, yup, -BIG, BIG, up) ||
+        jf_number(j, c, "camera", "fov", 1, 0, 0, 180, &fov))
+        return -1;
+    if (!(fov > 0.001 && fov < 179.9)) return jf_fail(j, "camera", "fov", "expected degrees between 0.001 and 179.9, got %g", fov);
+    dsub(at, pos, f);
+    if (!(dlen(f) > 0)) return jf_fail(j, "camera", "look_at", "equals the position: no view direction");
+    if (!(dlen(up) > 0)) return jf_fail(j, "camera", "up", "zero vector cannot be normalised");
+    double fl = dlen(f), ul = dlen(up);
+    for (int a = 0; a < 3; a++) {
+        f[a] /= fl;
+        up[a] /= ul;
+    }
+    dcross(f, up, r);
+    double rl = dlen(r);
+    if (!(rl > 1e-6)) return jf_fail(j, "camera", "up", "parallel to the view direction");
+    for (int a = 0; a < 3; a++) r[a] /= rl;
+    dcross(r, f, u);
+    cam->kind = CAMERA_PERSPECTIVE;
+    cam->forward = to_vec3(f);
+    cam->right = to_vec3(r);
+    cam->up = to_vec3(u);
+    cam->tan_half_fov = (float)tan(fov * M_PI / 360.0);
+    return 0;
+}
+
+/* ---- assembling the scene ----------------------------------------------- */
+
+static void set_prim_light(scene *s, light *l) {
+    prim_info *info = l->kind == LIGHT_TRIANGLE ? &s->triangle_info[l->prim] : &s->sphere_info[l->prim];
+    info->light = (int32_t)(l - s->lights);
+}
+
+/* Power of a light, the weight for picking it (its colour's mean). */
+static double light_power(const light *l) {
+    if (l->kind == LIGHT_POINT) return 4.0 * M_PI * (l->intensity.x + l->intensity.y + l->intensity.z) / 3.0;
+    double sides = l->two_sided ? 2.0 : 1.0;
+    return sides * M_PI * l->area * (l->radiance.x + l->radiance.y + l->radiance.z) / 3.0;
+}
+
+static int build_lights(loader *L) {
+    scene *s = L->s;
+    size_t n = L->point_count;
+    for (size_t t = 0; t < L->tri_count; t++) n += L->tris[t].emitter >= 0;
+    for (size_t i = 0; i < L->sphere_count; i++) n += L->spheres[i].emitter >= 0;
+    s->lights = calloc(n + 1, sizeof(light));
+    s->light_cdf = calloc(n + 2, sizeof(float));
+    if (!s->lights || !s->light_cdf) return jf_fail(&L->j, "lights", NULL, "out of memory");
+    for (uint32_t t = 0; t < s->triangle_count; t++) {
+        if (L->tris[t].emitter < 0) continue;
+        const triangle *tr = &s->triangles[t];
+        light *l = &s->lights[s->light_count++];
+        l->kind = LIGHT_TRIANGLE;
+        l->prim = t;
+        l->radiance = L->emitters[L->tris[t].emitter].radiance;
+        l->two_sided = L->emitters[L->tris[t].emitter].two_sided;
+        l->area = 0.5f * vec3_length(vec3_cross(vec3_sub(tr->v1, tr->v0), vec3_sub(tr->v2, tr->v0)));
+        set_prim_light(s, l);
+    }
+    for (uint32_t i = 0; i < s->sphere_count; i++) {
+        if (L->spheres[i].emitter < 0) continue;
+        light *l = &s->lights[s->light_count++];
+        l->kind = LIGHT_SPHERE;
+        l->prim = i;
+        l->radiance = L->emitters[L->spheres[i].emitter].radiance;
+        l->two_sided = L->emitters[L->spheres[i].emitter].two_sided;
+        l->area = 4.0f * TS_PI * s->spheres[i].radius * s->spheres[i].radius;
+        set_prim_light(s, l);
+    }
+    double inv_s2 = 1.0 / (s->world_scale * s->world_scale);
+    for (size_t i = 0; i < L->point_count; i++) {
+        light *l = &s->lights[s->light_count++];
+        l->kind = LIGHT_POINT;
+        l->position = to_internal(s, L->points[i].position);
+        l->intensity = vec3_scale(L->points[i].intensity, (float)inv_s2);
+    }
+    double total = 0, run = 0;
+    for (uint32_t i = 0; i < s->light_count; i++) total += light_power(&s->lights[i]);
+    for (uint32_t i = 0; i < s->light_count; i++) {
+        double p = total > 0 ? light_power(&s->lights[i]) / total : 1.0 / s->light_count;
+        s->lights[i].select_pdf = (float)p;
+        s->light_cdf[i] = (float)run;
+        run += p;
+    }
+    s->light_cdf[s->light_count] = 1.0f;
+    return 0;
+}
+
+static int assemble(loader *L) {
+    scene *s = L->s;
+    s->triangle_count = (uint32_t)L->tri_count;
+    s->sphere_count = (uint32_t)L->sphere_count;
+    s->triangles = calloc(L->tri_count + 1, sizeof(triangle));
+    s->triangle_info = calloc(L->tri_count + 1, sizeof(prim_info));
+    s->spheres = calloc(L->sphere_count + 1, sizeof(sphere));
+    s->sphere_info = calloc(L->sphere_count + 1, sizeof(prim_info));
+    if (!s->triangles || !s->triangle_info || !s->spheres || !s->sphere_info)
+        return jf_fail(&L->j, "shapes", NULL, "out of memory");
+    for (size_t t = 0; t < L->tri_count; t++) {
+        s->triangles[t].v0 = to_internal(s, L->tris[t].p[0]);
+        s->triangles[t].v1 = to_internal(s, L->tris[t].p[1]);
+        s->triangles[t].v2 = to_internal(s, L->tris[t].p[2]);
+        s->triangle_info[t].material = L->tris[t].material;
+        s->triangle_info[t].light = -1;
+    }
+    for (size_t i = 0; i < L->sphere_count; i++) {
+        s->spheres[i].center = to_internal(s, L->spheres[i].c);
+        s->spheres[i].radius = (float)(L->spheres[i].r / s->world_scale);
+        if (!(s->spheres[i].radius > 0))
+            return jf_fail(&L->j, "shapes", NULL, "a sphere is too small next to the rest of the scene");
+        s->sphere_info[i].material = L->spheres[i].material;
+        s->sphere_info[i].light = -1;
+    }
+    return build_lights(L);
+}
+
+static int load_root(loader *L, const cJSON *root, const scene_overrides *ov) {
+    static const char *const keys[] = {"render", "camera", "background", "materials", "shapes", "lights", NULL};
+    static const double black[3] = {0, 0, 0};
+    double bg[3];
+    if (jf_check_object(&L->j, root, "", keys) || load_render(L, root, ov) || load_materials(L, root) ||
+        load_shapes(L, root) || load_lights(L, root) ||
+        jf_vec3(&L->j, root, "", "background", 0, black, 0, BIG, bg))
+        return -1;
+    L->s->background = to_vec3(bg);
+    choose_units(L);
+    if (load_camera(L, root) || assemble(L)) return -1;
+    L->s->bvh = bvh_build(L->s);
+    if (!L->s->bvh) return jf_fail(&L->j, "shapes", NULL, "out of memory building the BVH");
+    return 0;
+}
+
+scene *scene_load(const char *path, const scene_overrides *ov, char *err, size_t err_len) {
+    size_t len;
+    char *text = file_read_all(path, SCENE_MAX_FILE, &len, err, err_len);
+    if (!text) return NULL;
+    loader L;
+    memset(&L, 0, sizeof L);
+    L.j.file = path;
+    L.j.err = err;
+    L.j.err_len = err_len;
+    const char *slash = strrchr(path, '/');
+    if (slash)
+        snprintf(L.dir, sizeof L.dir, "%.*s", (int)(slash - path), path);
+    else
+        snprintf(L.dir, sizeof L.dir, ".");
+    L.s = calloc(1, sizeof(scene));
+    cJSON *root = L.s ? jf_parse(&L.j, text, len) : NULL;
+    int rc = root ? load_root(&L, root, ov) : -1;
+    if (!L.s) snprintf(err, err_len, "%s: out of memory", path);
+    if (rc == 0) L.s->path = strdup(path);
+    cJSON_Delete(root);
+    free(text);
+    free(L.material_names);
+    free(L.tris);
+    free(L.spheres);
+    free(L.emitters);
+    free(L.points);
+    if (rc != 0 || !L.s->path) {
+        scene_free(L.s);
+        return NULL;
+    }
+    return L.s;
+}
+
+void scene_free(scene *s) {
+    if (!s) return;
+    bvh_free(s->bvh);
+    free(s->path);
+    free(s->materials);
+    free(s->triangles);
+    free(s->triangle_info);
+    free(s->spheres);
+    free(s->sphere_info);
+    free(s->lights);
+    free(s->light_cdf);
+    free(s);
+}

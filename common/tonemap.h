@@ -1,0 +1,30 @@
+/* tonemap.h - from linear radiance to display values in [0, 1].
+ *
+ * Operators work on luminance L = 0.2126 R + 0.7152 G + 0.0722 B and rescale
+ * the colour by L_out / L, so hue is kept; where L <= 0 (black, or negative
+ * input) the pixel maps to black instead of dividing by zero. NaN and Inf
+ * pixels map to black and are counted. */
+#ifndef TESSERA_TONEMAP_H
+#define TESSERA_TONEMAP_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+typedef enum { TONEMAP_REINHARD, TONEMAP_CLAMP } tonemap_kind;
+
+typedef struct {
+    tonemap_kind kind;
+    float exposure_stops; /* input is multiplied by 2^exposure_stops first */
+} tonemap_options;
+
+/* Reinhard 2002, simple form: L_out = L / (1 + L). */
+float tonemap_reinhard(float L);
+
+/* The sRGB transfer function (IEC 61966-2-1) for a linear value in [0, 1]. */
+float tonemap_srgb_encode(float linear);
+
+/* Tone map and sRGB-encode count pixels of rgb (3 floats each) to 8 bits.
+ * Returns the number of pixels that were NaN or Inf (written black). */
+size_t tonemap_to_8bit(const float *rgb, size_t count, const tonemap_options *opt, uint8_t *out);
+
+#endif

@@ -1,0 +1,272 @@
+/* tessera.c - the `tessera` command: `tessera render SCENE -o OUT [...]`.
+ *
+ * Parses the command line, loads the scene, renders it (today in this
+ * process with a thread pool: --workers 0), saves the image and prints one
+ * summary line. Exit status 0 on success, 1 on a runtime failure, 2 on a
+ * usage error. */
+#define _GNU_SOURCE
+#include <errno.h>
+#include <getopt.h>
+#include <limits.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "../common/bvh.h"
+#include "../common/image.h"
+#include "../common/render.h"
+#include "../common/scene.h"
+#include "../common/version.h"
+
+typedef struct {
+    const char *scene_path;
+    const char *out_path;
+    scene_overrides ov;
+    int threads, workers, tile_size, verbose, progress;
+    render_options ro;
+    tonemap_options tm;
+} render_args;
+
+static void usage_render(FILE *f) {
+    fprintf(f,
+            "usage: tessera render SCENE.json [-o OUT] [options]\n"
+            "\n"
+            "Render a scene and save the image; the format follows OUT's extension:\n"
+            "  .pfm  linear float RGB (HDR)\n"
+            "  .ppm  8-bit sRGB, tone mapped\n"
+            "\n"
+            "options:\n"
+            "  -o, --output PATH      image to write (default: SCENE's name with .ppm, in .)\n"
+            "      --spp N            samples per pixel (overrides render.spp)\n"
+            "      --width W          image width in pixels (overrides render.width)\n"
+            "      --height H         image height in pixels (overrides render.height)\n"
+            "      --max-depth N      maximum bounces (overrides render.max_depth)\n"
+            "      --seed N           random seed (overrides render.seed)\n"
+            "      --threads N        render threads (default: all cores)\n"
+            "      --workers N        worker processes; 0 renders in this process (the only\n"
+            "                         mode of this build)\n"
+            "      --tile-size N      tile side in pixels (default 32)\n"
+            "      --passes N         render each tile's samples in N sequential passes\n"
+            "                         (the image is bit-identical for every N)\n"
+            "      --tonemap NAME     8-bit outputs: reinhard (default) or clamp\n"
+            "      --exposure STOPS   scale radiance by 2^STOPS before tone mapping\n"
+            "      --no-nee           no light sampling (for comparisons)\n"
+            "      --no-mis           light sampling without MIS (for comparisons)\n"
+            "      --no-progress      no progress bar even on a terminal\n"
+            "  -v, --verbose          print scene and BVH statistics\n"
+            "  -h, --help             this text\n");
+}
+
+/* Parse an integer option within [lo, hi]; exits with status 2 otherwise. */
+static long parse_int(const char *opt, const char *s, long lo, long hi) {
+    char *end;
+    errno = 0;
+    long v = strtol(s, &end, 10);
+    if (errno || end == s || *end || v < lo || v > hi) {
+        fprintf(stderr, "tessera: %s: expected an integer from %ld to %ld, got \"%s\"\n", opt, lo, hi, s);
+        exit(2);
+    }
+    return v;
+}
+
+static double parse_double(const char *opt, const char *s, double lo, double hi) {
+    char *end;
+    double v = strtod(s, &end);
+    if (end == s || *end || !(v >= lo && v <= hi)) {
+        fprintf(stderr, "tessera: %s: expected a number from %g to %g, got \"%s\"\n", opt, lo, hi, s);
+        exit(2);
+    }
+    return v;
+}
+
+enum { OPT_SPP = 256, OPT_WIDTH, OPT_HEIGHT, OPT_DEPTH, OPT_SEED, OPT_THREADS, OPT_WORKERS, OPT_TILE,
+       OPT_PASSES, OPT_TONEMAP, OPT_EXPOSURE, OPT_NO_NEE, OPT_NO_MIS, OPT_NO_PROGRESS };
+
+static void parse_render_args(int argc, char **argv, render_args *a) {
+    static const struct option opts[] = {
+        {"output", required_argument, 0, 'o'}, {"spp", required_argument, 0, OPT_SPP},
+        {"width", required_argument, 0, OPT_WIDTH}, {"height", required_argument, 0, OPT_HEIGHT},
+        {"max-depth", required_argument, 0, OPT_DEPTH}, {"seed", required_argument, 0, OPT_SEED},
+        {"threads", required_argument, 0, OPT_THREADS}, {"workers", required_argument, 0, OPT_WORKERS},
+        {"tile-size", required_argument, 0, OPT_TILE}, {"passes", required_argument, 0, OPT_PASSES},
+        {"tonemap", required_argument, 0, OPT_TONEMAP}, {"exposure", required_argument, 0, OPT_EXPOSURE},
+        {"no-nee", no_argument, 0, OPT_NO_NEE}, {"no-mis", no_argument, 0, OPT_NO_MIS},
+        {"no-progress", no_argument, 0, OPT_NO_PROGRESS}, {"verbose", no_argument, 0, 'v'},
+        {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
+    memset(a, 0, sizeof *a);
+    a->ov.width = a->ov.height = a->ov.spp = a->ov.max_depth = -1;
+    a->threads = (int)sysconf(_SC_NPROCESSORS_ONLN);
+    a->tile_size = 32;
+    a->ro.passes = 1;
+    a->progress = 1;
+    a->tm.kind = TONEMAP_REINHARD;
+    int c;
+    optind = 1;
+    while ((c = getopt_long(argc, argv, "o:vh", opts, NULL)) != -1) {
+        switch (c) {
+        case 'o': a->out_path = optarg; break;
+        case OPT_SPP: a->ov.spp = (int)parse_int("--spp", optarg, 1, 1 << 24); break;
+        case OPT_WIDTH: a->ov.width = (int)parse_int("--width", optarg, 1, 32768); break;
+        case OPT_HEIGHT: a->ov.height = (int)parse_int("--height", optarg, 1, 32768); break;
+        case OPT_DEPTH: a->ov.max_depth = (int)parse_int("--max-depth", optarg, 1, 1024); break;
+        case OPT_SEED:
+            a->ov.seed = (uint64_t)parse_int("--seed", optarg, 0, LONG_MAX);
+            a->ov.has_seed = 1;
+            break;
+        case OPT_THREADS: a->threads = (int)parse_int("--threads", optarg, 1, 1024); break;
+        case OPT_WORKERS: a->workers = (int)parse_int("--workers", optarg, 0, 4096); break;
+        case OPT_TILE: a->tile_size = (int)parse_int("--tile-size", optarg, 1, 4096); break;
+        case OPT_PASSES: a->ro.passes = (int)parse_int("--passes", optarg, 1, 1 << 24); break;
+        case OPT_TONEMAP:
+            if (strcmp(optarg, "reinhard") == 0) a->tm.kind = TONEMAP_REINHARD;
+            else if (strcmp(optarg, "clamp") == 0) a->tm.kind = TONEMAP_CLAMP;
+            else {
+                fprintf(stderr, "tessera: --tonemap: unknown operator \"%s\" (known: reinhard, clamp)\n", optarg);
+                exit(2);
+            }
+            break;
+        case OPT_EXPOSURE: a->tm.exposure_stops = (float)parse_double("--exposure", optarg, -64, 64); break;
+        case OPT_NO_NEE: a->ro.integrator.no_nee = 1; break;
+        case OPT_NO_MIS: a->ro.integrator.no_mis = 1; break;
+        case OPT_NO_PROGRESS: a->progress = 0; break;
+        case 'v': a->verbose = 1; break;
+        case 'h': usage_render(stdout); exit(0);
+        default: usage_render(stderr); exit(2);
+        }
+    }
+    if (optind != argc - 1) {
+        fprintf(stderr, "tessera render: expected exactly one scene file\n");
+        usage_render(stderr);
+        exit(2);
+    }
+    a->scene_path = argv[optind];
+    if (a->workers > 0) {
+        fprintf(stderr, "tessera render: --workers %d: this build renders in one process only; use --workers 0\n",
+                a->workers);
+        exit(2);
+    }
+}
+
+static double now_seconds(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+typedef struct {
+    double start;
+    uint64_t total_samples;
+} progress_state;
+
+/* A one-line bar on stderr: tiles, samples/s, ETA. */
+static void show_progress(void *ctx, int done, int total, const trace_stats *so_far) {
+    progress_state *p = ctx;
+    double el = now_seconds() - p->start;
+    double rate = el > 0 ? (double)so_far->samples / el : 0;
+    double eta = rate > 0 ? (double)(p->total_samples - so_far->samples) / rate : 0;
+    int width = 30, filled = total ? done * width / total : width;
+    char bar[64];
+    for (int i = 0; i < width; i++) bar[i] = i < filled ? '#' : '.';
+    bar[width] = '\0';
+    fprintf(stderr, "\r[%s] %d/%d tiles  %.2f Msamples/s  ETA %.0fs   ", bar, done, total, rate / 1e6, eta);
+    if (done == total) fputc('\n', stderr);
+    fflush(stderr);
+}
+
+static void default_output(const char *scene_path, char *out, size_t n) {
+    const char *base = strrchr(scene_path, '/');
+    base = base ? base + 1 : scene_path;
+    const char *dot = strrchr(base, '.');
+    int len = dot ? (int)(dot - base) : (int)strlen(base);
+    snprintf(out, n, "%.*s.ppm", len, base);
+}
+
+static void print_scene_info(const scene *s) {
+    bvh_stats bs;
+    bvh_get_stats(s->bvh, &bs);
+    fprintf(stderr, "scene %s: %u triangles, %u spheres, %u lights, %u materials, %zu degenerate triangles skipped\n",
+            s->path, s->triangle_count, s->sphere_count, s->light_count, s->material_count - 1,
+            s->degenerate_triangles);
+    fprintf(stderr, "bvh: %zu nodes, %zu leaves, depth %zu, %.1f KiB, built in %.3f ms\n", bs.node_count,
+            bs.leaf_count, bs.max_depth, (double)bs.memory_bytes / 1024.0, bs.build_seconds * 1e3);
+    fprintf(stderr, "render: %dx%d, %d spp, max depth %d, seed %llu\n", s->settings.width, s->settings.height,
+            s->settings.spp, s->settings.max_depth, (unsigned long long)s->settings.seed);
+}
+
+static int cmd_render(int argc, char **argv) {
+    render_args a;
+    char err[1024], out_default[512];
+    parse_render_args(argc, argv, &a);
+    if (!a.out_path) {
+        default_output(a.scene_path, out_default, sizeof out_default);
+        a.out_path = out_default;
+    }
+    scene *s = scene_load(a.scene_path, &a.ov, err, sizeof err);
+    if (!s) {
+        fprintf(stderr, "tessera: %s\n", err);
+        return 1;
+    }
+    if (a.verbose) print_scene_info(s);
+    image img;
+    if (image_alloc(&img, s->settings.width, s->settings.height)) {
+        fprintf(stderr, "tessera: out of memory for a %dx%d image\n", s->settings.width, s->settings.height);
+        scene_free(s);
+        return 1;
+    }
+    progress_state ps = {now_seconds(), (uint64_t)s->settings.width * (uint64_t)s->settings.height * (uint64_t)s->settings.spp};
+    a.ro.threads = a.threads;
+    a.ro.tile_size = a.tile_size;
+    if (a.progress && isatty(STDERR_FILENO)) {
+        a.ro.progress = show_progress;
+        a.ro.progress_ctx = &ps;
+    }
+    trace_stats st;
+    double t0 = now_seconds();
+    int rc = render_frame(s, &a.ro, img.rgb, &st);
+    double secs = now_seconds() - t0;
+    if (rc) {
+        fprintf(stderr, "tessera: could not start %d render threads\n", a.threads);
+    } else {
+        image_write_options wo = {.tonemap = a.tm};
+        rc = image_write(a.out_path, &img, &wo, err, sizeof err);
+        if (rc) fprintf(stderr, "tessera: %s\n", err);
+    }
+    if (rc == 0)
+        printf("rendered %s: %.2f s, %.3f Msamples/s, %.2f Mrays/s, %llu NaN/Inf samples, image: %s\n",
+               a.scene_path, secs, (double)st.samples / secs / 1e6,
+               (double)(st.rays + st.shadow_rays) / secs / 1e6, (unsigned long long)st.bad_samples, a.out_path);
+    image_free(&img);
+    scene_free(s);
+    return rc ? 1 : 0;
+}
+
+static void usage(FILE *f) {
+    fprintf(f,
+            "usage: tessera COMMAND [options]\n"
+            "\n"
+            "commands:\n"
+            "  render SCENE.json -o OUT   render a scene to an image (see tessera render --help)\n"
+            "  version                    print the version\n");
+}
+
+int main(int argc, char **argv) {
+    if (argc < 2) {
+        usage(stderr);
+        return 2;
+    }
+    if (strcmp(argv[1], "render") == 0) return cmd_render(argc - 1, argv + 1);
+    if (strcmp(argv[1], "version") == 0) {
+        printf("tessera %s\n", TESSERA_VERSION);
+        return 0;
+    }
+    if (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0) {
+        usage(stdout);
+        return 0;
+    }
+    fprintf(stderr, "tessera: unknown command \"%s\"\n", argv[1]);
+    usage(stderr);
+    return 2;
+}
