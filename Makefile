@@ -96,7 +96,7 @@ bench: $(TESSERA) $(BENCH_BIN)
 
 reference: $(TESSERA)
 	@mkdir -p tests/data
-	$(TESSERA) render tests/scenes/cornell-small.json --spp 65536 --seed 999 --workers 0 -o tests/data/cornell-ref-64.pfm
+	$(TESSERA) render tests/scenes/cornell-small.json --spp 16384 --seed 999 --workers 0 -o tests/data/cornell-ref-64.pfm
 	gzip -9 -f tests/data/cornell-ref-64.pfm
 
 clean:

@@ -1,0 +1,179 @@
+/* test_bsdf.c - every non-delta BSDF: sampling agrees with its pdf
+ * (chi-square), reciprocity, albedo never above 1; glass: Fresnel sums. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../common/bsdf.h"
+#include "../common/rng.h"
+#include "harness.h"
+
+#define THETA_BINS 20
+#define PHI_BINS 40
+#define CHI_SAMPLES 200000
+
+typedef float (*pdf_fn)(const material *m, vec3 wo, vec3 wi);
+
+static vec3 dir_from(double cos_t, double phi) {
+    double s = sqrt(fmax(0.0, 1.0 - cos_t * cos_t));
+    return vec3_make((float)(s * cos(phi)), (float)(s * sin(phi)), (float)cos_t);
+}
+
+/* Chi-square statistic of bsdf_sample_wi against `pdf` over a (cos theta,
+ * phi) grid of the whole sphere. The returned samples are compared with the
+ * pdf normalised over the sphere; the fraction of lost samples (below the
+ * surface) is checked against 1 - integral(pdf) separately, since its
+ * expected count is too sensitive to quadrature error for a chi-square bin.
+ * Bins expecting fewer than 5 samples are pooled. Returns 1 if the
+ * hypothesis "samples follow pdf" survives at significance 1e-4
+ * (Wilson-Hilferty quantile). */
+static int chi2_agrees(const material *m, vec3 wo, pdf_fn pdf, double *stat_out) {
+    static double observed[THETA_BINS * PHI_BINS], expected[THETA_BINS * PHI_BINS];
+    memset(observed, 0, sizeof observed);
+    int nb = THETA_BINS * PHI_BINS, returned = 0;
+    for (int i = 0; i < CHI_SAMPLES; i++) {
+        rng_stream r = rng_stream_start(11, 0, (uint64_t)i);
+        float u1 = rng_next(&r), u2 = rng_next(&r), u3 = rng_next(&r);
+        bsdf_sample bs;
+        if (!bsdf_sample_wi(m, wo, u1, u2, u3, &bs)) continue;
+        returned++;
+        int ti = (int)((bs.wi.z + 1.0) * 0.5 * THETA_BINS), pi;
+        double phi = atan2(bs.wi.y, bs.wi.x);
+        if (phi < 0) phi += 2 * M_PI;
+        pi = (int)(phi / (2 * M_PI) * PHI_BINS);
+        ti = ti < 0 ? 0 : ti >= THETA_BINS ? THETA_BINS - 1 : ti;
+        pi = pi < 0 ? 0 : pi >= PHI_BINS ? PHI_BINS - 1 : pi;
+        observed[ti * PHI_BINS + pi]++;
+    }
+    /* Integrate the pdf over each bin by the midpoint rule in (cos theta,
+     * phi), where d(omega) = d(cos theta) d(phi); fine in cos theta, where
+     * the lobes are steep. */
+    double total = 0;
+    const int sc = 32, sp = 4;
+    for (int ti = 0; ti < THETA_BINS; ti++)
+        for (int pi = 0; pi < PHI_BINS; pi++) {
+            double sum = 0, dc = 2.0 / THETA_BINS / sc, dp = 2 * M_PI / PHI_BINS / sp;
+            for (int a = 0; a < sc; a++)
+                for (int b = 0; b < sp; b++) {
+                    double c = -1 + (ti * sc + a + 0.5) * dc, p = (pi * sp + b + 0.5) * dp;
+                    sum += pdf(m, wo, dir_from(c, p)) * dc * dp;
+                }
+            expected[ti * PHI_BINS + pi] = sum;
+            total += sum;
+        }
+    double lost = 1.0 - (double)returned / CHI_SAMPLES, want_lost = fmax(0.0, 1.0 - total);
+    if (fabs(lost - want_lost) > 0.005 + 5 * sqrt(want_lost * (1 - want_lost) / CHI_SAMPLES)) {
+        *stat_out = INFINITY;
+        return 0;
+    }
+    double stat = 0, pool_o = 0, pool_e = 0;
+    int dof = -1;
+    for (int i = 0; i < nb; i++) {
+        double e = total > 0 ? expected[i] / total * returned : 0;
+        if (e < 5) {
+            pool_o += observed[i];
+            pool_e += e;
+            continue;
+        }
+        stat += (observed[i] - e) * (observed[i] - e) / e;
+        dof++;
+    }
+    if (pool_e >= 5) {
+        stat += (pool_o - pool_e) * (pool_o - pool_e) / pool_e;
+        dof++;
+    } else if (pool_o > 20) {
+        stat += 1e9; /* many samples where the pdf says almost none */
+    }
+    double z = 3.719, k = dof > 0 ? dof : 1; /* z of the 1e-4 upper tail */
+    double crit = k * pow(1 - 2 / (9 * k) + z * sqrt(2 / (9 * k)), 3);
+    *stat_out = stat;
+    return stat < crit;
+}
+
+static material diffuse(void) {
+    material m = {.kind = MATERIAL_DIFFUSE, .kd = {0.8f, 0.5f, 0.2f}};
+    return m;
+}
+static material glossy(float kd, float ks, float n) {
+    material m = {.kind = MATERIAL_GLOSSY, .kd = vec3_splat(kd), .ks = vec3_splat(ks), .exponent = n};
+    m.p_specular = ks / (kd + ks);
+    return m;
+}
+
+static const vec3 wos[] = {{0, 0, 1}, {0.5f, 0.1f, 0.860233f}, {0.9f, 0.0f, 0.43589f}, {0.99f, 0.05f, 0.131909f}};
+
+TEST(bsdf_chi2_diffuse_and_glossy) {
+    material ms[] = {diffuse(), glossy(0.4f, 0.5f, 5), glossy(0.1f, 0.8f, 40), glossy(0.7f, 0.2f, 200)};
+    for (size_t i = 0; i < sizeof ms / sizeof ms[0]; i++)
+        for (size_t w = 0; w < sizeof wos / sizeof wos[0]; w++) {
+            double stat;
+            vec3 wo = vec3_normalize(wos[w]);
+            CHECK(chi2_agrees(&ms[i], wo, bsdf_pdf, &stat), "material %zu, wo %zu: chi2 %.1f too large", i, w, stat);
+        }
+}
+
+/* A wrong pdf must be caught: cosine-distributed samples against a uniform
+ * hemisphere density. Proves the test above can fail. */
+static float wrong_pdf(const material *m, vec3 wo, vec3 wi) {
+    (void)m;
+    (void)wo;
+    return wi.z > 0 ? (float)(0.5 / M_PI) : 0.0f;
+}
+TEST(bsdf_chi2_detects_wrong_pdf) {
+    material m = diffuse();
+    double stat;
+    CHECK(!chi2_agrees(&m, vec3_make(0, 0, 1), wrong_pdf, &stat), "a wrong pdf passed (chi2 %.1f)", stat);
+}
+
+TEST(bsdf_reciprocity) {
+    material ms[] = {diffuse(), glossy(0.3f, 0.6f, 12)};
+    for (size_t i = 0; i < 2; i++)
+        for (int k = 0; k < 1000; k++) {
+            rng_stream r = rng_stream_start(3, i, (uint64_t)k);
+            vec3 a = dir_from(rng_next(&r), 2 * M_PI * rng_next(&r));
+            vec3 b = dir_from(rng_next(&r), 2 * M_PI * rng_next(&r));
+            vec3 fab = bsdf_eval(&ms[i], a, b), fba = bsdf_eval(&ms[i], b, a);
+            CHECK(fabsf(fab.x - fba.x) <= 1e-5f * fmaxf(1.0f, fab.x) && fabsf(fab.y - fba.y) <= 1e-5f * fmaxf(1.0f, fab.y),
+                  "material %zu: f(a,b)=%g f(b,a)=%g", i, fab.x, fba.x);
+        }
+}
+
+/* Albedo = E[f cos / pdf] over the sampled directions, for many wo including
+ * grazing ones: never above 1 (within the estimate's noise). */
+TEST(bsdf_albedo_at_most_one) {
+    material ms[] = {diffuse(), glossy(0.0f, 1.0f, 1), glossy(0.0f, 1.0f, 100), glossy(0.5f, 0.5f, 10),
+                     {.kind = MATERIAL_MIRROR, .ks = {0.95f, 0.95f, 0.95f}}};
+    for (size_t i = 0; i < sizeof ms / sizeof ms[0]; i++)
+        for (int w = 0; w <= 10; w++) {
+            vec3 wo = dir_from(w == 0 ? 0.01 : w / 10.0, 0.3);
+            double sum = 0, sum2 = 0;
+            const int n = 20000;
+            for (int k = 0; k < n; k++) {
+                rng_stream r = rng_stream_start(17, (uint64_t)w, (uint64_t)k);
+                float u1 = rng_next(&r), u2 = rng_next(&r), u3 = rng_next(&r);
+                bsdf_sample bs;
+                double v = bsdf_sample_wi(&ms[i], wo, u1, u2, u3, &bs) ? vec3_max_comp(bs.weight) : 0;
+                sum += v;
+                sum2 += v * v;
+            }
+            double mean = sum / n, se = sqrt(fmax(0, sum2 / n - mean * mean) / n);
+            CHECK(mean <= 1.0 + 4 * se + 1e-6, "material %zu, cos(wo)=%.2f: albedo %.4f", i, wo.z, mean);
+        }
+}
+
+TEST(bsdf_glass_fresnel) {
+    CHECK(fabsf(bsdf_fresnel_dielectric(1.0f, 1.5f) - 0.04f) < 1e-6f, "normal incidence must be 0.04");
+    CHECK(bsdf_fresnel_dielectric(-0.3f, 1.5f) == 1.0f, "total internal reflection beyond the critical angle");
+    for (int k = 1; k <= 10; k++) {
+        float F = bsdf_fresnel_dielectric(k / 10.0f, 1.5f);
+        CHECK(F >= 0 && F <= 1, "F out of range");
+    }
+    /* Refraction obeys Snell's law and leaves on the other side. */
+    material g = {.kind = MATERIAL_GLASS, .ior = 1.5f, .kt = {1, 1, 1}};
+    vec3 wo = vec3_normalize(vec3_make(0.5f, 0, 0.8f));
+    bsdf_sample bs;
+    CHECK(bsdf_sample_wi(&g, wo, 0, 0, 0.999f, &bs) && bs.wi.z < 0, "transmission must go inside");
+    float sin_i = sqrtf(1 - wo.z * wo.z), sin_t = sqrtf(1 - bs.wi.z * bs.wi.z);
+    CHECK(fabsf(sin_i - 1.5f * sin_t) < 1e-5f, "Snell: %g vs %g", sin_i, 1.5f * sin_t);
+    CHECK(fabsf(bs.weight.x - 1 / 2.25f) < 1e-5f, "radiance scales by (1/eta)^2 entering: %g", bs.weight.x);
+}

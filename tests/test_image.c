@@ -1,0 +1,94 @@
+/* test_image.c - PFM/PPM round trips, orientation, Reinhard, atomic writes. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "../common/image.h"
+#include "harness.h"
+
+static void fill_test_image(image *img) {
+    for (int y = 0; y < img->height; y++)
+        for (int x = 0; x < img->width; x++)
+            for (int c = 0; c < 3; c++) img->rgb[3 * (y * img->width + x) + c] = (float)(x * 0.37 + y * 1.1 + c) / 7.0f;
+    img->rgb[0] = 5.0f; /* top-left red corner: proves which way is up */
+    img->rgb[1] = img->rgb[2] = 0.0f;
+}
+
+TEST(image_pfm_round_trip_bit_exact) {
+    image a, b;
+    char err[256];
+    CHECK(image_alloc(&a, 7, 5) == 0, "alloc");
+    fill_test_image(&a);
+    image_write_options wo = {0};
+    CHECK(image_write("/tmp/tessera-rt.pfm", &a, &wo, err, sizeof err) == 0, "%s", err);
+    CHECK(image_read("/tmp/tessera-rt.pfm", &b, err, sizeof err) == 0, "%s", err);
+    if (b.rgb) {
+        CHECK(b.width == 7 && b.height == 5, "size %dx%d", b.width, b.height);
+        CHECK(memcmp(a.rgb, b.rgb, sizeof(float) * 3 * 35) == 0, "pixels differ");
+    }
+    /* The file stores rows bottom-up: the last row in the file is our row 0. */
+    FILE *f = fopen("/tmp/tessera-rt.pfm", "rb");
+    fseek(f, -7 * 12, SEEK_END);
+    float first;
+    CHECK(fread(&first, 4, 1, f) == 1 && first == 5.0f, "row 0 is not stored last");
+    fclose(f);
+    image_free(&a);
+    image_free(&b);
+}
+
+TEST(image_ppm_round_trip) {
+    image a, b;
+    char err[256];
+    image_alloc(&a, 4, 3);
+    for (int i = 0; i < 36; i++) a.rgb[i] = (float)i / 40.0f;
+    image_write_options wo = {.tonemap = {.kind = TONEMAP_CLAMP}};
+    CHECK(image_write("/tmp/tessera-rt.ppm", &a, &wo, err, sizeof err) == 0, "%s", err);
+    CHECK(image_read("/tmp/tessera-rt.ppm", &b, err, sizeof err) == 0, "%s", err);
+    for (int i = 0; b.rgb && i < 36; i++)
+        CHECK(fabsf(a.rgb[i] - b.rgb[i]) < 0.01f, "pixel value %d: %g vs %g", i, a.rgb[i], b.rgb[i]);
+    image_free(&a);
+    image_free(&b);
+}
+
+TEST(tonemap_reinhard_values) {
+    CHECK(tonemap_reinhard(0) == 0, "0 maps to 0");
+    CHECK(fabsf(tonemap_reinhard(1) - 0.5f) < 1e-7f, "1 maps to 1/2");
+    CHECK(tonemap_reinhard(-3) == 0, "negative maps to 0");
+    CHECK(tonemap_reinhard(1e30f) <= 1.0f, "huge stays <= 1");
+    float prev = 0;
+    for (int i = 1; i < 1000; i++) {
+        float v = tonemap_reinhard(i * 0.05f);
+        CHECK(v > prev, "not monotonic at %d", i);
+        prev = v;
+    }
+    float px[] = {0, 0, 0, NAN, 1, 1, INFINITY, 0, 0, 1e30f, 1e30f, 1e30f, 0.5f, 0.5f, 0.5f};
+    uint8_t out[15];
+    tonemap_options o = {.kind = TONEMAP_REINHARD};
+    size_t bad = tonemap_to_8bit(px, 5, &o, out);
+    CHECK(bad == 2, "want 2 NaN/Inf pixels counted, got %zu", bad);
+    CHECK(out[0] == 0 && out[3] == 0 && out[6] == 0, "black, NaN and Inf pixels must be black");
+    CHECK(out[9] == 255, "huge radiance must map to white, got %d", out[9]);
+    /* grey 0.5 -> L/(1+L) = 1/3 -> sRGB(1/3) = 0.6132 -> 156 */
+    CHECK(out[12] == 156, "grey 0.5 maps to %d, want 156", out[12]);
+}
+
+TEST(image_write_is_atomic) {
+    image a;
+    char err[256];
+    image_alloc(&a, 2, 2);
+    image_write_options wo = {0};
+    CHECK(image_write("/tmp/no-such-dir-tessera/x.pfm", &a, &wo, err, sizeof err) != 0, "write into a missing folder");
+    CHECK(strstr(err, "/tmp/no-such-dir-tessera/x.pfm") && strstr(err, "No such file"), "message: %s", err);
+    if (geteuid() != 0) { /* root ignores permissions */
+        system("mkdir -p /tmp/tessera-ro && chmod 555 /tmp/tessera-ro");
+        CHECK(image_write("/tmp/tessera-ro/x.pfm", &a, &wo, err, sizeof err) != 0, "write into a read-only folder");
+    }
+    CHECK(image_write("/tmp/x.tga", &a, &wo, err, sizeof err) != 0 && strstr(err, "known: .pfm .ppm"), "%s", err);
+    FILE *ls = popen("ls /tmp/no-such-dir-tessera /tmp/tessera-ro 2>/dev/null | grep -c tmp", "r");
+    char buf[16] = "";
+    CHECK(fgets(buf, sizeof buf, ls) && atoi(buf) == 0, "a temporary file was left behind");
+    pclose(ls);
+    image_free(&a);
+}

@@ -1,0 +1,123 @@
+/* test_render.c - the integrator end to end: white furnace, determinism
+ * across threads, tiles and passes, and the Cornell box against the
+ * project's converged reference. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../common/image.h"
+#include "harness.h"
+#include "util.h"
+
+/* A closed sphere of albedo rho emitting Le on both sides, seen from its
+ * centre: every pixel converges to Le / (1 - rho). */
+static void furnace(double rho, double Le, int spp) {
+    char json[1024];
+    snprintf(json, sizeof json,
+             "{\"render\": {\"width\": 4, \"height\": 2, \"spp\": %d, \"max_depth\": 1024, \"seed\": 3},"
+             " \"camera\": {\"type\": \"environment\", \"position\": [0.1, 0.2, -0.1]},"
+             " \"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo\": [%g, %g, %g]}},"
+             " \"shapes\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, \"material\": \"m\","
+             " \"emission\": [%g, %g, %g], \"two_sided\": true}]}",
+             spp, rho, rho, rho, Le, Le, Le);
+    char err[512];
+    scene *s = util_scene_from_text(json, err, sizeof err);
+    CHECK(s != NULL, "furnace scene: %s", err);
+    if (!s) return;
+    trace_stats st;
+    float *rgb = util_render(s, 2, 8, 1, &st);
+    double want = Le / (1 - rho), worst = 0;
+    for (int i = 0; i < 4 * 2 * 3; i++) worst = fmax(worst, fabs(rgb[i] - want) / want);
+    CHECK(worst < 0.01, "rho %.2f: a pixel is %.2f%% off Le/(1-rho) = %g", rho, 100 * worst, want);
+    CHECK(st.bad_samples == 0, "NaN/Inf samples: %llu", (unsigned long long)st.bad_samples);
+    free(rgb);
+    scene_free(s);
+}
+
+TEST(render_white_furnace) {
+    furnace(0.5, 1.0, 16384);
+    furnace(0.8, 0.25, 32768);
+}
+
+static scene *small_cornell(int spp) {
+    char err[512];
+    scene_overrides ov = {.width = 24, .height = 24, .spp = spp, .max_depth = -1};
+    scene *s = scene_load("tests/scenes/cornell-small.json", &ov, err, sizeof err);
+    CHECK(s != NULL, "%s", err);
+    return s;
+}
+
+TEST(render_thread_determinism) {
+    scene *s = small_cornell(8);
+    if (!s) return;
+    trace_stats st;
+    size_t n = 3 * 24 * 24 * sizeof(float);
+    float *a = util_render(s, 1, 8, 1, &st);
+    float *b = util_render(s, 2, 8, 1, &st);
+    float *c = util_render(s, 2, 64, 1, &st);
+    float *d = util_render(s, 2, 5, 4, &st); /* odd tiles, four passes */
+    float *e = util_render(s, 3, 7, 3, &st);
+    CHECK(memcmp(a, b, n) == 0, "1 vs 2 threads differ");
+    CHECK(memcmp(a, c, n) == 0, "8 vs 64 pixel tiles differ");
+    CHECK(memcmp(a, d, n) == 0, "one pass vs four passes differ");
+    CHECK(memcmp(a, e, n) == 0, "3 threads, 7-pixel tiles, 3 passes differ");
+    s->settings.seed++;
+    float *f = util_render(s, 1, 8, 1, &st);
+    CHECK(memcmp(a, f, n) != 0, "a different seed gave the same image");
+    free(a), free(b), free(c), free(d), free(e), free(f);
+    scene_free(s);
+}
+
+/* Relative MSE of x against ref: mean (x - ref)^2 / (ref^2 + 0.01). */
+static double rel_mse(const float *x, const float *ref, size_t n) {
+    double s = 0;
+    for (size_t i = 0; i < n; i++) s += (x[i] - ref[i]) * (double)(x[i] - ref[i]) / (ref[i] * (double)ref[i] + 0.01);
+    return s / (double)n;
+}
+
+static int load_reference(image *ref) {
+    char out[256];
+    if (util_run("gzip -dc tests/data/cornell-ref-64.pfm.gz > /tmp/tessera-cornell-ref.pfm", out, sizeof out) != 0)
+        return -1;
+    char err[256];
+    return image_read("/tmp/tessera-cornell-ref.pfm", ref, err, sizeof err);
+}
+
+/* Error of a 64x64 render against the reference, relative to its own noise
+ * (estimated from two renders with different seeds: E[(a-b)^2] = 2 var). */
+static double excess_error(scene *s, const image *ref, double *mean_ratio) {
+    trace_stats st;
+    size_t n = 3 * 64 * 64;
+    float *a = util_render(s, 2, 16, 1, &st);
+    s->settings.seed += 1000;
+    float *b = util_render(s, 2, 16, 1, &st);
+    double noise = 0.5 * rel_mse(a, b, n), err = rel_mse(a, ref->rgb, n);
+    double ma = 0, mr = 0;
+    for (size_t i = 0; i < n; i++) ma += a[i], mr += ref->rgb[i];
+    *mean_ratio = ma / mr;
+    free(a), free(b);
+    return err / noise;
+}
+
+TEST(render_cornell_matches_reference) {
+    image ref;
+    CHECK(load_reference(&ref) == 0, "cannot read tests/data/cornell-ref-64.pfm.gz (make reference)");
+    if (!ref.rgb) return;
+    char err[512];
+    scene_overrides ov = {.width = -1, .height = -1, .spp = 64, .max_depth = -1, .has_seed = 1, .seed = 5};
+    scene *s = scene_load("tests/scenes/cornell-small.json", &ov, err, sizeof err);
+    CHECK(s != NULL, "%s", err);
+    if (!s) return;
+    double ratio, x = excess_error(s, &ref, &ratio);
+    /* An unbiased render's error is its noise: x ~ 1 (plus the reference's
+     * own small noise). */
+    CHECK(x < 1.3, "error is %.2f times the noise: the render is biased", x);
+    CHECK(fabs(ratio - 1) < 0.01, "mean brightness is %.4f of the reference", ratio);
+    /* The same check must fail for a biased render: direct light only. */
+    s->settings.max_depth = 1;
+    x = excess_error(s, &ref, &ratio);
+    CHECK(x > 2.0, "a render without indirect light passed the check (%.2f x noise)", x);
+    scene_free(s);
+    image_free(&ref);
+}
