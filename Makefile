@@ -37,11 +37,9 @@ COMMON_SRC := $(wildcard common/*.c)
 COMMON_OBJ := $(COMMON_SRC:%.c=$(BUILD)/%.o)
 TEST_SRC := $(wildcard tests/*.c)
 TEST_OBJ := $(TEST_SRC:%.c=$(BUILD)/%.o)
-BENCH_SRC := $(wildcard bench/*.c)
 
 TESSERA := $(BUILD)/bin/tessera
 TEST_BIN := $(BUILD)/bin/run-tests
-BENCH_BIN := $(BUILD)/bin/bench-render
 
 .PHONY: all deps run test test-asan test-tsan bench reference clean
 all: $(TESSERA)
@@ -72,10 +70,6 @@ $(TEST_BIN): $(TEST_OBJ) $(COMMON_OBJ)
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
-$(BENCH_BIN): $(BUILD)/bench/bench_render.o $(COMMON_OBJ)
-	@mkdir -p $(dir $@)
-	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
-
 run: $(TESSERA)
 	@mkdir -p out
 	$(TESSERA) render scenes/cornell-box.json -o out/cornell-box.ppm
@@ -88,11 +82,12 @@ test-asan:
 
 # ThreadSanitizer on the tests that run several render threads.
 test-tsan:
-	$(MAKE) VARIANT=tsan $(BUILD:build/$(VARIANT)=build/tsan)/bin/run-tests build/tsan/bin/tessera
+	$(MAKE) VARIANT=tsan build/tsan/bin/run-tests build/tsan/bin/tessera
 	TESSERA_BIN=build/tsan/bin/tessera build/tsan/bin/run-tests --filter thread
 
-bench: $(TESSERA) $(BENCH_BIN)
-	$(BENCH_BIN) scenes/cornell-box.json
+bench: $(TESSERA)
+	bench/bench.sh $(TESSERA) scenes/cornell-box.json 16
+	bench/bench.sh $(TESSERA) scenes/cornell-spheres.json 16
 
 reference: $(TESSERA)
 	@mkdir -p tests/data

@@ -12,6 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "fileio.h"
@@ -92,8 +93,10 @@ static int write_atomic(const char *path, const uint8_t *data, size_t len, char 
         free(tmp);
         return -1;
     }
+    mode_t mask = umask(0); /* mkstemp makes 0600; give the usual 0666 & ~umask */
+    umask(mask);
     size_t off = 0;
-    int e = 0;
+    int e = fchmod(fd, 0666 & ~mask) != 0 ? errno : 0;
     while (off < len && !e) {
         ssize_t w = write(fd, data + off, len - off);
         if (w < 0 && errno != EINTR) e = errno;
