@@ -231,8 +231,8 @@ static inline int node_hit(const bvh_node *n, const ray_prep *r, float tmax) {
     float tx0 = (n->lo[0] - r->o.x) * r->inv_d.x, tx1 = (n->hi[0] - r->o.x) * r->inv_d.x;
     float ty0 = (n->lo[1] - r->o.y) * r->inv_d.y, ty1 = (n->hi[1] - r->o.y) * r->inv_d.y;
     float tz0 = (n->lo[2] - r->o.z) * r->inv_d.z, tz1 = (n->hi[2] - r->o.z) * r->inv_d.z;
-    float tnear = fmaxf(fmaxf(fminf(tx0, tx1), fminf(ty0, ty1)), fmaxf(fminf(tz0, tz1), 0.0f));
-    float tfar = fminf(fminf(fmaxf(tx0, tx1), fmaxf(ty0, ty1)), fminf(fmaxf(tz0, tz1), tmax));
+    float tnear = max_f(max_f(min_f(tx0, tx1), min_f(ty0, ty1)), max_f(min_f(tz0, tz1), 0.0f));
+    float tfar = min_f(min_f(max_f(tx0, tx1), max_f(ty0, ty1)), min_f(max_f(tz0, tz1), tmax));
     return tnear <= tfar * 1.0000004f;
 }
 

@@ -122,7 +122,7 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
         prev_pdf = bs.pdf;
         prev_p = sf.p;
         if (depth >= 3) { /* Russian roulette */
-            float survive = fminf(1.0f, vec3_max_comp(beta));
+            float survive = min_f(1.0f, vec3_max_comp(beta));
             if (!(u[6] < survive)) break;
             beta = vec3_scale(beta, 1.0f / survive);
         }

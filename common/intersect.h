@@ -38,11 +38,15 @@ typedef struct {
     float b1, b2;  /* barycentrics of v1 and v2 (triangles) */
 } hit;
 
+/* 1/d, but a huge finite value for d = 0, so that the slab test computes
+ * 0 * huge = 0 rather than 0 * inf = NaN for a ray in a box's plane. */
+static inline float safe_inverse(float d) { return d != 0.0f ? 1.0f / d : copysignf(3.0e38f, d); }
+
 static inline void ray_prepare(const ray *r, ray_prep *p) {
     p->o = r->o;
     p->d = r->d;
     p->skip = r->skip;
-    p->inv_d = vec3_make(1.0f / r->d.x, 1.0f / r->d.y, 1.0f / r->d.z);
+    p->inv_d = vec3_make(safe_inverse(r->d.x), safe_inverse(r->d.y), safe_inverse(r->d.z));
     float ax = fabsf(r->d.x), ay = fabsf(r->d.y), az = fabsf(r->d.z);
     p->kz = (ax > ay) ? (ax > az ? 0 : 2) : (ay > az ? 1 : 2);
     p->kx = p->kz == 2 ? 0 : p->kz + 1;

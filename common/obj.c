@@ -84,7 +84,7 @@ static int read_corner(obj_reader *r, const char **s, uint32_t *out) {
 static int read_face(obj_reader *r, const char *s) {
     uint32_t corner[OBJ_MAX_POLY];
     int count = 0, rc;
-    uint32_t idx;
+    uint32_t idx = 0;
     while ((rc = read_corner(r, &s, &idx)) == 1) {
         if (count == OBJ_MAX_POLY) return obj_fail(r, "face has more than 64 vertices");
         corner[count++] = idx;

@@ -32,13 +32,14 @@ static inline vec3 vec3_cross(vec3 a, vec3 b) {
 }
 static inline float vec3_length(vec3 a) { return sqrtf(vec3_dot(a, a)); }
 static inline vec3 vec3_normalize(vec3 a) { return vec3_scale(a, 1.0f / vec3_length(a)); }
-static inline vec3 vec3_min(vec3 a, vec3 b) {
-    return vec3_make(fminf(a.x, b.x), fminf(a.y, b.y), fminf(a.z, b.z));
-}
-static inline vec3 vec3_max(vec3 a, vec3 b) {
-    return vec3_make(fmaxf(a.x, b.x), fmaxf(a.y, b.y), fmaxf(a.z, b.z));
-}
-static inline float vec3_max_comp(vec3 a) { return fmaxf(a.x, fmaxf(a.y, a.z)); }
+/* min/max as single instructions: without -ffast-math, fminf and fmaxf are
+ * library calls (for their NaN rules), far too slow for ray traversal. These
+ * return b when either argument is NaN. */
+static inline float min_f(float a, float b) { return a < b ? a : b; }
+static inline float max_f(float a, float b) { return a > b ? a : b; }
+static inline vec3 vec3_min(vec3 a, vec3 b) { return vec3_make(min_f(a.x, b.x), min_f(a.y, b.y), min_f(a.z, b.z)); }
+static inline vec3 vec3_max(vec3 a, vec3 b) { return vec3_make(max_f(a.x, b.x), max_f(a.y, b.y), max_f(a.z, b.z)); }
+static inline float vec3_max_comp(vec3 a) { return max_f(a.x, max_f(a.y, a.z)); }
 static inline float vec3_comp(vec3 a, int axis) { return axis == 0 ? a.x : axis == 1 ? a.y : a.z; }
 static inline int vec3_is_zero(vec3 a) { return a.x == 0.0f && a.y == 0.0f && a.z == 0.0f; }
 static inline int vec3_is_finite(vec3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
