@@ -30,7 +30,7 @@ else
   LDFLAGS_V :=
 endif
 CFLAGS := $(CFLAGS_COMMON) $(CFLAGS_OPT)
-LDLIBS := -lcjson -lpthread -lm
+LDLIBS := -lcjson -lpng16 -ljpeg -lpthread -lm
 LDFLAGS := $(LDFLAGS_V)
 
 COMMON_SRC := $(wildcard common/*.c)

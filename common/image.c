@@ -1,5 +1,6 @@
 /* image.c - float images; PFM and PPM writers and readers; atomic saves.
  *
+ * PNG and JPEG are encoded by image_codecs.c.
  * PFM: "PF\n<w> <h>\n-1\n" then little-endian float32 RGB, rows from the
  * bottom of the image to the top (the format's convention). PPM: binary P6,
  * maxval 255, top row first. */
@@ -16,6 +17,7 @@
 #include <unistd.h>
 
 #include "fileio.h"
+#include "image_codecs.h"
 
 #define IMAGE_MAX_SIDE 32768
 
@@ -66,15 +68,44 @@ static uint8_t *encode_pfm(const image *img, size_t *len) {
     return buf;
 }
 
-static uint8_t *encode_ppm(const image *img, image_write_options *opt, size_t *len) {
-    char header[64];
-    int hl = snprintf(header, sizeof header, "P6\n%d %d\n255\n", img->width, img->height);
+/* Tone map to 8-bit sRGB; returns a malloc'd width*height*3 buffer. */
+static uint8_t *to_8bit(const image *img, image_write_options *opt) {
     size_t n = (size_t)img->width * (size_t)img->height;
-    uint8_t *buf = malloc((size_t)hl + 3 * n);
+    uint8_t *px = malloc(3 * n);
+    if (px) opt->bad_pixels = tonemap_to_8bit(img->rgb, n, &opt->tonemap, px);
+    return px;
+}
+
+static uint8_t *encode_ppm(const uint8_t *px, int width, int height, size_t *len) {
+    char header[64];
+    int hl = snprintf(header, sizeof header, "P6\n%d %d\n255\n", width, height);
+    size_t n = 3 * (size_t)width * (size_t)height;
+    uint8_t *buf = malloc((size_t)hl + n);
     if (!buf) return NULL;
     memcpy(buf, header, (size_t)hl);
-    opt->bad_pixels = tonemap_to_8bit(img->rgb, n, &opt->tonemap, buf + hl);
-    *len = (size_t)hl + 3 * n;
+    memcpy(buf + hl, px, n);
+    *len = (size_t)hl + n;
+    return buf;
+}
+
+/* Encode an 8-bit format (ppm, png, jpg); NULL with err set on failure. */
+static uint8_t *encode_8bit(const char *ext, const image *img, image_write_options *opt, size_t *len, char *err,
+                            size_t err_len) {
+    uint8_t *px = to_8bit(img, opt), *buf = NULL;
+    if (!px) {
+        snprintf(err, err_len, "out of memory");
+        return NULL;
+    }
+    int quality = opt->jpeg_quality > 0 ? opt->jpeg_quality : 92;
+    if (strcasecmp(ext, "ppm") == 0) {
+        buf = encode_ppm(px, img->width, img->height, len);
+        if (!buf) snprintf(err, err_len, "out of memory");
+    } else if (strcasecmp(ext, "png") == 0) {
+        buf = codec_png_encode(px, img->width, img->height, len, err, err_len);
+    } else {
+        buf = codec_jpeg_encode(px, img->width, img->height, quality, len, err, err_len);
+    }
+    free(px);
     return buf;
 }
 
@@ -116,18 +147,20 @@ static int write_atomic(const char *path, const uint8_t *data, size_t len, char 
 int image_write(const char *path, const image *img, image_write_options *opt, char *err, size_t err_len) {
     const char *ext = extension(path);
     size_t len = 0;
-    uint8_t *buf;
+    uint8_t *buf = NULL;
+    char why[256] = "out of memory";
     opt->bad_pixels = 0;
     if (strcasecmp(ext, "pfm") == 0) {
         buf = encode_pfm(img, &len);
-    } else if (strcasecmp(ext, "ppm") == 0) {
-        buf = encode_ppm(img, opt, &len);
+    } else if (strcasecmp(ext, "ppm") == 0 || strcasecmp(ext, "png") == 0 || strcasecmp(ext, "jpg") == 0 ||
+               strcasecmp(ext, "jpeg") == 0) {
+        buf = encode_8bit(ext, img, opt, &len, why, sizeof why);
     } else {
-        snprintf(err, err_len, "%s: unknown image format \"%s\" (known: .pfm .ppm)", path, ext);
+        snprintf(err, err_len, "%s: unknown image format \"%s\" (known: .pfm .ppm .png .jpg .jpeg)", path, ext);
         return -1;
     }
     if (!buf) {
-        snprintf(err, err_len, "%s: out of memory encoding the image", path);
+        snprintf(err, err_len, "%s: cannot encode the image: %s", path, why);
         return -1;
     }
     int rc = write_atomic(path, buf, len, err, err_len);

@@ -1,8 +1,8 @@
 /* image.h - float RGB images and the files they are saved to and loaded from.
  *
  * An image is 3 floats per pixel, row-major, row 0 at the top. The file
- * format is chosen by the extension: .pfm (linear float) and .ppm (tone
- * mapped, sRGB, 8 bits). Writes are atomic: a temporary file in the same
+ * format is chosen by the extension: .pfm (linear float); .ppm, .png,
+ * .jpg/.jpeg (tone mapped, sRGB, 8 bits). Writes are atomic: a temporary file in the same
  * folder, renamed into place once complete. */
 #ifndef TESSERA_IMAGE_H
 #define TESSERA_IMAGE_H
@@ -24,6 +24,7 @@ void image_free(image *img);
 
 typedef struct {
     tonemap_options tonemap; /* for 8-bit formats */
+    int jpeg_quality;        /* 1..100; 0 means the default, 92 */
     size_t bad_pixels;       /* out: NaN/Inf pixels written black */
 } image_write_options;
 

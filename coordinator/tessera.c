@@ -25,7 +25,7 @@ typedef struct {
     const char *scene_path;
     const char *out_path;
     scene_overrides ov;
-    int threads, workers, tile_size, verbose, progress;
+    int threads, workers, tile_size, verbose, progress, jpeg_quality;
     render_options ro;
     tonemap_options tm;
 } render_args;
@@ -36,7 +36,7 @@ static void usage_render(FILE *f) {
             "\n"
             "Render a scene and save the image; the format follows OUT's extension:\n"
             "  .pfm  linear float RGB (HDR)\n"
-            "  .ppm  8-bit sRGB, tone mapped\n"
+            "  .ppm .png .jpg .jpeg  8-bit sRGB, tone mapped\n"
             "\n"
             "options:\n"
             "  -o, --output PATH      image to write (default: SCENE's name with .ppm, in .)\n"
@@ -53,6 +53,7 @@ static void usage_render(FILE *f) {
             "                         (the image is bit-identical for every N)\n"
             "      --tonemap NAME     8-bit outputs: reinhard (default) or clamp\n"
             "      --exposure STOPS   scale radiance by 2^STOPS before tone mapping\n"
+            "      --quality Q        JPEG quality, 1 to 100 (default 92)\n"
             "      --no-nee           no light sampling (for comparisons)\n"
             "      --no-mis           light sampling without MIS (for comparisons)\n"
             "      --no-progress      no progress bar even on a terminal\n"
@@ -83,7 +84,7 @@ static double parse_double(const char *opt, const char *s, double lo, double hi)
 }
 
 enum { OPT_SPP = 256, OPT_WIDTH, OPT_HEIGHT, OPT_DEPTH, OPT_SEED, OPT_THREADS, OPT_WORKERS, OPT_TILE,
-       OPT_PASSES, OPT_TONEMAP, OPT_EXPOSURE, OPT_NO_NEE, OPT_NO_MIS, OPT_NO_PROGRESS };
+       OPT_PASSES, OPT_TONEMAP, OPT_EXPOSURE, OPT_QUALITY, OPT_NO_NEE, OPT_NO_MIS, OPT_NO_PROGRESS };
 
 static void parse_render_args(int argc, char **argv, render_args *a) {
     static const struct option opts[] = {
@@ -93,6 +94,7 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         {"threads", required_argument, 0, OPT_THREADS}, {"workers", required_argument, 0, OPT_WORKERS},
         {"tile-size", required_argument, 0, OPT_TILE}, {"passes", required_argument, 0, OPT_PASSES},
         {"tonemap", required_argument, 0, OPT_TONEMAP}, {"exposure", required_argument, 0, OPT_EXPOSURE},
+        {"quality", required_argument, 0, OPT_QUALITY},
         {"no-nee", no_argument, 0, OPT_NO_NEE}, {"no-mis", no_argument, 0, OPT_NO_MIS},
         {"no-progress", no_argument, 0, OPT_NO_PROGRESS}, {"verbose", no_argument, 0, 'v'},
         {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
@@ -129,6 +131,7 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
             }
             break;
         case OPT_EXPOSURE: a->tm.exposure_stops = (float)parse_double("--exposure", optarg, -64, 64); break;
+        case OPT_QUALITY: a->jpeg_quality = (int)parse_int("--quality", optarg, 1, 100); break;
         case OPT_NO_NEE: a->ro.integrator.no_nee = 1; break;
         case OPT_NO_MIS: a->ro.integrator.no_mis = 1; break;
         case OPT_NO_PROGRESS: a->progress = 0; break;
@@ -230,7 +233,7 @@ static int cmd_render(int argc, char **argv) {
     if (rc) {
         fprintf(stderr, "tessera: could not start %d render threads\n", a.threads);
     } else {
-        image_write_options wo = {.tonemap = a.tm};
+        image_write_options wo = {.tonemap = a.tm, .jpeg_quality = a.jpeg_quality};
         rc = image_write(a.out_path, &img, &wo, err, sizeof err);
         if (rc) fprintf(stderr, "tessera: %s\n", err);
     }

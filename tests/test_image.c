@@ -92,3 +92,57 @@ TEST(image_write_is_atomic) {
     pclose(ls);
     image_free(&a);
 }
+
+#include <jpeglib.h>
+#include <png.h>
+
+/* PNG and JPEG: decoded by libpng and libjpeg, the image has the right size,
+ * the red corner is at the top left, and values match the tone-mapped input. */
+TEST(image_png_and_jpeg_decode) {
+    image a;
+    char err[256];
+    image_alloc(&a, 40, 30);
+    for (int i = 0; i < 40 * 30 * 3; i++) a.rgb[i] = 0.2f;
+    for (int y = 0; y < 8; y++)
+        for (int x = 0; x < 8; x++) { /* saturated red block, top left */
+            float *p = a.rgb + 3 * (y * 40 + x);
+            p[0] = 1e6f, p[1] = 0, p[2] = 0;
+        }
+    image_write_options wo = {.tonemap = {.kind = TONEMAP_CLAMP}};
+    CHECK(image_write("/tmp/tessera-t.png", &a, &wo, err, sizeof err) == 0, "%s", err);
+    png_image pi;
+    memset(&pi, 0, sizeof pi);
+    pi.version = PNG_IMAGE_VERSION;
+    CHECK(png_image_begin_read_from_file(&pi, "/tmp/tessera-t.png"), "libpng cannot read it");
+    pi.format = PNG_FORMAT_RGB;
+    uint8_t *buf = malloc(PNG_IMAGE_SIZE(pi));
+    CHECK(png_image_finish_read(&pi, NULL, buf, 0, NULL), "libpng decode failed");
+    CHECK(pi.width == 40 && pi.height == 30, "PNG size %ux%u", pi.width, pi.height);
+    CHECK(buf[0] == 255 && buf[1] == 0 && buf[2] == 0, "PNG top-left not red: %d %d %d", buf[0], buf[1], buf[2]);
+    uint8_t grey = (uint8_t)lrintf(tonemap_srgb_encode(0.2f) * 255);
+    size_t last = 3 * (40 * 30 - 1);
+    CHECK(buf[last] == grey, "PNG bottom-right %d, want %d", buf[last], grey);
+    free(buf);
+
+    wo.jpeg_quality = 95;
+    CHECK(image_write("/tmp/tessera-t.jpg", &a, &wo, err, sizeof err) == 0, "%s", err);
+    FILE *f = fopen("/tmp/tessera-t.jpg", "rb");
+    struct jpeg_decompress_struct d;
+    struct jpeg_error_mgr jerr;
+    d.err = jpeg_std_error(&jerr);
+    jpeg_create_decompress(&d);
+    jpeg_stdio_src(&d, f);
+    jpeg_read_header(&d, TRUE);
+    jpeg_start_decompress(&d);
+    CHECK(d.output_width == 40 && d.output_height == 30 && d.output_components == 3, "JPEG size/components");
+    uint8_t row[40 * 3];
+    JSAMPROW rp = row;
+    jpeg_read_scanlines(&d, &rp, 1);
+    CHECK(row[3 * 2] > 230 && row[3 * 2 + 1] < 30 && row[3 * 2 + 2] < 30, "JPEG top-left not red: %d %d %d", row[6], row[7], row[8]);
+    CHECK(abs(row[3 * 39] - grey) <= 3, "JPEG top-right %d, want about %d", row[3 * 39], grey);
+    while (d.output_scanline < d.output_height) jpeg_read_scanlines(&d, &rp, 1);
+    jpeg_finish_decompress(&d);
+    jpeg_destroy_decompress(&d);
+    fclose(f);
+    image_free(&a);
+}
