@@ -9,7 +9,7 @@
 #   make reference  regenerate tests/data/cornell-ref-64.pfm.gz (slow)
 
 # Debian packages the build needs; `make deps` installs what is missing.
-DEB_PACKAGES := gcc make pkg-config libcjson-dev libuv1-dev libjpeg-dev libopenexr-dev libpng-dev libsodium-dev
+DEB_PACKAGES := gcc make pkg-config libcjson-dev libuv1-dev libjpeg-dev libopenexr-dev libpng-dev libsodium-dev openexr
 
 CC ?= cc
 VARIANT ?= release
@@ -18,7 +18,7 @@ BUILD := build/$(VARIANT)
 # Determinism across hosts: no fast-math, no FMA contraction, no -march=native.
 # (Add your own -march with EXTRA_CFLAGS; the bytes may then differ from other hosts.)
 CFLAGS_COMMON := -std=c11 -D_DEFAULT_SOURCE -g -Wall -Wextra -Werror -ffp-contract=off -fno-fast-math \
-                 -MMD -MP $(EXTRA_CFLAGS)
+                 -MMD -MP -I/usr/include/OpenEXR $(EXTRA_CFLAGS)
 ifeq ($(VARIANT),asan)
   CFLAGS_OPT := -O1 -fno-omit-frame-pointer -fsanitize=address,undefined -fno-sanitize-recover=all
   LDFLAGS_V := -fsanitize=address,undefined
@@ -30,7 +30,7 @@ else
   LDFLAGS_V :=
 endif
 CFLAGS := $(CFLAGS_COMMON) $(CFLAGS_OPT)
-LDLIBS := -lcjson -lpng16 -ljpeg -lpthread -lm
+LDLIBS := -lcjson -lpng16 -ljpeg -lOpenEXRCore-3_1 -lpthread -lm
 LDFLAGS := $(LDFLAGS_V)
 
 COMMON_SRC := $(wildcard common/*.c)

@@ -1,6 +1,6 @@
 /* image.c - float images; PFM and PPM writers and readers; atomic saves.
  *
- * PNG and JPEG are encoded by image_codecs.c.
+ * PNG, JPEG and OpenEXR are encoded by image_codecs.c.
  * PFM: "PF\n<w> <h>\n-1\n" then little-endian float32 RGB, rows from the
  * bottom of the image to the top (the format's convention). PPM: binary P6,
  * maxval 255, top row first. */
@@ -152,11 +152,14 @@ int image_write(const char *path, const image *img, image_write_options *opt, ch
     opt->bad_pixels = 0;
     if (strcasecmp(ext, "pfm") == 0) {
         buf = encode_pfm(img, &len);
+    } else if (strcasecmp(ext, "exr") == 0) {
+        buf = codec_exr_encode(img->rgb, img->width, img->height, opt->exr_compression, opt->attributes,
+                               opt->attribute_count, &len, why, sizeof why);
     } else if (strcasecmp(ext, "ppm") == 0 || strcasecmp(ext, "png") == 0 || strcasecmp(ext, "jpg") == 0 ||
                strcasecmp(ext, "jpeg") == 0) {
         buf = encode_8bit(ext, img, opt, &len, why, sizeof why);
     } else {
-        snprintf(err, err_len, "%s: unknown image format \"%s\" (known: .pfm .ppm .png .jpg .jpeg)", path, ext);
+        snprintf(err, err_len, "%s: unknown image format \"%s\" (known: .pfm .exr .ppm .png .jpg .jpeg)", path, ext);
         return -1;
     }
     if (!buf) {

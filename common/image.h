@@ -1,14 +1,15 @@
 /* image.h - float RGB images and the files they are saved to and loaded from.
  *
  * An image is 3 floats per pixel, row-major, row 0 at the top. The file
- * format is chosen by the extension: .pfm (linear float); .ppm, .png,
- * .jpg/.jpeg (tone mapped, sRGB, 8 bits). Writes are atomic: a temporary file in the same
+ * format is chosen by the extension: .pfm and .exr (linear float); .ppm,
+ * .png, .jpg/.jpeg (tone mapped, sRGB, 8 bits). Writes are atomic: a temporary file in the same
  * folder, renamed into place once complete. */
 #ifndef TESSERA_IMAGE_H
 #define TESSERA_IMAGE_H
 
 #include <stddef.h>
 
+#include "image_codecs.h"
 #include "tonemap.h"
 
 typedef struct {
@@ -25,6 +26,9 @@ void image_free(image *img);
 typedef struct {
     tonemap_options tonemap; /* for 8-bit formats */
     int jpeg_quality;        /* 1..100; 0 means the default, 92 */
+    codec_exr_compression exr_compression; /* default ZIP */
+    const codec_attribute *attributes;     /* recorded in EXR headers */
+    int attribute_count;
     size_t bad_pixels;       /* out: NaN/Inf pixels written black */
 } image_write_options;
 

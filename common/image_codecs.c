@@ -1,5 +1,5 @@
 /* image_codecs.c - PNG through libpng's simplified API, JPEG through
- * libjpeg-turbo, both into memory. */
+ * libjpeg-turbo, OpenEXR through OpenEXRCore; all into memory. */
 #include "image_codecs.h"
 
 #include <setjmp.h>
@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include <jpeglib.h>
+#include <openexr.h> /* the OpenEXRCore C API */
 #include <png.h>
 
 uint8_t *codec_png_encode(const uint8_t *rgb, int width, int height, size_t *len, char *err, size_t err_len) {
@@ -87,4 +88,114 @@ uint8_t *codec_jpeg_encode(const uint8_t *rgb, int width, int height, int qualit
     jpeg_destroy_compress(&cinfo);
     *len = out_len;
     return out;
+}
+
+/* ---- OpenEXR ------------------------------------------------------------ */
+
+/* The file is assembled in memory (the library writes at offsets), so that
+ * image.c can save it atomically like every other format. */
+typedef struct {
+    uint8_t *data;
+    size_t len, cap;
+    int failed;
+} exr_memory;
+
+static int64_t exr_memory_write(exr_const_context_t ctxt, void *user, const void *buf, uint64_t sz, uint64_t offset,
+                                exr_stream_error_func_ptr_t error_cb) {
+    (void)ctxt;
+    (void)error_cb;
+    exr_memory *m = user;
+    size_t end = (size_t)(offset + sz);
+    if (end > m->cap) {
+        size_t cap = m->cap ? m->cap : 1 << 16;
+        while (cap < end) cap *= 2;
+        uint8_t *p = realloc(m->data, cap);
+        if (!p) {
+            m->failed = 1;
+            return -1;
+        }
+        m->data = p;
+        m->cap = cap;
+    }
+    memcpy(m->data + offset, buf, (size_t)sz);
+    if (end > m->len) m->len = end;
+    return (int64_t)sz;
+}
+
+/* Errors are reported through the return codes; keep stderr quiet. */
+static void exr_quiet_error(exr_const_context_t ctxt, exr_result_t code, const char *msg) {
+    (void)ctxt;
+    (void)code;
+    (void)msg;
+}
+
+static exr_compression_t exr_compression_of(codec_exr_compression c) {
+    switch (c) {
+    case CODEC_EXR_PIZ: return EXR_COMPRESSION_PIZ;
+    case CODEC_EXR_NONE: return EXR_COMPRESSION_NONE;
+    default: return EXR_COMPRESSION_ZIP;
+    }
+}
+
+/* Header: one scanline part, R G B float channels, attributes. */
+static exr_result_t exr_define_part(exr_context_t ctx, int width, int height, codec_exr_compression compression,
+                                    const codec_attribute *attrs, int attr_count) {
+    int part;
+    exr_result_t rv = exr_add_part(ctx, "rgb", EXR_STORAGE_SCANLINE, &part);
+    if (!rv) rv = exr_initialize_required_attr_simple(ctx, part, width, height, exr_compression_of(compression));
+    const char *names[3] = {"B", "G", "R"}; /* the library wants them sorted */
+    for (int c = 0; c < 3 && !rv; c++)
+        rv = exr_add_channel(ctx, part, names[c], EXR_PIXEL_FLOAT, EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1);
+    for (int i = 0; i < attr_count && !rv; i++) rv = exr_attr_set_string(ctx, part, attrs[i].name, attrs[i].value);
+    return rv;
+}
+
+/* Encode and write every chunk of scanlines. */
+static exr_result_t exr_write_pixels(exr_context_t ctx, const float *rgb, int width, int height) {
+    int32_t lines;
+    exr_result_t rv = exr_get_scanlines_per_chunk(ctx, 0, &lines);
+    exr_encode_pipeline_t enc;
+    int started = 0;
+    for (int y = 0; y < height && !rv; y += lines) {
+        exr_chunk_info_t chunk;
+        rv = exr_write_scanline_chunk_info(ctx, 0, y, &chunk);
+        if (!rv) rv = started ? exr_encoding_update(ctx, 0, &chunk, &enc) : exr_encoding_initialize(ctx, 0, &chunk, &enc);
+        if (rv) break;
+        started = 1;
+        for (int c = 0; c < enc.channel_count; c++) {
+            int offset = enc.channels[c].channel_name[0] == 'R' ? 0 : enc.channels[c].channel_name[0] == 'G' ? 1 : 2;
+            enc.channels[c].encode_from_ptr = (const uint8_t *)(rgb + 3 * (size_t)y * (size_t)width + offset);
+            enc.channels[c].user_pixel_stride = 3 * (int32_t)sizeof(float);
+            enc.channels[c].user_line_stride = 3 * (int32_t)sizeof(float) * width;
+            enc.channels[c].user_data_type = EXR_PIXEL_FLOAT;
+            enc.channels[c].user_bytes_per_element = sizeof(float);
+        }
+        rv = exr_encoding_choose_default_routines(ctx, 0, &enc);
+        if (!rv) rv = exr_encoding_run(ctx, 0, &enc);
+    }
+    if (started) exr_encoding_destroy(ctx, &enc);
+    return rv;
+}
+
+uint8_t *codec_exr_encode(const float *rgb, int width, int height, codec_exr_compression compression,
+                          const codec_attribute *attrs, int attr_count, size_t *len, char *err, size_t err_len) {
+    exr_memory mem = {0};
+    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+    init.user_data = &mem;
+    init.write_fn = exr_memory_write;
+    init.error_handler_fn = exr_quiet_error;
+    exr_context_t ctx = NULL;
+    exr_result_t rv = exr_start_write(&ctx, "memory.exr", EXR_WRITE_FILE_DIRECTLY, &init);
+    if (!rv) rv = exr_define_part(ctx, width, height, compression, attrs, attr_count);
+    if (!rv) rv = exr_write_header(ctx);
+    if (!rv) rv = exr_write_pixels(ctx, rgb, width, height);
+    exr_result_t fin = ctx ? exr_finish(&ctx) : EXR_ERR_SUCCESS;
+    if (!rv) rv = fin;
+    if (rv || mem.failed) {
+        snprintf(err, err_len, "OpenEXR encoder: %s", mem.failed ? "out of memory" : exr_get_default_error_message(rv));
+        free(mem.data);
+        return NULL;
+    }
+    *len = mem.len;
+    return mem.data;
 }

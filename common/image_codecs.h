@@ -16,4 +16,20 @@ uint8_t *codec_png_encode(const uint8_t *rgb, int width, int height, size_t *len
 uint8_t *codec_jpeg_encode(const uint8_t *rgb, int width, int height, int quality, size_t *len, char *err,
                            size_t err_len);
 
+
+
+/* A string attribute to record in the file's header. */
+typedef struct {
+    const char *name, *value;
+} codec_attribute;
+
+/* DWAA is not offered: Debian's OpenEXRCore 3.1 C API does not implement it. */
+typedef enum { CODEC_EXR_ZIP, CODEC_EXR_PIZ, CODEC_EXR_NONE } codec_exr_compression;
+
+/* Scanline OpenEXR (OpenEXRCore C API): float32 R, G, B channels, display
+ * and data window (0,0)-(width-1,height-1), the given compression and string
+ * attributes. rgb: 3 floats per pixel, top row first. */
+uint8_t *codec_exr_encode(const float *rgb, int width, int height, codec_exr_compression compression,
+                          const codec_attribute *attrs, int attr_count, size_t *len, char *err, size_t err_len);
+
 #endif

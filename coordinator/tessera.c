@@ -26,6 +26,7 @@ typedef struct {
     const char *out_path;
     scene_overrides ov;
     int threads, workers, tile_size, verbose, progress, jpeg_quality;
+    codec_exr_compression exr_compression;
     render_options ro;
     tonemap_options tm;
 } render_args;
@@ -35,7 +36,7 @@ static void usage_render(FILE *f) {
             "usage: tessera render SCENE.json [-o OUT] [options]\n"
             "\n"
             "Render a scene and save the image; the format follows OUT's extension:\n"
-            "  .pfm  linear float RGB (HDR)\n"
+            "  .pfm .exr  linear float RGB (HDR); EXR records scene, spp, seed, time\n"
             "  .ppm .png .jpg .jpeg  8-bit sRGB, tone mapped\n"
             "\n"
             "options:\n"
@@ -54,6 +55,7 @@ static void usage_render(FILE *f) {
             "      --tonemap NAME     8-bit outputs: reinhard (default) or clamp\n"
             "      --exposure STOPS   scale radiance by 2^STOPS before tone mapping\n"
             "      --quality Q        JPEG quality, 1 to 100 (default 92)\n"
+            "      --exr-compression C  zip (default), piz or none\n"
             "      --no-nee           no light sampling (for comparisons)\n"
             "      --no-mis           light sampling without MIS (for comparisons)\n"
             "      --no-progress      no progress bar even on a terminal\n"
@@ -84,7 +86,7 @@ static double parse_double(const char *opt, const char *s, double lo, double hi)
 }
 
 enum { OPT_SPP = 256, OPT_WIDTH, OPT_HEIGHT, OPT_DEPTH, OPT_SEED, OPT_THREADS, OPT_WORKERS, OPT_TILE,
-       OPT_PASSES, OPT_TONEMAP, OPT_EXPOSURE, OPT_QUALITY, OPT_NO_NEE, OPT_NO_MIS, OPT_NO_PROGRESS };
+       OPT_PASSES, OPT_TONEMAP, OPT_EXPOSURE, OPT_QUALITY, OPT_EXR_COMPRESSION, OPT_NO_NEE, OPT_NO_MIS, OPT_NO_PROGRESS };
 
 static void parse_render_args(int argc, char **argv, render_args *a) {
     static const struct option opts[] = {
@@ -95,6 +97,7 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         {"tile-size", required_argument, 0, OPT_TILE}, {"passes", required_argument, 0, OPT_PASSES},
         {"tonemap", required_argument, 0, OPT_TONEMAP}, {"exposure", required_argument, 0, OPT_EXPOSURE},
         {"quality", required_argument, 0, OPT_QUALITY},
+        {"exr-compression", required_argument, 0, OPT_EXR_COMPRESSION},
         {"no-nee", no_argument, 0, OPT_NO_NEE}, {"no-mis", no_argument, 0, OPT_NO_MIS},
         {"no-progress", no_argument, 0, OPT_NO_PROGRESS}, {"verbose", no_argument, 0, 'v'},
         {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
@@ -132,6 +135,18 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
             break;
         case OPT_EXPOSURE: a->tm.exposure_stops = (float)parse_double("--exposure", optarg, -64, 64); break;
         case OPT_QUALITY: a->jpeg_quality = (int)parse_int("--quality", optarg, 1, 100); break;
+        case OPT_EXR_COMPRESSION: {
+            static const char *const names[] = {"zip", "piz", "none"};
+            int found = -1;
+            for (int i = 0; i < 3; i++)
+                if (strcmp(optarg, names[i]) == 0) found = i;
+            if (found < 0) {
+                fprintf(stderr, "tessera: --exr-compression: unknown \"%s\" (known: zip, piz, none)\n", optarg);
+                exit(2);
+            }
+            a->exr_compression = (codec_exr_compression)found;
+            break;
+        }
         case OPT_NO_NEE: a->ro.integrator.no_nee = 1; break;
         case OPT_NO_MIS: a->ro.integrator.no_mis = 1; break;
         case OPT_NO_PROGRESS: a->progress = 0; break;
@@ -233,7 +248,14 @@ static int cmd_render(int argc, char **argv) {
     if (rc) {
         fprintf(stderr, "tessera: could not start %d render threads\n", a.threads);
     } else {
-        image_write_options wo = {.tonemap = a.tm, .jpeg_quality = a.jpeg_quality};
+        char spp[32], seed[32], secs_s[32];
+        snprintf(spp, sizeof spp, "%d", s->settings.spp);
+        snprintf(seed, sizeof seed, "%llu", (unsigned long long)s->settings.seed);
+        snprintf(secs_s, sizeof secs_s, "%.3f", secs);
+        codec_attribute attrs[] = {{"tessera:scene", a.scene_path}, {"tessera:spp", spp}, {"tessera:seed", seed},
+                                   {"tessera:renderSeconds", secs_s}, {"tessera:version", TESSERA_VERSION}};
+        image_write_options wo = {.tonemap = a.tm, .jpeg_quality = a.jpeg_quality,
+                                  .exr_compression = a.exr_compression, .attributes = attrs, .attribute_count = 5};
         rc = image_write(a.out_path, &img, &wo, err, sizeof err);
         if (rc) fprintf(stderr, "tessera: %s\n", err);
     }

@@ -146,3 +146,33 @@ TEST(image_png_and_jpeg_decode) {
     fclose(f);
     image_free(&a);
 }
+
+/* EXR: the header as read by OpenEXR's own exrheader (Debian `openexr`):
+ * size, windows, float RGB channels, compression, our attributes. */
+TEST(image_exr_header_read_by_exrheader) {
+    image a;
+    char err[256], out[8192];
+    image_alloc(&a, 40, 30);
+    a.rgb[0] = 5.0f;
+    codec_attribute attrs[] = {{"tessera:spp", "64"}, {"tessera:scene", "test.json"}};
+    const char *names[] = {"zip", "piz", "none"};
+    for (int c = 0; c < 3; c++) {
+        image_write_options wo = {.exr_compression = (codec_exr_compression)c, .attributes = attrs, .attribute_count = 2};
+        CHECK(image_write("/tmp/tessera-t.exr", &a, &wo, err, sizeof err) == 0, "%s", err);
+        FILE *p = popen("exrheader /tmp/tessera-t.exr 2>&1", "r");
+        size_t n = p ? fread(out, 1, sizeof out - 1, p) : 0;
+        out[n] = '\0';
+        int st = p ? pclose(p) : -1;
+        CHECK(st == 0, "exrheader failed (%d): %s", st, out);
+        CHECK(strstr(out, "dataWindow (type box2i): (0 0) - (39 29)") && strstr(out, "displayWindow (type box2i): (0 0) - (39 29)"),
+              "windows wrong: %s", out);
+        CHECK(strstr(out, "R, 32-bit floating-point") && strstr(out, "G, 32-bit floating-point") &&
+                  strstr(out, "B, 32-bit floating-point"), "channels wrong: %s", out);
+        char want[64];
+        snprintf(want, sizeof want, "compression (type compression): %s", names[c]);
+        CHECK(strstr(out, want) != NULL, "want \"%s\" in: %s", want, out);
+        CHECK(strstr(out, "tessera:spp (type string): \"64\"") && strstr(out, "tessera:scene (type string): \"test.json\""),
+              "attributes missing: %s", out);
+    }
+    image_free(&a);
+}
