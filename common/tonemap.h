@@ -10,15 +10,35 @@
 #include <stddef.h>
 #include <stdint.h>
 
-typedef enum { TONEMAP_REINHARD, TONEMAP_CLAMP } tonemap_kind;
+typedef enum {
+    TONEMAP_REINHARD,          /* L / (1 + L) */
+    TONEMAP_REINHARD_EXTENDED, /* L (1 + L / Lw^2) / (1 + L) */
+    TONEMAP_PHOTOGRAPHIC,      /* Reinhard et al. 2002: key 0.18 on the log-average, then extended */
+    TONEMAP_ACES,              /* Narkowicz's fit of the ACES filmic curve, per channel */
+    TONEMAP_CLAMP              /* no curve */
+} tonemap_kind;
 
 typedef struct {
     tonemap_kind kind;
     float exposure_stops; /* input is multiplied by 2^exposure_stops first */
+    float white;          /* extended/photographic white point; <= 0: the image's maximum */
 } tonemap_options;
+
+/* Parse an operator name ("reinhard", "reinhard-extended", "photographic",
+ * "aces", "clamp"). Returns 0, or -1 for an unknown name. */
+int tonemap_parse(const char *name, tonemap_kind *out);
+
+/* The names tonemap_parse accepts, for messages. */
+#define TONEMAP_NAMES "reinhard, reinhard-extended, photographic, aces, clamp"
 
 /* Reinhard 2002, simple form: L_out = L / (1 + L). */
 float tonemap_reinhard(float L);
+
+/* Extended form with white point Lw: maps Lw to exactly 1. */
+float tonemap_reinhard_extended(float L, float Lw);
+
+/* Narkowicz 2015 ACES fit for one channel, clamped to [0, 1]. */
+float tonemap_aces(float x);
 
 /* The sRGB transfer function (IEC 61966-2-1) for a linear value in [0, 1]. */
 float tonemap_srgb_encode(float linear);

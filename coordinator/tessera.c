@@ -52,7 +52,10 @@ static void usage_render(FILE *f) {
             "      --tile-size N      tile side in pixels (default 32)\n"
             "      --passes N         render each tile's samples in N sequential passes\n"
             "                         (the image is bit-identical for every N)\n"
-            "      --tonemap NAME     8-bit outputs: reinhard (default) or clamp\n"
+            "      --tonemap NAME     8-bit outputs: reinhard (default), reinhard-extended,\n"
+            "                         photographic, aces or clamp\n"
+            "      --white L          white point of reinhard-extended and photographic\n"
+            "                         (default: the image's brightest luminance)\n"
             "      --exposure STOPS   scale radiance by 2^STOPS before tone mapping\n"
             "      --quality Q        JPEG quality, 1 to 100 (default 92)\n"
             "      --exr-compression C  zip (default), piz or none\n"
@@ -86,7 +89,7 @@ static double parse_double(const char *opt, const char *s, double lo, double hi)
 }
 
 enum { OPT_SPP = 256, OPT_WIDTH, OPT_HEIGHT, OPT_DEPTH, OPT_SEED, OPT_THREADS, OPT_WORKERS, OPT_TILE,
-       OPT_PASSES, OPT_TONEMAP, OPT_EXPOSURE, OPT_QUALITY, OPT_EXR_COMPRESSION, OPT_NO_NEE, OPT_NO_MIS, OPT_NO_PROGRESS };
+       OPT_PASSES, OPT_TONEMAP, OPT_EXPOSURE, OPT_WHITE, OPT_QUALITY, OPT_EXR_COMPRESSION, OPT_NO_NEE, OPT_NO_MIS, OPT_NO_PROGRESS };
 
 static void parse_render_args(int argc, char **argv, render_args *a) {
     static const struct option opts[] = {
@@ -96,7 +99,7 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         {"threads", required_argument, 0, OPT_THREADS}, {"workers", required_argument, 0, OPT_WORKERS},
         {"tile-size", required_argument, 0, OPT_TILE}, {"passes", required_argument, 0, OPT_PASSES},
         {"tonemap", required_argument, 0, OPT_TONEMAP}, {"exposure", required_argument, 0, OPT_EXPOSURE},
-        {"quality", required_argument, 0, OPT_QUALITY},
+        {"quality", required_argument, 0, OPT_QUALITY}, {"white", required_argument, 0, OPT_WHITE},
         {"exr-compression", required_argument, 0, OPT_EXR_COMPRESSION},
         {"no-nee", no_argument, 0, OPT_NO_NEE}, {"no-mis", no_argument, 0, OPT_NO_MIS},
         {"no-progress", no_argument, 0, OPT_NO_PROGRESS}, {"verbose", no_argument, 0, 'v'},
@@ -126,13 +129,12 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         case OPT_TILE: a->tile_size = (int)parse_int("--tile-size", optarg, 1, 4096); break;
         case OPT_PASSES: a->ro.passes = (int)parse_int("--passes", optarg, 1, 1 << 24); break;
         case OPT_TONEMAP:
-            if (strcmp(optarg, "reinhard") == 0) a->tm.kind = TONEMAP_REINHARD;
-            else if (strcmp(optarg, "clamp") == 0) a->tm.kind = TONEMAP_CLAMP;
-            else {
-                fprintf(stderr, "tessera: --tonemap: unknown operator \"%s\" (known: reinhard, clamp)\n", optarg);
+            if (tonemap_parse(optarg, &a->tm.kind) != 0) {
+                fprintf(stderr, "tessera: --tonemap: unknown operator \"%s\" (known: %s)\n", optarg, TONEMAP_NAMES);
                 exit(2);
             }
             break;
+        case OPT_WHITE: a->tm.white = (float)parse_double("--white", optarg, 1e-6, 1e30); break;
         case OPT_EXPOSURE: a->tm.exposure_stops = (float)parse_double("--exposure", optarg, -64, 64); break;
         case OPT_QUALITY: a->jpeg_quality = (int)parse_int("--quality", optarg, 1, 100); break;
         case OPT_EXR_COMPRESSION: {
@@ -268,12 +270,65 @@ static int cmd_render(int argc, char **argv) {
     return rc ? 1 : 0;
 }
 
+static void usage_tonemap(FILE *f) {
+    fprintf(f,
+            "usage: tessera tonemap IN.pfm -o OUT [--tonemap NAME] [--exposure STOPS] [--white L] [--quality Q]\n"
+            "\n"
+            "Tone map a saved HDR image (.pfm) again without rendering; OUT's extension\n"
+            "names the format (.png .jpg .jpeg .ppm, or .pfm/.exr to convert).\n"
+            "Operators: %s.\n", TONEMAP_NAMES);
+}
+
+/* `tessera tonemap`: read an HDR image, write it with new tone mapping. */
+static int cmd_tonemap(int argc, char **argv) {
+    static const struct option opts[] = {
+        {"output", required_argument, 0, 'o'}, {"tonemap", required_argument, 0, OPT_TONEMAP},
+        {"exposure", required_argument, 0, OPT_EXPOSURE}, {"white", required_argument, 0, OPT_WHITE},
+        {"quality", required_argument, 0, OPT_QUALITY}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
+    image_write_options wo = {.tonemap = {.kind = TONEMAP_REINHARD}};
+    const char *out = NULL;
+    int c;
+    optind = 1;
+    while ((c = getopt_long(argc, argv, "o:h", opts, NULL)) != -1) {
+        switch (c) {
+        case 'o': out = optarg; break;
+        case OPT_TONEMAP:
+            if (tonemap_parse(optarg, &wo.tonemap.kind) != 0) {
+                fprintf(stderr, "tessera: --tonemap: unknown operator \"%s\" (known: %s)\n", optarg, TONEMAP_NAMES);
+                return 2;
+            }
+            break;
+        case OPT_EXPOSURE: wo.tonemap.exposure_stops = (float)parse_double("--exposure", optarg, -64, 64); break;
+        case OPT_WHITE: wo.tonemap.white = (float)parse_double("--white", optarg, 1e-6, 1e30); break;
+        case OPT_QUALITY: wo.jpeg_quality = (int)parse_int("--quality", optarg, 1, 100); break;
+        case 'h': usage_tonemap(stdout); return 0;
+        default: usage_tonemap(stderr); return 2;
+        }
+    }
+    if (optind != argc - 1 || !out) {
+        fprintf(stderr, "tessera tonemap: expected one input image and -o OUT\n");
+        usage_tonemap(stderr);
+        return 2;
+    }
+    char err[1024];
+    image img;
+    if (image_read(argv[optind], &img, err, sizeof err) != 0 || image_write(out, &img, &wo, err, sizeof err) != 0) {
+        fprintf(stderr, "tessera: %s\n", err);
+        image_free(&img);
+        return 1;
+    }
+    printf("tone mapped %s: %zu NaN/Inf pixels written black, image: %s\n", argv[optind], wo.bad_pixels, out);
+    image_free(&img);
+    return 0;
+}
+
 static void usage(FILE *f) {
     fprintf(f,
             "usage: tessera COMMAND [options]\n"
             "\n"
             "commands:\n"
             "  render SCENE.json -o OUT   render a scene to an image (see tessera render --help)\n"
+            "  tonemap IN.pfm -o OUT      tone map a saved HDR image again (see tessera tonemap --help)\n"
             "  version                    print the version\n");
 }
 
@@ -283,6 +338,7 @@ int main(int argc, char **argv) {
         return 2;
     }
     if (strcmp(argv[1], "render") == 0) return cmd_render(argc - 1, argv + 1);
+    if (strcmp(argv[1], "tonemap") == 0) return cmd_tonemap(argc - 1, argv + 1);
     if (strcmp(argv[1], "version") == 0) {
         printf("tessera %s\n", TESSERA_VERSION);
         return 0;

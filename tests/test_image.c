@@ -7,6 +7,7 @@
 
 #include "../common/image.h"
 #include "harness.h"
+#include "util.h"
 
 static void fill_test_image(image *img) {
     for (int y = 0; y < img->height; y++)
@@ -175,4 +176,49 @@ TEST(image_exr_header_read_by_exrheader) {
               "attributes missing: %s", out);
     }
     image_free(&a);
+}
+
+TEST(tonemap_operators_known_values) {
+    CHECK(fabsf(tonemap_reinhard_extended(4.0f, 4.0f) - 1.0f) < 1e-6f, "the white point must map to 1");
+    CHECK(tonemap_reinhard_extended(0.0f, 4.0f) == 0.0f && tonemap_aces(0.0f) == 0.0f, "0 maps to 0");
+    CHECK(tonemap_aces(1e30f) == 1.0f && tonemap_aces(-1.0f) == 0.0f && tonemap_aces(NAN) == 0.0f, "ACES bounds");
+    float pe = 0, pa = 0;
+    for (int i = 1; i < 400; i++) {
+        float L = i * 0.01f, e = tonemap_reinhard_extended(L, 4.0f), a = tonemap_aces(L);
+        CHECK(e > pe && a >= pa, "not monotonic at L=%g", L);
+        pe = e, pa = a;
+    }
+    tonemap_kind k;
+    CHECK(tonemap_parse("photographic", &k) == 0 && k == TONEMAP_PHOTOGRAPHIC, "parse photographic");
+    CHECK(tonemap_parse("filmic", &k) != 0, "unknown names are refused");
+}
+
+/* The photographic operator normalises exposure: a grey image of any
+ * brightness maps to the same bytes (key 0.18 of its log-average). */
+TEST(tonemap_photographic_auto_exposure) {
+    float dim[12], bright[12];
+    for (int i = 0; i < 12; i++) dim[i] = 0.01f, bright[i] = 100.0f;
+    dim[0] = dim[1] = dim[2] = 0.02f; /* a white point above the grey */
+    bright[0] = bright[1] = bright[2] = 200.0f;
+    uint8_t a[12], b[12];
+    tonemap_options o = {.kind = TONEMAP_PHOTOGRAPHIC};
+    tonemap_to_8bit(dim, 4, &o, a);
+    tonemap_to_8bit(bright, 4, &o, b);
+    CHECK(memcmp(a, b, 12) == 0, "grey %d vs %d", a[3], b[3]);
+    CHECK(a[0] == 255, "the brightest pixel is the white point: %d", a[0]);
+}
+
+TEST(cli_tonemap_matches_render) {
+    char cmd[1024], out[4096];
+    const char *t = harness_tessera();
+    snprintf(cmd, sizeof cmd,
+             "%s render tests/scenes/cornell-small.json --spp 2 -o /tmp/tessera-tm.pfm && "
+             "%s render tests/scenes/cornell-small.json --spp 2 --tonemap photographic -o /tmp/tessera-tm1.png && "
+             "%s tonemap /tmp/tessera-tm.pfm --tonemap photographic -o /tmp/tessera-tm2.png && "
+             "cmp /tmp/tessera-tm1.png /tmp/tessera-tm2.png", t, t, t);
+    CHECK(util_run(cmd, out, sizeof out) == 0, "re-tone-mapping differs from rendering: %s", out);
+    snprintf(cmd, sizeof cmd, "%s tonemap /tmp/tessera-tm.pfm --tonemap sepia -o /tmp/x.png", t);
+    CHECK(util_run(cmd, out, sizeof out) == 2 && strstr(out, "unknown operator \"sepia\""), "bad operator: %s", out);
+    snprintf(cmd, sizeof cmd, "%s tonemap /tmp/nothing.pfm -o /tmp/x.png", t);
+    CHECK(util_run(cmd, out, sizeof out) == 1 && strstr(out, "/tmp/nothing.pfm: cannot open"), "missing input: %s", out);
 }
