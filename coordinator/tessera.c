@@ -88,6 +88,13 @@ static double parse_double(const char *opt, const char *s, double lo, double hi)
     return v;
 }
 
+/* Parse a --tonemap operator name; exits with status 2 if unknown. */
+static void parse_tonemap(const char *s, tonemap_kind *out) {
+    if (tonemap_parse(s, out) == 0) return;
+    fprintf(stderr, "tessera: --tonemap: unknown operator \"%s\" (known: %s)\n", s, TONEMAP_NAMES);
+    exit(2);
+}
+
 enum { OPT_SPP = 256, OPT_WIDTH, OPT_HEIGHT, OPT_DEPTH, OPT_SEED, OPT_THREADS, OPT_WORKERS, OPT_TILE,
        OPT_PASSES, OPT_TONEMAP, OPT_EXPOSURE, OPT_WHITE, OPT_QUALITY, OPT_EXR_COMPRESSION, OPT_NO_NEE, OPT_NO_MIS, OPT_NO_PROGRESS };
 
@@ -129,10 +136,7 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         case OPT_TILE: a->tile_size = (int)parse_int("--tile-size", optarg, 1, 4096); break;
         case OPT_PASSES: a->ro.passes = (int)parse_int("--passes", optarg, 1, 1 << 24); break;
         case OPT_TONEMAP:
-            if (tonemap_parse(optarg, &a->tm.kind) != 0) {
-                fprintf(stderr, "tessera: --tonemap: unknown operator \"%s\" (known: %s)\n", optarg, TONEMAP_NAMES);
-                exit(2);
-            }
+            parse_tonemap(optarg, &a->tm.kind);
             break;
         case OPT_WHITE: a->tm.white = (float)parse_double("--white", optarg, 1e-6, 1e30); break;
         case OPT_EXPOSURE: a->tm.exposure_stops = (float)parse_double("--exposure", optarg, -64, 64); break;
@@ -293,10 +297,7 @@ static int cmd_tonemap(int argc, char **argv) {
         switch (c) {
         case 'o': out = optarg; break;
         case OPT_TONEMAP:
-            if (tonemap_parse(optarg, &wo.tonemap.kind) != 0) {
-                fprintf(stderr, "tessera: --tonemap: unknown operator \"%s\" (known: %s)\n", optarg, TONEMAP_NAMES);
-                return 2;
-            }
+            parse_tonemap(optarg, &wo.tonemap.kind);
             break;
         case OPT_EXPOSURE: wo.tonemap.exposure_stops = (float)parse_double("--exposure", optarg, -64, 64); break;
         case OPT_WHITE: wo.tonemap.white = (float)parse_double("--white", optarg, 1e-6, 1e30); break;
