@@ -234,8 +234,9 @@ int image_read(const char *path, image *img, char *err, size_t err_len) {
     const char *ext = extension(path);
     int pfm = strcasecmp(ext, "pfm") == 0, ppm = strcasecmp(ext, "ppm") == 0;
     img->rgb = NULL;
+    if (strcasecmp(ext, "exr") == 0) return codec_exr_decode(path, &img->width, &img->height, &img->rgb, err, err_len);
     if (!pfm && !ppm) {
-        snprintf(err, err_len, "%s: cannot read \"%s\" images (known: .pfm .ppm)", path, ext);
+        snprintf(err, err_len, "%s: cannot read \"%s\" images (known: .pfm .exr .ppm)", path, ext);
         return -1;
     }
     char *buf = file_read_all(path, (size_t)1 << 34, &len, err, err_len);

@@ -199,3 +199,88 @@ uint8_t *codec_exr_encode(const float *rgb, int width, int height, codec_exr_com
     *len = mem.len;
     return mem.data;
 }
+
+/* Point each R, G, B channel of a decode pipeline at its place in rgb;
+ * other channels are skipped. Returns how many of R, G, B were found. */
+static int exr_bind_channels(exr_decode_pipeline_t *dec, float *rgb, int width) {
+    int found = 0;
+    for (int c = 0; c < dec->channel_count; c++) {
+        exr_coding_channel_info_t *ch = &dec->channels[c];
+        const char *n = ch->channel_name;
+        int off = strcmp(n, "R") == 0 ? 0 : strcmp(n, "G") == 0 ? 1 : strcmp(n, "B") == 0 ? 2 : -1;
+        if (off < 0) {
+            ch->decode_to_ptr = NULL;
+            continue;
+        }
+        found++;
+        ch->decode_to_ptr = (uint8_t *)(rgb + off);
+        ch->user_pixel_stride = 3 * (int32_t)sizeof(float);
+        ch->user_line_stride = 3 * (int32_t)sizeof(float) * width;
+        ch->user_data_type = EXR_PIXEL_FLOAT;
+        ch->user_bytes_per_element = sizeof(float);
+    }
+    return found;
+}
+
+/* Decode every scanline chunk of part 0 into rgb. */
+static exr_result_t exr_read_pixels(exr_context_t ctx, const exr_attr_box2i_t *dw, float *rgb, char *err,
+                                    size_t err_len) {
+    int width = dw->max.x - dw->min.x + 1;
+    int32_t lines;
+    exr_result_t rv = exr_get_scanlines_per_chunk(ctx, 0, &lines);
+    exr_decode_pipeline_t dec;
+    int started = 0;
+    for (int y = dw->min.y; y <= dw->max.y && !rv; y += lines) {
+        exr_chunk_info_t chunk;
+        rv = exr_read_scanline_chunk_info(ctx, 0, y, &chunk);
+        if (!rv) rv = started ? exr_decoding_update(ctx, 0, &chunk, &dec) : exr_decoding_initialize(ctx, 0, &chunk, &dec);
+        if (rv) break;
+        started = 1;
+        if (exr_bind_channels(&dec, rgb + 3 * (size_t)(chunk.start_y - dw->min.y) * (size_t)width, width) != 3) {
+            snprintf(err, err_len, "no R, G and B channels");
+            rv = EXR_ERR_INVALID_ARGUMENT;
+            break;
+        }
+        rv = exr_decoding_choose_default_routines(ctx, 0, &dec);
+        if (!rv) rv = exr_decoding_run(ctx, 0, &dec);
+    }
+    if (started) exr_decoding_destroy(ctx, &dec);
+    return rv;
+}
+
+int codec_exr_decode(const char *path, int *width, int *height, float **rgb, char *err, size_t err_len) {
+    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+    init.error_handler_fn = exr_quiet_error;
+    exr_context_t ctx = NULL;
+    exr_storage_t storage;
+    exr_attr_box2i_t dw;
+    float *px = NULL;
+    char why[160] = "";
+    exr_result_t rv = exr_start_read(&ctx, path, &init);
+    if (!rv) rv = exr_get_storage(ctx, 0, &storage);
+    if (!rv && storage != EXR_STORAGE_SCANLINE) {
+        snprintf(why, sizeof why, "only scanline images are read, not tiled or deep");
+        rv = EXR_ERR_INVALID_ARGUMENT;
+    }
+    if (!rv) rv = exr_get_data_window(ctx, 0, &dw);
+    long long w = rv ? 0 : (long long)dw.max.x - dw.min.x + 1, h = rv ? 0 : (long long)dw.max.y - dw.min.y + 1;
+    if (!rv && (w < 1 || h < 1 || w > 32768 || h > 32768)) {
+        snprintf(why, sizeof why, "data window of %lldx%lld pixels is out of range", w, h);
+        rv = EXR_ERR_INVALID_ARGUMENT;
+    }
+    if (!rv && !(px = calloc((size_t)(w * h * 3), sizeof(float)))) {
+        snprintf(why, sizeof why, "out of memory");
+        rv = EXR_ERR_OUT_OF_MEMORY;
+    }
+    if (!rv) rv = exr_read_pixels(ctx, &dw, px, why, sizeof why);
+    if (ctx) exr_finish(&ctx);
+    if (rv) {
+        snprintf(err, err_len, "%s: not a readable OpenEXR image: %s", path, why[0] ? why : exr_get_default_error_message(rv));
+        free(px);
+        return -1;
+    }
+    *width = (int)w;
+    *height = (int)h;
+    *rgb = px;
+    return 0;
+}

@@ -32,4 +32,10 @@ typedef enum { CODEC_EXR_ZIP, CODEC_EXR_PIZ, CODEC_EXR_NONE } codec_exr_compress
 uint8_t *codec_exr_encode(const float *rgb, int width, int height, codec_exr_compression compression,
                           const codec_attribute *attrs, int attr_count, size_t *len, char *err, size_t err_len);
 
+/* Read a scanline OpenEXR file's R, G, B channels (any pixel type, converted
+ * to float) over its data window. Returns 0 and a malloc'd rgb buffer (3
+ * floats per pixel, top row first; the caller frees it), or -1 with the
+ * reason in err (not EXR, tiled, no R/G/B channels, corrupt). */
+int codec_exr_decode(const char *path, int *width, int *height, float **rgb, char *err, size_t err_len);
+
 #endif

@@ -276,9 +276,9 @@ static int cmd_render(int argc, char **argv) {
 
 static void usage_tonemap(FILE *f) {
     fprintf(f,
-            "usage: tessera tonemap IN.pfm -o OUT [--tonemap NAME] [--exposure STOPS] [--white L] [--quality Q]\n"
+            "usage: tessera tonemap IN.exr|IN.pfm -o OUT [--tonemap NAME] [--exposure STOPS] [--white L] [--quality Q]\n"
             "\n"
-            "Tone map a saved HDR image (.pfm) again without rendering; OUT's extension\n"
+            "Tone map a saved HDR image (.exr, .pfm) again without rendering; OUT's extension\n"
             "names the format (.png .jpg .jpeg .ppm, or .pfm/.exr to convert).\n"
             "Operators: %s.\n", TONEMAP_NAMES);
 }
@@ -329,7 +329,7 @@ static void usage(FILE *f) {
             "\n"
             "commands:\n"
             "  render SCENE.json -o OUT   render a scene to an image (see tessera render --help)\n"
-            "  tonemap IN.pfm -o OUT      tone map a saved HDR image again (see tessera tonemap --help)\n"
+            "  tonemap IN.exr -o OUT      tone map a saved HDR image again (see tessera tonemap --help)\n"
             "  version                    print the version\n");
 }
 
