@@ -153,8 +153,7 @@ int image_write(const char *path, const image *img, image_write_options *opt, ch
     if (strcasecmp(ext, "pfm") == 0) {
         buf = encode_pfm(img, &len);
     } else if (strcasecmp(ext, "exr") == 0) {
-        buf = codec_exr_encode(img->rgb, img->width, img->height, opt->exr_compression, opt->attributes,
-                               opt->attribute_count, &len, why, sizeof why);
+        buf = codec_exr_encode(img->rgb, img->width, img->height, &opt->exr, &len, why, sizeof why);
     } else if (strcasecmp(ext, "ppm") == 0 || strcasecmp(ext, "png") == 0 || strcasecmp(ext, "jpg") == 0 ||
                strcasecmp(ext, "jpeg") == 0) {
         buf = encode_8bit(ext, img, opt, &len, why, sizeof why);

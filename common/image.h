@@ -26,9 +26,7 @@ void image_free(image *img);
 typedef struct {
     tonemap_options tonemap; /* for 8-bit formats */
     int jpeg_quality;        /* 1..100; 0 means the default, 92 */
-    codec_exr_compression exr_compression; /* default ZIP */
-    const codec_attribute *attributes;     /* recorded in EXR headers */
-    int attribute_count;
+    codec_exr_options exr;   /* compression (default ZIP), half, alpha, attributes */
     size_t bad_pixels;       /* out: NaN/Inf pixels written black */
 } image_write_options;
 

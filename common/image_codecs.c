@@ -137,21 +137,21 @@ static exr_compression_t exr_compression_of(codec_exr_compression c) {
     }
 }
 
-/* Header: one scanline part, R G B float channels, attributes. */
-static exr_result_t exr_define_part(exr_context_t ctx, int width, int height, codec_exr_compression compression,
-                                    const codec_attribute *attrs, int attr_count) {
+/* Header: one scanline part, R G B (A) channels, attributes. */
+static exr_result_t exr_define_part(exr_context_t ctx, int width, int height, const codec_exr_options *opt) {
     int part;
     exr_result_t rv = exr_add_part(ctx, "rgb", EXR_STORAGE_SCANLINE, &part);
-    if (!rv) rv = exr_initialize_required_attr_simple(ctx, part, width, height, exr_compression_of(compression));
-    const char *names[3] = {"B", "G", "R"}; /* the library wants them sorted */
-    for (int c = 0; c < 3 && !rv; c++)
-        rv = exr_add_channel(ctx, part, names[c], EXR_PIXEL_FLOAT, EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1);
-    for (int i = 0; i < attr_count && !rv; i++) rv = exr_attr_set_string(ctx, part, attrs[i].name, attrs[i].value);
+    if (!rv) rv = exr_initialize_required_attr_simple(ctx, part, width, height, exr_compression_of(opt->compression));
+    const char *names[4] = {"A", "B", "G", "R"}; /* the library wants them sorted */
+    exr_pixel_type_t type = opt->half ? EXR_PIXEL_HALF : EXR_PIXEL_FLOAT;
+    for (int c = opt->alpha ? 0 : 1; c < 4 && !rv; c++)
+        rv = exr_add_channel(ctx, part, names[c], type, EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1);
+    for (int i = 0; i < opt->attr_count && !rv; i++) rv = exr_attr_set_string(ctx, part, opt->attrs[i].name, opt->attrs[i].value);
     return rv;
 }
 
-/* Encode and write every chunk of scanlines. */
-static exr_result_t exr_write_pixels(exr_context_t ctx, const float *rgb, int width, int height) {
+/* Encode and write every chunk of scanlines; A reads from a row of ones. */
+static exr_result_t exr_write_pixels(exr_context_t ctx, const float *rgb, const float *ones, int width, int height) {
     int32_t lines;
     exr_result_t rv = exr_get_scanlines_per_chunk(ctx, 0, &lines);
     exr_encode_pipeline_t enc;
@@ -163,12 +163,16 @@ static exr_result_t exr_write_pixels(exr_context_t ctx, const float *rgb, int wi
         if (rv) break;
         started = 1;
         for (int c = 0; c < enc.channel_count; c++) {
-            int offset = enc.channels[c].channel_name[0] == 'R' ? 0 : enc.channels[c].channel_name[0] == 'G' ? 1 : 2;
-            enc.channels[c].encode_from_ptr = (const uint8_t *)(rgb + 3 * (size_t)y * (size_t)width + offset);
-            enc.channels[c].user_pixel_stride = 3 * (int32_t)sizeof(float);
-            enc.channels[c].user_line_stride = 3 * (int32_t)sizeof(float) * width;
-            enc.channels[c].user_data_type = EXR_PIXEL_FLOAT;
-            enc.channels[c].user_bytes_per_element = sizeof(float);
+            exr_coding_channel_info_t *ch = &enc.channels[c];
+            char n = ch->channel_name[0];
+            int offset = n == 'R' ? 0 : n == 'G' ? 1 : 2;
+            int alpha = n == 'A';
+            ch->encode_from_ptr = alpha ? (const uint8_t *)ones
+                                        : (const uint8_t *)(rgb + 3 * (size_t)y * (size_t)width + offset);
+            ch->user_pixel_stride = (alpha ? 1 : 3) * (int32_t)sizeof(float);
+            ch->user_line_stride = alpha ? 0 : 3 * (int32_t)sizeof(float) * width;
+            ch->user_data_type = EXR_PIXEL_FLOAT;
+            ch->user_bytes_per_element = sizeof(float);
         }
         rv = exr_encoding_choose_default_routines(ctx, 0, &enc);
         if (!rv) rv = exr_encoding_run(ctx, 0, &enc);
@@ -177,19 +181,26 @@ static exr_result_t exr_write_pixels(exr_context_t ctx, const float *rgb, int wi
     return rv;
 }
 
-uint8_t *codec_exr_encode(const float *rgb, int width, int height, codec_exr_compression compression,
-                          const codec_attribute *attrs, int attr_count, size_t *len, char *err, size_t err_len) {
+uint8_t *codec_exr_encode(const float *rgb, int width, int height, const codec_exr_options *opt, size_t *len,
+                          char *err, size_t err_len) {
     exr_memory mem = {0};
     exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
     init.user_data = &mem;
     init.write_fn = exr_memory_write;
     init.error_handler_fn = exr_quiet_error;
+    float *ones = malloc(sizeof(float) * (size_t)width);
+    if (!ones) {
+        snprintf(err, err_len, "out of memory");
+        return NULL;
+    }
+    for (int x = 0; x < width; x++) ones[x] = 1.0f;
     exr_context_t ctx = NULL;
     exr_result_t rv = exr_start_write(&ctx, "memory.exr", EXR_WRITE_FILE_DIRECTLY, &init);
-    if (!rv) rv = exr_define_part(ctx, width, height, compression, attrs, attr_count);
+    if (!rv) rv = exr_define_part(ctx, width, height, opt);
     if (!rv) rv = exr_write_header(ctx);
-    if (!rv) rv = exr_write_pixels(ctx, rgb, width, height);
+    if (!rv) rv = exr_write_pixels(ctx, rgb, ones, width, height);
     exr_result_t fin = ctx ? exr_finish(&ctx) : EXR_ERR_SUCCESS;
+    free(ones);
     if (!rv) rv = fin;
     if (rv || mem.failed) {
         snprintf(err, err_len, "OpenEXR encoder: %s", mem.failed ? "out of memory" : exr_get_default_error_message(rv));

@@ -26,11 +26,20 @@ typedef struct {
 /* DWAA is not offered: Debian's OpenEXRCore 3.1 C API does not implement it. */
 typedef enum { CODEC_EXR_ZIP, CODEC_EXR_PIZ, CODEC_EXR_NONE } codec_exr_compression;
 
-/* Scanline OpenEXR (OpenEXRCore C API): float32 R, G, B channels, display
- * and data window (0,0)-(width-1,height-1), the given compression and string
- * attributes. rgb: 3 floats per pixel, top row first. */
-uint8_t *codec_exr_encode(const float *rgb, int width, int height, codec_exr_compression compression,
-                          const codec_attribute *attrs, int attr_count, size_t *len, char *err, size_t err_len);
+/* Scanline OpenEXR (OpenEXRCore C API): R, G, B channels (and A = 1 with
+ * alpha), float32 or half, display and data window (0,0)-(width-1,height-1),
+ * the given compression and string attributes. rgb: 3 floats per pixel, top
+ * row first. */
+typedef struct {
+    codec_exr_compression compression;
+    int half;  /* 16-bit half channels instead of float32 */
+    int alpha; /* add an A channel of 1 */
+    const codec_attribute *attrs;
+    int attr_count;
+} codec_exr_options;
+
+uint8_t *codec_exr_encode(const float *rgb, int width, int height, const codec_exr_options *opt, size_t *len,
+                          char *err, size_t err_len);
 
 /* Read a scanline OpenEXR file's R, G, B channels (any pixel type, converted
  * to float) over its data window. Returns 0 and a malloc'd rgb buffer (3

@@ -158,7 +158,7 @@ TEST(image_exr_header_read_by_exrheader) {
     codec_attribute attrs[] = {{"tessera:spp", "64"}, {"tessera:scene", "test.json"}};
     const char *names[] = {"zip", "piz", "none"};
     for (int c = 0; c < 3; c++) {
-        image_write_options wo = {.exr_compression = (codec_exr_compression)c, .attributes = attrs, .attribute_count = 2};
+        image_write_options wo = {.exr = {.compression = (codec_exr_compression)c, .attrs = attrs, .attr_count = 2}};
         CHECK(image_write("/tmp/tessera-t.exr", &a, &wo, err, sizeof err) == 0, "%s", err);
         FILE *p = popen("exrheader /tmp/tessera-t.exr 2>&1", "r");
         size_t n = p ? fread(out, 1, sizeof out - 1, p) : 0;
@@ -233,7 +233,7 @@ TEST(image_exr_round_trip_bit_exact) {
     a.rgb[5] = 1e-30f; /* a denormal-range value and a huge one */
     a.rgb[8] = 3e38f;
     for (int c = 0; c < 3; c++) {
-        image_write_options wo = {.exr_compression = (codec_exr_compression)c};
+        image_write_options wo = {.exr = {.compression = (codec_exr_compression)c}};
         CHECK(image_write("/tmp/tessera-rt.exr", &a, &wo, err, sizeof err) == 0, "%s", err);
         CHECK(image_read("/tmp/tessera-rt.exr", &b, err, sizeof err) == 0, "compression %d: %s", c, err);
         if (!b.rgb) continue;
@@ -247,4 +247,21 @@ TEST(image_exr_round_trip_bit_exact) {
     CHECK(image_read("/tmp/tessera-bad.exr", &b, err, sizeof err) != 0 && strstr(err, "/tmp/tessera-bad.exr: not a readable OpenEXR"),
           "garbage accepted or unclear: %s", err);
     image_free(&a);
+}
+
+/* Half EXR with alpha: values within half precision, A = 1 (exrheader). */
+TEST(image_exr_half_and_alpha) {
+    image a, b;
+    char err[256], out[4096];
+    image_alloc(&a, 16, 9);
+    fill_test_image(&a);
+    image_write_options wo = {.exr = {.half = 1, .alpha = 1}};
+    CHECK(image_write("/tmp/tessera-half.exr", &a, &wo, err, sizeof err) == 0, "%s", err);
+    CHECK(image_read("/tmp/tessera-half.exr", &b, err, sizeof err) == 0, "%s", err);
+    for (int i = 0; b.rgb && i < 16 * 9 * 3; i++)
+        CHECK(fabsf(a.rgb[i] - b.rgb[i]) <= fabsf(a.rgb[i]) * 0x1p-11f + 1e-7f, "pixel value %d: %g vs %g", i, a.rgb[i], b.rgb[i]);
+    CHECK(util_run("exrheader /tmp/tessera-half.exr", out, sizeof out) == 0 && strstr(out, "A, 16-bit floating-point") &&
+              strstr(out, "R, 16-bit floating-point"), "channels: %s", out);
+    image_free(&a);
+    image_free(&b);
 }
