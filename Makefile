@@ -9,7 +9,7 @@
 #   make reference  regenerate tests/data/cornell-ref-64.pfm.gz (slow)
 
 # Debian packages the build needs; `make deps` installs what is missing.
-DEB_PACKAGES := gcc make pkg-config libcjson-dev libuv1-dev libjpeg-dev libopenexr-dev libpng-dev libsodium-dev openexr
+DEB_PACKAGES := gcc make pkg-config libcjson-dev libuv1-dev libjpeg-dev libopenexr-dev libpng-dev libsodium-dev openexr openimageio-tools
 
 CC ?= cc
 VARIANT ?= release

@@ -265,3 +265,40 @@ TEST(image_exr_half_and_alpha) {
     image_free(&a);
     image_free(&b);
 }
+
+/* Every format we write is read by OpenImageIO (iinfo, oiiotool; Debian
+ * openimageio-tools) with the right size, and its top-left pixel, cut out by
+ * oiiotool, is the red corner: the right way up. */
+TEST(image_formats_read_by_openimageio) {
+    image a;
+    char err[256], out[4096], cmd[512];
+    image_alloc(&a, 40, 30);
+    for (int i = 0; i < 40 * 30 * 3; i++) a.rgb[i] = 0.1f;
+    for (int y = 0; y < 6; y++)
+        for (int x = 0; x < 6; x++) {
+            float *p = a.rgb + 3 * (y * 40 + x);
+            p[0] = 4.0f, p[1] = 0.0f, p[2] = 0.0f;
+        }
+    const char *exts[] = {"exr", "pfm", "png", "ppm", "jpg"};
+    for (int e = 0; e < 5; e++) {
+        char path[64];
+        snprintf(path, sizeof path, "/tmp/tessera-oiio.%s", exts[e]);
+        image_write_options wo = {.tonemap = {.kind = TONEMAP_CLAMP}, .jpeg_quality = 95};
+        CHECK(image_write(path, &a, &wo, err, sizeof err) == 0, "%s", err);
+        snprintf(cmd, sizeof cmd, "iinfo %s", path);
+        CHECK(util_run(cmd, out, sizeof out) == 0 && strstr(out, "40 x   30"), "iinfo on .%s: %s", exts[e], out);
+        snprintf(cmd, sizeof cmd, "oiiotool %s --cut 1x1+2+2 -d float -o /tmp/tessera-oiio-px.exr", path);
+        CHECK(util_run(cmd, out, sizeof out) == 0, "oiiotool on .%s: %s", exts[e], out);
+        image px;
+        if (image_read("/tmp/tessera-oiio-px.exr", &px, err, sizeof err) == 0) {
+            CHECK(px.rgb[0] > 0.9f && px.rgb[1] < 0.05f && px.rgb[2] < 0.05f, ".%s: top-left pixel (%g, %g, %g) is not red",
+                  exts[e], px.rgb[0], px.rgb[1], px.rgb[2]);
+            image_free(&px);
+        } else {
+            CHECK(0, "%s", err);
+        }
+    }
+    snprintf(cmd, sizeof cmd, "idiff /tmp/tessera-oiio.exr /tmp/tessera-oiio.pfm");
+    CHECK(util_run(cmd, out, sizeof out) == 0 && strstr(out, "PASS"), "idiff: EXR and PFM differ: %s", out);
+    image_free(&a);
+}
