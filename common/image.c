@@ -97,6 +97,19 @@ static uint8_t *encode_8bit(const char *ext, const image *img, image_write_optio
         return NULL;
     }
     int quality = opt->jpeg_quality > 0 ? opt->jpeg_quality : 92;
+    if (opt->png16 && strcasecmp(ext, "png") == 0) {
+        free(px);
+        size_t n = 3 * (size_t)img->width * (size_t)img->height;
+        uint16_t *px16 = malloc(n * sizeof(uint16_t));
+        if (!px16) {
+            snprintf(err, err_len, "out of memory");
+            return NULL;
+        }
+        opt->bad_pixels = tonemap_encode(img->rgb, n / 3, &opt->tonemap, 16, px16);
+        buf = codec_png16_encode(px16, img->width, img->height, len, err, err_len);
+        free(px16);
+        return buf;
+    }
     if (strcasecmp(ext, "ppm") == 0) {
         buf = encode_ppm(px, img->width, img->height, len);
         if (!buf) snprintf(err, err_len, "out of memory");

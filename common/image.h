@@ -26,6 +26,7 @@ void image_free(image *img);
 typedef struct {
     tonemap_options tonemap; /* for 8-bit formats */
     int jpeg_quality;        /* 1..100; 0 means the default, 92 */
+    int png16;               /* 16-bit PNG instead of 8 */
     codec_exr_options exr;   /* compression (default ZIP), half, alpha, attributes */
     size_t bad_pixels;       /* out: NaN/Inf pixels written black */
 } image_write_options;

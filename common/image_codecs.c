@@ -40,6 +40,69 @@ uint8_t *codec_png_encode(const uint8_t *rgb, int width, int height, size_t *len
     return buf;
 }
 
+typedef struct {
+    uint8_t *data;
+    size_t len, cap;
+    int failed;
+} mem_buffer;
+
+static void mem_append(mem_buffer *m, const void *p, size_t n) {
+    if (m->failed) return;
+    if (m->len + n > m->cap) {
+        size_t cap = m->cap ? 2 * m->cap : 1 << 16;
+        while (cap < m->len + n) cap *= 2;
+        uint8_t *q = realloc(m->data, cap);
+        if (!q) {
+            m->failed = 1;
+            return;
+        }
+        m->data = q;
+        m->cap = cap;
+    }
+    memcpy(m->data + m->len, p, n);
+    m->len += n;
+}
+
+static void png_mem_write(png_structp png, png_bytep data, size_t n) { mem_append(png_get_io_ptr(png), data, n); }
+static void png_mem_flush(png_structp png) { (void)png; }
+
+uint8_t *codec_png16_encode(const uint16_t *rgb16, int width, int height, size_t *len, char *err, size_t err_len) {
+    mem_buffer m = {0};
+    uint8_t *volatile row = malloc(6 * (size_t)width);
+    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, NULL, NULL);
+    png_infop info = png ? png_create_info_struct(png) : NULL;
+    if (!row || !info || setjmp(png_jmpbuf(png))) {
+        snprintf(err, err_len, "PNG encoder: %s", row && info ? "libpng error" : "out of memory");
+        png_destroy_write_struct(&png, &info);
+        free(row);
+        free(m.data);
+        return NULL;
+    }
+    png_set_write_fn(png, &m, png_mem_write, png_mem_flush);
+    png_set_IHDR(png, info, (png_uint_32)width, (png_uint_32)height, 16, PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE,
+                 PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+    png_set_sRGB_gAMA_and_cHRM(png, info, PNG_sRGB_INTENT_PERCEPTUAL);
+    png_write_info(png, info);
+    for (int y = 0; y < height; y++) { /* PNG samples are big-endian */
+        const uint16_t *src = rgb16 + 3 * (size_t)y * (size_t)width;
+        for (int i = 0; i < 3 * width; i++) {
+            row[2 * i] = (uint8_t)(src[i] >> 8);
+            row[2 * i + 1] = (uint8_t)(src[i] & 0xff);
+        }
+        png_write_row(png, row);
+    }
+    png_write_end(png, info);
+    png_destroy_write_struct(&png, &info);
+    free(row);
+    if (m.failed) {
+        snprintf(err, err_len, "PNG encoder: out of memory");
+        free(m.data);
+        return NULL;
+    }
+    *len = m.len;
+    return m.data;
+}
+
 /* libjpeg reports errors by calling error_exit, which must not return: jump
  * back to the encoder with the message instead of exiting the process. */
 typedef struct {

@@ -12,6 +12,10 @@
 /* rgb: width * height * 3 bytes, top row first. */
 uint8_t *codec_png_encode(const uint8_t *rgb, int width, int height, size_t *len, char *err, size_t err_len);
 
+/* 16-bit sRGB PNG (full libpng API: IHDR depth 16 and an sRGB chunk).
+ * rgb16: width * height * 3 values in host order, top row first. */
+uint8_t *codec_png16_encode(const uint16_t *rgb16, int width, int height, size_t *len, char *err, size_t err_len);
+
 /* quality 1..100 (libjpeg-turbo, 4:2:0 below 90, 4:4:4 from 90). */
 uint8_t *codec_jpeg_encode(const uint8_t *rgb, int width, int height, int quality, size_t *len, char *err,
                            size_t err_len);

@@ -56,9 +56,20 @@ static void image_stats(const float *rgb, size_t count, float gain, float *max_L
     *log_avg = n ? (float)exp(sum / (double)n) : 1.0f;
 }
 
-static uint8_t to_byte(float display) { return (uint8_t)lrintf(tonemap_srgb_encode(display) * 255.0f); }
+/* Store a display value, sRGB encoded and rounded, as 8 or 16 bits. */
+static void store(void *out, size_t i, int bits, float display) {
+    float v = tonemap_srgb_encode(display);
+    if (bits == 16)
+        ((uint16_t *)out)[i] = (uint16_t)lrintf(v * 65535.0f);
+    else
+        ((uint8_t *)out)[i] = (uint8_t)lrintf(v * 255.0f);
+}
 
 size_t tonemap_to_8bit(const float *rgb, size_t count, const tonemap_options *opt, uint8_t *out) {
+    return tonemap_encode(rgb, count, opt, 8, out);
+}
+
+size_t tonemap_encode(const float *rgb, size_t count, const tonemap_options *opt, int bits, void *out) {
     float gain = exp2f(opt->exposure_stops), max_L = 0, log_avg = 1;
     if (opt->kind == TONEMAP_REINHARD_EXTENDED || opt->kind == TONEMAP_PHOTOGRAPHIC)
         image_stats(rgb, count, gain, &max_L, &log_avg);
@@ -86,7 +97,7 @@ size_t tonemap_to_8bit(const float *rgb, size_t count, const tonemap_options *op
             float scale = L > 0.0f ? Lout / L * key_scale : 0.0f;
             for (int k = 0; k < 3; k++) c[k] *= scale;
         }
-        for (int k = 0; k < 3; k++) out[3 * i + k] = to_byte(c[k]);
+        for (int k = 0; k < 3; k++) store(out, 3 * i + (size_t)k, bits, c[k]);
     }
     return bad;
 }

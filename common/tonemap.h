@@ -47,4 +47,7 @@ float tonemap_srgb_encode(float linear);
  * Returns the number of pixels that were NaN or Inf (written black). */
 size_t tonemap_to_8bit(const float *rgb, size_t count, const tonemap_options *opt, uint8_t *out);
 
+/* The same with bits = 8 (out: uint8_t) or 16 (out: uint16_t, host order). */
+size_t tonemap_encode(const float *rgb, size_t count, const tonemap_options *opt, int bits, void *out);
+
 #endif

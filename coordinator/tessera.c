@@ -25,7 +25,7 @@ typedef struct {
     const char *scene_path;
     const char *out_path;
     scene_overrides ov;
-    int threads, workers, tile_size, verbose, progress, jpeg_quality;
+    int threads, workers, tile_size, verbose, progress, jpeg_quality, png16;
     codec_exr_options exr;
     render_options ro;
     tonemap_options tm;
@@ -58,6 +58,7 @@ static void usage_render(FILE *f) {
             "                         (default: the image's brightest luminance)\n"
             "      --exposure STOPS   scale radiance by 2^STOPS before tone mapping\n"
             "      --quality Q        JPEG quality, 1 to 100 (default 92)\n"
+            "      --png16            16-bit PNG instead of 8-bit\n"
             "      --exr-compression C  zip (default), piz or none\n"
             "      --exr-half         16-bit half channels instead of float32\n"
             "      --exr-alpha        add an A channel of 1\n"
@@ -98,7 +99,7 @@ static void parse_tonemap(const char *s, tonemap_kind *out) {
 }
 
 enum { OPT_SPP = 256, OPT_WIDTH, OPT_HEIGHT, OPT_DEPTH, OPT_SEED, OPT_THREADS, OPT_WORKERS, OPT_TILE,
-       OPT_PASSES, OPT_TONEMAP, OPT_EXPOSURE, OPT_WHITE, OPT_QUALITY, OPT_EXR_COMPRESSION, OPT_EXR_HALF, OPT_EXR_ALPHA, OPT_NO_NEE, OPT_NO_MIS, OPT_NO_PROGRESS };
+       OPT_PASSES, OPT_TONEMAP, OPT_EXPOSURE, OPT_WHITE, OPT_QUALITY, OPT_EXR_COMPRESSION, OPT_EXR_HALF, OPT_EXR_ALPHA, OPT_PNG16, OPT_NO_NEE, OPT_NO_MIS, OPT_NO_PROGRESS };
 
 static void parse_render_args(int argc, char **argv, render_args *a) {
     static const struct option opts[] = {
@@ -110,7 +111,7 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         {"tonemap", required_argument, 0, OPT_TONEMAP}, {"exposure", required_argument, 0, OPT_EXPOSURE},
         {"quality", required_argument, 0, OPT_QUALITY}, {"white", required_argument, 0, OPT_WHITE},
         {"exr-compression", required_argument, 0, OPT_EXR_COMPRESSION},
-        {"exr-half", no_argument, 0, OPT_EXR_HALF}, {"exr-alpha", no_argument, 0, OPT_EXR_ALPHA},
+        {"png16", no_argument, 0, OPT_PNG16}, {"exr-half", no_argument, 0, OPT_EXR_HALF}, {"exr-alpha", no_argument, 0, OPT_EXR_ALPHA},
         {"no-nee", no_argument, 0, OPT_NO_NEE}, {"no-mis", no_argument, 0, OPT_NO_MIS},
         {"no-progress", no_argument, 0, OPT_NO_PROGRESS}, {"verbose", no_argument, 0, 'v'},
         {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
@@ -157,6 +158,7 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
             break;
         }
         case OPT_EXR_HALF: a->exr.half = 1; break;
+        case OPT_PNG16: a->png16 = 1; break;
         case OPT_EXR_ALPHA: a->exr.alpha = 1; break;
         case OPT_NO_NEE: a->ro.integrator.no_nee = 1; break;
         case OPT_NO_MIS: a->ro.integrator.no_mis = 1; break;
@@ -265,7 +267,7 @@ static int cmd_render(int argc, char **argv) {
         snprintf(secs_s, sizeof secs_s, "%.3f", secs);
         codec_attribute attrs[] = {{"tessera:scene", a.scene_path}, {"tessera:spp", spp}, {"tessera:seed", seed},
                                    {"tessera:renderSeconds", secs_s}, {"tessera:version", TESSERA_VERSION}};
-        image_write_options wo = {.tonemap = a.tm, .jpeg_quality = a.jpeg_quality, .exr = a.exr};
+        image_write_options wo = {.tonemap = a.tm, .jpeg_quality = a.jpeg_quality, .png16 = a.png16, .exr = a.exr};
         wo.exr.attrs = attrs;
         wo.exr.attr_count = 5;
         rc = image_write(a.out_path, &img, &wo, err, sizeof err);

@@ -302,3 +302,25 @@ TEST(image_formats_read_by_openimageio) {
     CHECK(util_run(cmd, out, sizeof out) == 0 && strstr(out, "PASS"), "idiff: EXR and PFM differ: %s", out);
     image_free(&a);
 }
+
+/* 16-bit PNG: OpenImageIO reads uint16 RGB tagged sRGB, and the value is the
+ * sRGB encoding of the input to 16-bit precision. */
+TEST(image_png16) {
+    image a, px;
+    char err[256], out[4096];
+    image_alloc(&a, 8, 4);
+    for (int i = 0; i < 8 * 4 * 3; i++) a.rgb[i] = 0.3f;
+    image_write_options wo = {.tonemap = {.kind = TONEMAP_CLAMP}, .png16 = 1};
+    CHECK(image_write("/tmp/tessera-16.png", &a, &wo, err, sizeof err) == 0, "%s", err);
+    CHECK(util_run("iinfo -v /tmp/tessera-16.png", out, sizeof out) == 0 && strstr(out, "8 x    4, 3 channel, uint16 png") &&
+              strstr(out, "sRGB"), "iinfo: %s", out);
+    CHECK(util_run("oiiotool /tmp/tessera-16.png --cut 1x1+3+2 -d float -o /tmp/tessera-16px.exr", out, sizeof out) == 0, "%s", out);
+    if (image_read("/tmp/tessera-16px.exr", &px, err, sizeof err) == 0) {
+        float want = (float)lrintf(tonemap_srgb_encode(0.3f) * 65535.0f) / 65535.0f;
+        CHECK(fabsf(px.rgb[0] - want) < 1e-6f, "16-bit value %.7f, want %.7f", px.rgb[0], want);
+        image_free(&px);
+    } else {
+        CHECK(0, "%s", err);
+    }
+    image_free(&a);
+}
