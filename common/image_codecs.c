@@ -40,17 +40,19 @@ uint8_t *codec_png_encode(const uint8_t *rgb, int width, int height, size_t *len
     return buf;
 }
 
+/* A growing in-memory file: encoders write to it, image.c saves it. */
 typedef struct {
     uint8_t *data;
     size_t len, cap;
-    int failed;
+    int failed; /* an allocation failed; further writes are dropped */
 } mem_buffer;
 
-static void mem_append(mem_buffer *m, const void *p, size_t n) {
+/* Write n bytes at offset, growing the buffer (and len) as needed. */
+static void mem_write_at(mem_buffer *m, size_t offset, const void *p, size_t n) {
     if (m->failed) return;
-    if (m->len + n > m->cap) {
+    if (offset + n > m->cap) {
         size_t cap = m->cap ? 2 * m->cap : 1 << 16;
-        while (cap < m->len + n) cap *= 2;
+        while (cap < offset + n) cap *= 2;
         uint8_t *q = realloc(m->data, cap);
         if (!q) {
             m->failed = 1;
@@ -59,11 +61,14 @@ static void mem_append(mem_buffer *m, const void *p, size_t n) {
         m->data = q;
         m->cap = cap;
     }
-    memcpy(m->data + m->len, p, n);
-    m->len += n;
+    memcpy(m->data + offset, p, n);
+    if (offset + n > m->len) m->len = offset + n;
 }
 
-static void png_mem_write(png_structp png, png_bytep data, size_t n) { mem_append(png_get_io_ptr(png), data, n); }
+static void png_mem_write(png_structp png, png_bytep data, size_t n) {
+    mem_buffer *m = png_get_io_ptr(png);
+    mem_write_at(m, m->len, data, n);
+}
 static void png_mem_flush(png_structp png) { (void)png; }
 
 uint8_t *codec_png16_encode(const uint16_t *rgb16, int width, int height, size_t *len, char *err, size_t err_len) {
@@ -157,32 +162,13 @@ uint8_t *codec_jpeg_encode(const uint8_t *rgb, int width, int height, int qualit
 
 /* The file is assembled in memory (the library writes at offsets), so that
  * image.c can save it atomically like every other format. */
-typedef struct {
-    uint8_t *data;
-    size_t len, cap;
-    int failed;
-} exr_memory;
-
 static int64_t exr_memory_write(exr_const_context_t ctxt, void *user, const void *buf, uint64_t sz, uint64_t offset,
                                 exr_stream_error_func_ptr_t error_cb) {
     (void)ctxt;
     (void)error_cb;
-    exr_memory *m = user;
-    size_t end = (size_t)(offset + sz);
-    if (end > m->cap) {
-        size_t cap = m->cap ? m->cap : 1 << 16;
-        while (cap < end) cap *= 2;
-        uint8_t *p = realloc(m->data, cap);
-        if (!p) {
-            m->failed = 1;
-            return -1;
-        }
-        m->data = p;
-        m->cap = cap;
-    }
-    memcpy(m->data + offset, buf, (size_t)sz);
-    if (end > m->len) m->len = end;
-    return (int64_t)sz;
+    mem_buffer *m = user;
+    mem_write_at(m, (size_t)offset, buf, (size_t)sz);
+    return m->failed ? -1 : (int64_t)sz;
 }
 
 /* Errors are reported through the return codes; keep stderr quiet. */
@@ -246,7 +232,7 @@ static exr_result_t exr_write_pixels(exr_context_t ctx, const float *rgb, const 
 
 uint8_t *codec_exr_encode(const float *rgb, int width, int height, const codec_exr_options *opt, size_t *len,
                           char *err, size_t err_len) {
-    exr_memory mem = {0};
+    mem_buffer mem = {0};
     exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
     init.user_data = &mem;
     init.write_fn = exr_memory_write;

@@ -72,9 +72,8 @@ static int sample_triangle(const scene *s, const light *l, vec3 ref, float u1, f
     const triangle *t = &s->triangles[l->prim];
     float b1, b2;
     warp_uniform_triangle(u1, u2, &b1, &b2);
-    vec3 e1 = vec3_sub(t->v1, t->v0), e2 = vec3_sub(t->v2, t->v0);
     out->p = vec3_add(vec3_add(vec3_scale(t->v0, 1.0f - b1 - b2), vec3_scale(t->v1, b1)), vec3_scale(t->v2, b2));
-    out->n = vec3_normalize(vec3_cross(e1, e2));
+    out->n = s->triangle_normals[l->prim];
     vec3 d = vec3_sub(out->p, ref);
     out->dist = vec3_length(d);
     if (!(out->dist > 0.0f)) return 0;

@@ -98,6 +98,7 @@ typedef struct scene {
     uint32_t material_count;
 
     triangle *triangles;
+    vec3 *triangle_normals; /* unit geometric normals, (v1 - v0) x (v2 - v0) */
     prim_info *triangle_info;
     uint32_t triangle_count;
 

@@ -566,14 +566,17 @@ static int assemble(loader *L) {
     s->sphere_count = (uint32_t)L->sphere_count;
     s->triangles = calloc(L->tri_count + 1, sizeof(triangle));
     s->triangle_info = calloc(L->tri_count + 1, sizeof(prim_info));
+    s->triangle_normals = calloc(L->tri_count + 1, sizeof(vec3));
     s->spheres = calloc(L->sphere_count + 1, sizeof(sphere));
     s->sphere_info = calloc(L->sphere_count + 1, sizeof(prim_info));
-    if (!s->triangles || !s->triangle_info || !s->spheres || !s->sphere_info)
+    if (!s->triangles || !s->triangle_info || !s->triangle_normals || !s->spheres || !s->sphere_info)
         return jf_fail(&L->j, "shapes", NULL, "out of memory");
     for (size_t t = 0; t < L->tri_count; t++) {
         s->triangles[t].v0 = to_internal(s, L->tris[t].p[0]);
         s->triangles[t].v1 = to_internal(s, L->tris[t].p[1]);
         s->triangles[t].v2 = to_internal(s, L->tris[t].p[2]);
+        const triangle *tr = &s->triangles[t];
+        s->triangle_normals[t] = vec3_normalize(vec3_cross(vec3_sub(tr->v1, tr->v0), vec3_sub(tr->v2, tr->v0)));
         s->triangle_info[t].material = L->tris[t].material;
         s->triangle_info[t].light = -1;
     }
@@ -644,6 +647,7 @@ void scene_free(scene *s) {
     free(s->materials);
     free(s->triangles);
     free(s->triangle_info);
+    free(s->triangle_normals);
     free(s->spheres);
     free(s->sphere_info);
     free(s->lights);
