@@ -72,7 +72,7 @@ $(TEST_BIN): $(TEST_OBJ) $(COMMON_OBJ)
 
 run: $(TESSERA)
 	@mkdir -p out
-	$(TESSERA) render scenes/cornell-box.json -o out/cornell-box.ppm
+	$(TESSERA) render scenes/cornell-box.json -o out/cornell-box.png
 
 test: $(TESSERA) $(TEST_BIN)
 	TESSERA_BIN=$(TESSERA) $(TEST_BIN)

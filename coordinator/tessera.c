@@ -40,7 +40,7 @@ static void usage_render(FILE *f) {
             "  .ppm .png .jpg .jpeg  8-bit sRGB, tone mapped\n"
             "\n"
             "options:\n"
-            "  -o, --output PATH      image to write (default: SCENE's name with .ppm, in .)\n"
+            "  -o, --output PATH      image to write (default: SCENE's name with .png, in .)\n"
             "      --spp N            samples per pixel (overrides render.spp)\n"
             "      --width W          image width in pixels (overrides render.width)\n"
             "      --height H         image height in pixels (overrides render.height)\n"
@@ -212,7 +212,7 @@ static void default_output(const char *scene_path, char *out, size_t n) {
     base = base ? base + 1 : scene_path;
     const char *dot = strrchr(base, '.');
     int len = dot ? (int)(dot - base) : (int)strlen(base);
-    snprintf(out, n, "%.*s.ppm", len, base);
+    snprintf(out, n, "%.*s.png", len, base);
 }
 
 static void print_scene_info(const scene *s) {
