@@ -88,6 +88,20 @@ static uint8_t *encode_ppm(const uint8_t *px, int width, int height, size_t *len
     return buf;
 }
 
+/* Tone map to 16-bit sRGB and encode a 16-bit PNG. */
+static uint8_t *encode_png16(const image *img, image_write_options *opt, size_t *len, char *err, size_t err_len) {
+    size_t n = (size_t)img->width * (size_t)img->height;
+    uint16_t *px16 = malloc(3 * n * sizeof(uint16_t));
+    if (!px16) {
+        snprintf(err, err_len, "out of memory");
+        return NULL;
+    }
+    opt->bad_pixels = tonemap_encode(img->rgb, n, &opt->tonemap, 16, px16);
+    uint8_t *buf = codec_png16_encode(px16, img->width, img->height, len, err, err_len);
+    free(px16);
+    return buf;
+}
+
 /* Encode an 8-bit format (ppm, png, jpg); NULL with err set on failure. */
 static uint8_t *encode_8bit(const char *ext, const image *img, image_write_options *opt, size_t *len, char *err,
                             size_t err_len) {
@@ -97,19 +111,6 @@ static uint8_t *encode_8bit(const char *ext, const image *img, image_write_optio
         return NULL;
     }
     int quality = opt->jpeg_quality > 0 ? opt->jpeg_quality : 92;
-    if (opt->png16 && strcasecmp(ext, "png") == 0) {
-        free(px);
-        size_t n = 3 * (size_t)img->width * (size_t)img->height;
-        uint16_t *px16 = malloc(n * sizeof(uint16_t));
-        if (!px16) {
-            snprintf(err, err_len, "out of memory");
-            return NULL;
-        }
-        opt->bad_pixels = tonemap_encode(img->rgb, n / 3, &opt->tonemap, 16, px16);
-        buf = codec_png16_encode(px16, img->width, img->height, len, err, err_len);
-        free(px16);
-        return buf;
-    }
     if (strcasecmp(ext, "ppm") == 0) {
         buf = encode_ppm(px, img->width, img->height, len);
         if (!buf) snprintf(err, err_len, "out of memory");
@@ -167,6 +168,8 @@ int image_write(const char *path, const image *img, image_write_options *opt, ch
         buf = encode_pfm(img, &len);
     } else if (strcasecmp(ext, "exr") == 0) {
         buf = codec_exr_encode(img->rgb, img->width, img->height, &opt->exr, &len, why, sizeof why);
+    } else if (opt->png16 && strcasecmp(ext, "png") == 0) {
+        buf = encode_png16(img, opt, &len, why, sizeof why);
     } else if (strcasecmp(ext, "ppm") == 0 || strcasecmp(ext, "png") == 0 || strcasecmp(ext, "jpg") == 0 ||
                strcasecmp(ext, "jpeg") == 0) {
         buf = encode_8bit(ext, img, opt, &len, why, sizeof why);
