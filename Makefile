@@ -30,7 +30,7 @@ else
   LDFLAGS_V :=
 endif
 CFLAGS := $(CFLAGS_COMMON) $(CFLAGS_OPT)
-LDLIBS := -lcjson -lpng16 -ljpeg -lOpenEXRCore-3_1 -lpthread -lm
+LDLIBS := -lcjson -lpng16 -ljpeg -lOpenEXRCore-3_1 -lsodium -luv -lpthread -lm
 LDFLAGS := $(LDFLAGS_V)
 
 COMMON_SRC := $(wildcard common/*.c)

@@ -61,26 +61,38 @@ typedef struct {
     frame_job *job;
     pthread_t thread;
     trace_stats stats;
-    double *accum; /* one tile's sums, reused */
+    double *accum; /* one row's sums, reused */
+    float *means;  /* one tile's means, reused */
 } frame_worker;
 
-/* Render one tile of the frame in passes and store its means. */
+int render_tile_means(const scene *s, const integrator_options *opt, const tile_rect *tile, int spp, int passes,
+                      double *accum, float *rgb, trace_stats *stats, const atomic_int *cancel) {
+    int tw = tile_width(tile);
+    double inv = 1.0 / spp;
+    for (int y = tile->y0; y < tile->y1; y++) {
+        if (cancel && atomic_load_explicit(cancel, memory_order_relaxed)) return -1;
+        tile_rect row = {tile->x0, y, tile->x1, y + 1};
+        memset(accum, 0, 3 * (size_t)tw * sizeof(double));
+        for (int p = 0; p < passes; p++) {
+            uint32_t first = (uint32_t)((int64_t)spp * p / passes), end = (uint32_t)((int64_t)spp * (p + 1) / passes);
+            render_tile(s, opt, &row, first, end - first, accum, stats);
+        }
+        float *out = rgb + 3 * (size_t)(y - tile->y0) * (size_t)tw;
+        for (int i = 0; i < 3 * tw; i++) out[i] = (float)(accum[i] * inv);
+    }
+    return 0;
+}
+
+/* Render one tile of the frame and copy its means into the frame. */
 static void frame_render_tile(frame_worker *w, const tile_rect *t) {
     const scene *s = w->job->s;
-    int spp = s->settings.spp, passes = w->job->opt->passes;
-    size_t n = (size_t)tile_width(t) * (size_t)tile_height(t);
-    memset(w->accum, 0, 3 * n * sizeof(double));
-    for (int p = 0; p < passes; p++) {
-        uint32_t first = (uint32_t)((int64_t)spp * p / passes), end = (uint32_t)((int64_t)spp * (p + 1) / passes);
-        render_tile(s, &w->job->opt->integrator, t, first, end - first, w->accum, &w->stats);
-    }
-    double inv = 1.0 / spp;
+    int spp = s->settings.spp, tw = tile_width(t);
+    render_tile_means(s, &w->job->opt->integrator, t, spp, w->job->opt->passes, w->accum, w->means, &w->stats,
+                      NULL);
     for (int y = t->y0; y < t->y1; y++)
-        for (int x = t->x0; x < t->x1; x++) {
-            const double *sum = w->accum + 3 * ((size_t)(y - t->y0) * (size_t)tile_width(t) + (size_t)(x - t->x0));
-            float *px = w->job->rgb + 3 * ((size_t)y * (size_t)s->settings.width + (size_t)x);
-            for (int c = 0; c < 3; c++) px[c] = (float)(sum[c] * inv);
-        }
+        memcpy(w->job->rgb + 3 * ((size_t)y * (size_t)s->settings.width + (size_t)t->x0),
+               w->means + 3 * (size_t)(y - t->y0) * (size_t)tw, 3 * sizeof(float) * (size_t)tw);
+    size_t n = (size_t)tw * (size_t)tile_height(t);
     atomic_fetch_add(&w->job->samples_done, (unsigned long long)n * (unsigned long long)spp);
 }
 
@@ -125,9 +137,12 @@ int render_frame(const scene *s, const render_options *opt, float *rgb, trace_st
     atomic_init(&job.samples_done, 0);
     for (int i = 0; i < threads && rc == 0; i++) {
         workers[i].job = &job;
-        workers[i].accum = malloc(3 * sizeof(double) * (size_t)ts * (size_t)ts);
-        if (!workers[i].accum || pthread_create(&workers[i].thread, NULL, frame_thread, &workers[i]) != 0) {
+        workers[i].accum = malloc(3 * sizeof(double) * (size_t)ts);
+        workers[i].means = malloc(3 * sizeof(float) * (size_t)ts * (size_t)ts);
+        if (!workers[i].accum || !workers[i].means ||
+            pthread_create(&workers[i].thread, NULL, frame_thread, &workers[i]) != 0) {
             free(workers[i].accum);
+            free(workers[i].means);
             atomic_store(&job.next_tile, job.tile_count); /* stop the others */
             rc = -1;
             break;
@@ -145,6 +160,7 @@ int render_frame(const scene *s, const render_options *opt, float *rgb, trace_st
         pthread_join(workers[i].thread, NULL);
         sum_stats(stats, &workers[i].stats);
         free(workers[i].accum);
+        free(workers[i].means);
     }
     if (rc == 0 && opt->progress) opt->progress(opt->progress_ctx, job.tile_count, job.tile_count, stats);
     free(tiles);

@@ -10,6 +10,7 @@
 #ifndef TESSERA_RENDER_H
 #define TESSERA_RENDER_H
 
+#include <stdatomic.h>
 #include <stdint.h>
 
 #include "integrator.h"
@@ -27,6 +28,16 @@ static inline int tile_height(const tile_rect *t) { return t->y1 - t->y0; }
  * go to stats. Can't fail. */
 void render_tile(const scene *s, const integrator_options *opt, const tile_rect *tile, uint32_t first,
                  uint32_t count, double *accum, trace_stats *stats);
+
+/* Render samples [0, spp) of every pixel of tile, in `passes` sequential
+ * calls of render_tile (the bits don't depend on passes), and store each
+ * pixel's mean, (float)(sum * (1.0 / spp)), as 3 floats row-major over the
+ * tile into rgb. accum is the caller's scratch of 3 doubles per pixel. This
+ * is the one place a pixel's final value is computed, for the threaded
+ * renderer and for farm workers alike. Returns 0; or -1 if cancel is not
+ * NULL and was set (it is checked between rows), leaving rgb partial. */
+int render_tile_means(const scene *s, const integrator_options *opt, const tile_rect *tile, int spp, int passes,
+                      double *accum, float *rgb, trace_stats *stats, const atomic_int *cancel);
 
 /* Split a width x height image into tile_size squares (clipped at the
  * edges), row by row. Returns the number of tiles; writes at most max of

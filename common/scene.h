@@ -14,6 +14,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "scene_bundle.h"
 #include "vec.h"
 
 typedef enum {
@@ -125,6 +126,11 @@ typedef struct scene {
  * e.g. "scenes/x.json: shapes[3].material: unknown material \"whte\"".
  * `overrides` may be NULL. */
 scene *scene_load(const char *path, const scene_overrides *overrides, char *err, size_t err_len);
+
+/* Load and validate the scene held in a bundle (scene_bundle.h): its first
+ * entry is the scene text, the rest its meshes. Same contract as
+ * scene_load; messages name the bundle's first entry as the file. */
+scene *scene_load_bundle(const scene_bundle *b, const scene_overrides *overrides, char *err, size_t err_len);
 
 /* Free a scene and everything it owns; NULL is allowed. */
 void scene_free(scene *s);

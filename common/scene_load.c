@@ -11,12 +11,11 @@
 #include <string.h>
 
 #include "bvh.h"
-#include "fileio.h"
 #include "json_field.h"
 #include "obj.h"
+#include "scene_bundle.h"
 #include "scene.h"
 
-#define SCENE_MAX_FILE (64u << 20)
 #define MAX_RESOLUTION 32768
 #define MAX_SPP (1 << 24)
 #define MAX_DEPTH 1024
@@ -46,7 +45,7 @@ typedef struct {
 
 typedef struct {
     json_ctx j;
-    char dir[4096]; /* folder of the scene file, for OBJ paths */
+    const scene_bundle *bundle; /* the scene text and its meshes */
     const char **material_names;
     tri_d *tris;
     size_t tri_count, tri_cap;
@@ -335,13 +334,12 @@ static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat
         jf_vec3(&L->j, sh, where, "translate", 0, zero, -BIG, BIG, translate))
         return -1;
     if (!(scale > 0)) return jf_fail(&L->j, where, "scale", "must be greater than 0");
-    char path[8192], oerr[512];
-    if (file[0] == '/')
-        snprintf(path, sizeof path, "%s", file);
-    else
-        snprintf(path, sizeof path, "%s/%s", L->dir, file);
+    const scene_bundle_file *f = scene_bundle_find(L->bundle, file);
+    if (!f) return jf_fail(&L->j, where, "file", "%s: not in the scene bundle", file);
+    if (!f->data) return jf_fail(&L->j, where, "file", "%s", f->error);
+    char oerr[512];
     obj_mesh m;
-    if (obj_load(path, &m, oerr, sizeof oerr)) return jf_fail(&L->j, where, "file", "%s", oerr);
+    if (obj_parse(f->data, f->len, file, &m, oerr, sizeof oerr)) return jf_fail(&L->j, where, "file", "%s", oerr);
     int rc = 0;
     for (size_t t = 0; t < m.triangle_count && !rc; t++) {
         double p[3][3];
@@ -607,27 +605,20 @@ static int load_root(loader *L, const cJSON *root, const scene_overrides *ov) {
     return 0;
 }
 
-scene *scene_load(const char *path, const scene_overrides *ov, char *err, size_t err_len) {
-    size_t len;
-    char *text = file_read_all(path, SCENE_MAX_FILE, &len, err, err_len);
-    if (!text) return NULL;
+scene *scene_load_bundle(const scene_bundle *b, const scene_overrides *ov, char *err, size_t err_len) {
+    const char *path = b->files[0].name;
     loader L;
     memset(&L, 0, sizeof L);
     L.j.file = path;
     L.j.err = err;
     L.j.err_len = err_len;
-    const char *slash = strrchr(path, '/');
-    if (slash)
-        snprintf(L.dir, sizeof L.dir, "%.*s", (int)(slash - path), path);
-    else
-        snprintf(L.dir, sizeof L.dir, ".");
+    L.bundle = b;
     L.s = calloc(1, sizeof(scene));
-    cJSON *root = L.s ? jf_parse(&L.j, text, len) : NULL;
+    cJSON *root = L.s ? jf_parse(&L.j, b->files[0].data, b->files[0].len) : NULL;
     int rc = root ? load_root(&L, root, ov) : -1;
     if (!L.s) snprintf(err, err_len, "%s: out of memory", path);
     if (rc == 0) L.s->path = strdup(path);
     cJSON_Delete(root);
-    free(text);
     free(L.material_names);
     free(L.tris);
     free(L.spheres);
@@ -638,6 +629,14 @@ scene *scene_load(const char *path, const scene_overrides *ov, char *err, size_t
         return NULL;
     }
     return L.s;
+}
+
+scene *scene_load(const char *path, const scene_overrides *ov, char *err, size_t err_len) {
+    scene_bundle b;
+    if (scene_bundle_read(path, &b, err, err_len)) return NULL;
+    scene *s = scene_load_bundle(&b, ov, err, err_len);
+    scene_bundle_free(&b);
+    return s;
 }
 
 void scene_free(scene *s) {

@@ -1,0 +1,194 @@
+/* scene_bundle.c - gather a scene and its meshes into memory, serialise,
+ * parse and hash them (see scene_bundle.h for the byte layout). */
+#include "scene_bundle.h"
+
+#include <cjson/cJSON.h>
+#include <sodium.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fileio.h"
+
+#define BUNDLE_SCENE_MAX (64u << 20)
+#define BUNDLE_MESH_MAX (SCENE_BUNDLE_MAX_BYTES / 2)
+
+/* Append an entry; returns it, or NULL when out of memory. */
+static scene_bundle_file *bundle_add(scene_bundle *b, const char *name) {
+    scene_bundle_file *f = realloc(b->files, (b->count + 1) * sizeof *f);
+    if (!f) return NULL;
+    b->files = f;
+    f = &b->files[b->count];
+    memset(f, 0, sizeof *f);
+    f->name = strdup(name);
+    if (!f->name) return NULL;
+    b->count++;
+    return f;
+}
+
+const scene_bundle_file *scene_bundle_find(const scene_bundle *b, const char *name) {
+    for (size_t i = 1; i < b->count; i++)
+        if (strcmp(b->files[i].name, name) == 0) return &b->files[i];
+    return NULL;
+}
+
+/* Read one mesh named in the scene into a new entry. Returns -1 only when
+ * out of memory; an unreadable file is recorded in the entry. */
+static int bundle_read_mesh(scene_bundle *b, const char *dir, const char *name) {
+    if (scene_bundle_find(b, name)) return 0;
+    scene_bundle_file *f = bundle_add(b, name);
+    if (!f) return -1;
+    char path[8192], err[1024];
+    if (name[0] == '/')
+        snprintf(path, sizeof path, "%s", name);
+    else
+        snprintf(path, sizeof path, "%s/%s", dir, name);
+    f->data = file_read_all(path, BUNDLE_MESH_MAX, &f->len, err, sizeof err);
+    if (!f->data) {
+        f->error = strdup(err);
+        if (!f->error) return -1;
+    }
+    return 0;
+}
+
+/* Names of mesh files: shapes[i].file where shapes[i].type is "mesh". The
+ * scene loader validates everything else; here a malformed scene simply
+ * names no files. */
+static int bundle_read_meshes(scene_bundle *b, const char *dir) {
+    cJSON *root = cJSON_ParseWithLength(b->files[0].data, b->files[0].len);
+    const cJSON *shapes = cJSON_GetObjectItemCaseSensitive(root, "shapes"), *sh;
+    int rc = 0;
+    cJSON_ArrayForEach(sh, shapes) {
+        const cJSON *type = cJSON_GetObjectItemCaseSensitive(sh, "type");
+        const cJSON *file = cJSON_GetObjectItemCaseSensitive(sh, "file");
+        if (!cJSON_IsString(type) || strcmp(type->valuestring, "mesh") != 0 || !cJSON_IsString(file)) continue;
+        if (b->count >= SCENE_BUNDLE_MAX_FILES || (rc = bundle_read_mesh(b, dir, file->valuestring))) break;
+    }
+    cJSON_Delete(root);
+    return rc;
+}
+
+int scene_bundle_read(const char *path, scene_bundle *out, char *err, size_t err_len) {
+    memset(out, 0, sizeof *out);
+    scene_bundle_file *f = bundle_add(out, path);
+    if (!f) goto oom;
+    f->data = file_read_all(path, BUNDLE_SCENE_MAX, &f->len, err, err_len);
+    if (!f->data) {
+        scene_bundle_free(out);
+        return -1;
+    }
+    char dir[4096];
+    const char *slash = strrchr(path, '/');
+    if (slash)
+        snprintf(dir, sizeof dir, "%.*s", (int)(slash - path), path);
+    else
+        snprintf(dir, sizeof dir, ".");
+    if (bundle_read_meshes(out, dir) == 0) return 0;
+oom:
+    snprintf(err, err_len, "%s: out of memory", path);
+    scene_bundle_free(out);
+    return -1;
+}
+
+static void put_u32(uint8_t *p, uint32_t v) {
+    for (int i = 0; i < 4; i++) p[i] = (uint8_t)(v >> (8 * i));
+}
+
+static uint32_t get_u32(const uint8_t *p) {
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+uint8_t *scene_bundle_serialise(const scene_bundle *b, size_t *len) {
+    size_t n = 4, count = 0;
+    for (size_t i = 0; i < b->count; i++) {
+        if (!b->files[i].data) continue;
+        n += 8 + strlen(b->files[i].name) + b->files[i].len;
+        count++;
+        if (n > SCENE_BUNDLE_MAX_BYTES) return NULL;
+    }
+    uint8_t *buf = malloc(n), *p = buf;
+    if (!buf) return NULL;
+    put_u32(p, (uint32_t)count);
+    p += 4;
+    for (size_t i = 0; i < b->count; i++) {
+        const scene_bundle_file *f = &b->files[i];
+        if (!f->data) continue;
+        size_t nl = strlen(f->name);
+        put_u32(p, (uint32_t)nl);
+        memcpy(p + 4, f->name, nl);
+        p += 4 + nl;
+        put_u32(p, (uint32_t)f->len);
+        memcpy(p + 4, f->data, f->len);
+        p += 4 + f->len;
+    }
+    *len = n;
+    return buf;
+}
+
+/* Copy len bytes at p into a new NUL-terminated string, or NULL. */
+static char *dup_bytes(const uint8_t *p, size_t len) {
+    char *s = malloc(len + 1);
+    if (!s) return NULL;
+    memcpy(s, p, len);
+    s[len] = '\0';
+    return s;
+}
+
+int scene_bundle_parse(const uint8_t *buf, size_t len, scene_bundle *out, char *err, size_t err_len) {
+    memset(out, 0, sizeof *out);
+    const uint8_t *p = buf, *end = buf + len;
+    if (len < 4) goto truncated;
+    uint32_t count = get_u32(p);
+    p += 4;
+    if (count < 1 || count > SCENE_BUNDLE_MAX_FILES) {
+        snprintf(err, err_len, "scene bundle: %u entries (expected 1 to %d)", count, SCENE_BUNDLE_MAX_FILES);
+        return -1;
+    }
+    out->files = calloc(count, sizeof *out->files);
+    if (!out->files) goto oom;
+    for (uint32_t i = 0; i < count; i++) {
+        scene_bundle_file *f = &out->files[out->count++];
+        if (end - p < 4) goto truncated;
+        uint32_t nl = get_u32(p);
+        if ((size_t)(end - p - 4) < nl || nl == 0) goto truncated;
+        if (memchr(p + 4, '\0', nl)) {
+            snprintf(err, err_len, "scene bundle: entry %u has a NUL in its name", i);
+            scene_bundle_free(out);
+            return -1;
+        }
+        if (!(f->name = dup_bytes(p + 4, nl))) goto oom;
+        p += 4 + nl;
+        if (end - p < 4) goto truncated;
+        uint32_t dl = get_u32(p);
+        if ((size_t)(end - p - 4) < dl) goto truncated;
+        if (!(f->data = dup_bytes(p + 4, dl))) goto oom;
+        f->len = dl;
+        p += 4 + dl;
+    }
+    if (p != end) goto truncated;
+    return 0;
+truncated:
+    snprintf(err, err_len, "scene bundle: truncated or inconsistent lengths");
+    scene_bundle_free(out);
+    return -1;
+oom:
+    snprintf(err, err_len, "scene bundle: out of memory");
+    scene_bundle_free(out);
+    return -1;
+}
+
+void scene_bundle_hash(const uint8_t *buf, size_t len, char hex[SCENE_BUNDLE_HASH_HEX]) {
+    unsigned char h[32];
+    crypto_generichash(h, sizeof h, buf, len, NULL, 0);
+    sodium_bin2hex(hex, SCENE_BUNDLE_HASH_HEX, h, sizeof h);
+}
+
+void scene_bundle_free(scene_bundle *b) {
+    for (size_t i = 0; i < b->count; i++) {
+        free(b->files[i].name);
+        free(b->files[i].data);
+        free(b->files[i].error);
+    }
+    free(b->files);
+    memset(b, 0, sizeof *b);
+}
