@@ -29,7 +29,7 @@ else
   CFLAGS_OPT := -O2
   LDFLAGS_V :=
 endif
-CFLAGS := $(CFLAGS_COMMON) $(CFLAGS_OPT)
+CFLAGS := $(CFLAGS_COMMON) $(CFLAGS_OPT) -I$(BUILD)
 LDLIBS := -lcjson -lpng16 -ljpeg -lOpenEXRCore-3_1 -lsodium -luv -lpthread -lm
 LDFLAGS := $(LDFLAGS_V)
 
@@ -39,10 +39,23 @@ TEST_SRC := $(wildcard tests/*.c)
 TEST_OBJ := $(TEST_SRC:%.c=$(BUILD)/%.o)
 
 TESSERA := $(BUILD)/bin/tessera
+WORKER := $(BUILD)/bin/tessera-worker
+COORD_OBJ := $(patsubst %.c,$(BUILD)/%.o,$(wildcard coordinator/*.c))
+WORKER_OBJ := $(patsubst %.c,$(BUILD)/%.o,$(wildcard worker/*.c))
+
+# Peers of a farm must run the same code (docs/protocol.md): the handshake
+# compares this id. Rewritten only when it changes, so it rebuilds nothing.
+GIT_ID := $(shell git rev-parse --short=12 HEAD 2>/dev/null || echo nogit)$(shell git status --porcelain --untracked-files=no 2>/dev/null | grep -q . && echo -dirty)
 TEST_BIN := $(BUILD)/bin/run-tests
 
-.PHONY: all deps run test test-asan test-tsan bench reference clean
-all: $(TESSERA)
+.PHONY: all deps run test test-asan test-tsan bench reference clean FORCE
+all: $(TESSERA) $(WORKER)
+
+$(BUILD)/build_id.h: FORCE
+	@mkdir -p $(BUILD)
+	@echo '#define TESSERA_BUILD_ID "$(GIT_ID)"' > $@.new
+	@cmp -s $@.new $@ && rm -f $@.new || mv $@.new $@
+$(BUILD)/common/protocol.o: $(BUILD)/build_id.h
 
 DEPS_STAMP := build/.deps-ok
 deps: $(DEPS_STAMP)
@@ -62,7 +75,11 @@ $(BUILD)/%.o: %.c | $(DEPS_STAMP)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) -c $< -o $@
 
-$(TESSERA): $(BUILD)/coordinator/tessera.o $(COMMON_OBJ)
+$(TESSERA): $(COORD_OBJ) $(COMMON_OBJ)
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
+
+$(WORKER): $(WORKER_OBJ) $(COMMON_OBJ)
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
@@ -70,11 +87,11 @@ $(TEST_BIN): $(TEST_OBJ) $(COMMON_OBJ)
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
-run: $(TESSERA)
+run: $(TESSERA) $(WORKER)
 	@mkdir -p out
 	$(TESSERA) render scenes/cornell-box.json -o out/cornell-box.png
 
-test: $(TESSERA) $(TEST_BIN)
+test: $(TESSERA) $(WORKER) $(TEST_BIN)
 	TESSERA_BIN=$(TESSERA) $(TEST_BIN)
 
 test-asan:
@@ -85,7 +102,7 @@ test-tsan:
 	$(MAKE) VARIANT=tsan build/tsan/bin/run-tests build/tsan/bin/tessera
 	TESSERA_BIN=build/tsan/bin/tessera build/tsan/bin/run-tests --filter thread
 
-bench: $(TESSERA)
+bench: $(TESSERA) $(WORKER)
 	bench/bench.sh $(TESSERA) scenes/cornell-box.json 16
 	bench/bench.sh $(TESSERA) scenes/cornell-spheres.json 16
 

@@ -1,9 +1,9 @@
 /* tessera.c - the `tessera` command: `tessera render SCENE -o OUT [...]`.
  *
- * Parses the command line, loads the scene, renders it (today in this
- * process with a thread pool: --workers 0), saves the image and prints one
- * summary line. Exit status 0 on success, 1 on a runtime failure, 2 on a
- * usage error. */
+ * Parses the command line, loads the scene, renders it - on a local farm
+ * of worker processes by default (local_farm.c), or in this process with a
+ * thread pool (--workers 0) - saves the image and prints one summary line.
+ * Exit status 0 on success, 1 on a runtime failure, 2 on a usage error. */
 #define _GNU_SOURCE
 #include <errno.h>
 #include <getopt.h>
@@ -15,17 +15,22 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "../common/address.h"
 #include "../common/bvh.h"
 #include "../common/image.h"
 #include "../common/render.h"
 #include "../common/scene.h"
 #include "../common/version.h"
+#include "local_farm.h"
 
 typedef struct {
     const char *scene_path;
     const char *out_path;
     scene_overrides ov;
-    int threads, workers, tile_size, verbose, progress, jpeg_quality, png16;
+    int threads, threads_given, workers, tile_size, verbose, progress, jpeg_quality, png16;
+    const char *listen;
+    char listen_host[256];
+    farm_options farm;
     codec_exr_options exr;
     render_options ro;
     tonemap_options tm;
@@ -46,9 +51,15 @@ static void usage_render(FILE *f) {
             "      --height H         image height in pixels (overrides render.height)\n"
             "      --max-depth N      maximum bounces (overrides render.max_depth)\n"
             "      --seed N           random seed (overrides render.seed)\n"
-            "      --threads N        render threads (default: all cores)\n"
-            "      --workers N        worker processes; 0 renders in this process (the only\n"
-            "                         mode of this build)\n"
+            "      --workers N        local worker processes (default: one per core; with\n"
+            "                         --listen, 0); 0 without --listen renders in this process\n"
+            "      --threads N        threads per local worker (default 1), or render threads\n"
+            "                         with --workers 0 (default: all cores)\n"
+            "      --listen HOST:PORT also accept remote workers (tessera-worker --connect)\n"
+            "                         here; port 0 picks a free one (printed on stderr)\n"
+            "      --heartbeat S      farm heartbeat interval in seconds (default 1)\n"
+            "      --worker-timeout S a silent worker's tiles go to others after S s (default 5)\n"
+            "      --lease S          longest a worker may hold one tile (default 300)\n"
             "      --tile-size N      tile side in pixels (default 32)\n"
             "      --passes N         render each tile's samples in N sequential passes\n"
             "                         (the image is bit-identical for every N)\n"
@@ -99,7 +110,7 @@ static void parse_tonemap(const char *s, tonemap_kind *out) {
 }
 
 enum { OPT_SPP = 256, OPT_WIDTH, OPT_HEIGHT, OPT_DEPTH, OPT_SEED, OPT_THREADS, OPT_WORKERS, OPT_TILE,
-       OPT_PASSES, OPT_TONEMAP, OPT_EXPOSURE, OPT_WHITE, OPT_QUALITY, OPT_EXR_COMPRESSION, OPT_EXR_HALF, OPT_EXR_ALPHA, OPT_PNG16, OPT_NO_NEE, OPT_NO_MIS, OPT_NO_PROGRESS };
+       OPT_PASSES, OPT_TONEMAP, OPT_EXPOSURE, OPT_WHITE, OPT_QUALITY, OPT_EXR_COMPRESSION, OPT_EXR_HALF, OPT_EXR_ALPHA, OPT_PNG16, OPT_NO_NEE, OPT_NO_MIS, OPT_NO_PROGRESS, OPT_LISTEN, OPT_HEARTBEAT, OPT_WORKER_TIMEOUT, OPT_LEASE };
 
 static void parse_render_args(int argc, char **argv, render_args *a) {
     static const struct option opts[] = {
@@ -114,10 +125,14 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         {"png16", no_argument, 0, OPT_PNG16}, {"exr-half", no_argument, 0, OPT_EXR_HALF}, {"exr-alpha", no_argument, 0, OPT_EXR_ALPHA},
         {"no-nee", no_argument, 0, OPT_NO_NEE}, {"no-mis", no_argument, 0, OPT_NO_MIS},
         {"no-progress", no_argument, 0, OPT_NO_PROGRESS}, {"verbose", no_argument, 0, 'v'},
+        {"listen", required_argument, 0, OPT_LISTEN}, {"heartbeat", required_argument, 0, OPT_HEARTBEAT},
+        {"worker-timeout", required_argument, 0, OPT_WORKER_TIMEOUT}, {"lease", required_argument, 0, OPT_LEASE},
         {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
     memset(a, 0, sizeof *a);
     a->ov.width = a->ov.height = a->ov.spp = a->ov.max_depth = -1;
     a->threads = (int)sysconf(_SC_NPROCESSORS_ONLN);
+    a->workers = -1;
+    farm_options_default(&a->farm);
     a->tile_size = 32;
     a->ro.passes = 1;
     a->progress = 1;
@@ -135,7 +150,14 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
             a->ov.seed = (uint64_t)parse_int("--seed", optarg, 0, LONG_MAX);
             a->ov.has_seed = 1;
             break;
-        case OPT_THREADS: a->threads = (int)parse_int("--threads", optarg, 1, 1024); break;
+        case OPT_THREADS:
+            a->threads = (int)parse_int("--threads", optarg, 1, 1024);
+            a->threads_given = 1;
+            break;
+        case OPT_LISTEN: a->listen = optarg; break;
+        case OPT_HEARTBEAT: a->farm.heartbeat_s = parse_double("--heartbeat", optarg, 0.01, 3600); break;
+        case OPT_WORKER_TIMEOUT: a->farm.timeout_s = parse_double("--worker-timeout", optarg, 0.05, 86400); break;
+        case OPT_LEASE: a->farm.lease_s = parse_double("--lease", optarg, 0.1, 1e7); break;
         case OPT_WORKERS: a->workers = (int)parse_int("--workers", optarg, 0, 4096); break;
         case OPT_TILE: a->tile_size = (int)parse_int("--tile-size", optarg, 1, 4096); break;
         case OPT_PASSES: a->ro.passes = (int)parse_int("--passes", optarg, 1, 1 << 24); break;
@@ -174,11 +196,22 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         exit(2);
     }
     a->scene_path = argv[optind];
-    if (a->workers > 0) {
-        fprintf(stderr, "tessera render: --workers %d: this build renders in one process only; use --workers 0\n",
-                a->workers);
+    if (a->listen) {
+        char err[300];
+        if (address_parse(a->listen, a->listen_host, sizeof a->listen_host, &a->farm.port, err, sizeof err)) {
+            fprintf(stderr, "tessera: --listen %s\n", err);
+            exit(2);
+        }
+        a->farm.host = a->listen_host;
+    }
+    if (a->workers < 0) a->workers = a->listen ? 0 : (int)sysconf(_SC_NPROCESSORS_ONLN);
+    if (!(a->farm.heartbeat_s < a->farm.timeout_s)) {
+        fprintf(stderr, "tessera: --worker-timeout (%g s) must be longer than --heartbeat (%g s)\n",
+                a->farm.timeout_s, a->farm.heartbeat_s);
         exit(2);
     }
+    if (a->farm.drop_s < 6 * a->farm.timeout_s) a->farm.drop_s = 6 * a->farm.timeout_s;
+    if (a->tile_size > a->farm.max_tile_side) a->farm.max_tile_side = a->tile_size;
 }
 
 static double now_seconds(void) {
@@ -227,6 +260,73 @@ static void print_scene_info(const scene *s) {
             s->settings.spp, s->settings.max_depth, (unsigned long long)s->settings.seed);
 }
 
+/* Render in this process with a thread pool. Returns 0 or -1 (printed). */
+static int render_in_process(render_args *a, const scene *s, image *img, trace_stats *st) {
+    progress_state ps = {now_seconds(),
+                         (uint64_t)s->settings.width * (uint64_t)s->settings.height * (uint64_t)s->settings.spp};
+    a->ro.threads = a->threads;
+    a->ro.tile_size = a->tile_size;
+    if (a->progress && isatty(STDERR_FILENO)) {
+        a->ro.progress = show_progress;
+        a->ro.progress_ctx = &ps;
+    }
+    if (render_frame(s, &a->ro, img->rgb, st) == 0) return 0;
+    fprintf(stderr, "tessera: could not start %d render threads\n", a->threads);
+    return -1;
+}
+
+/* Render on a farm: local worker processes and/or remote ones. Returns 0 or
+ * -1 (printed). */
+static int render_on_farm(render_args *a, const scene *s, const scene_bundle *b, image *img, trace_stats *st) {
+    size_t len;
+    uint8_t *bytes = scene_bundle_serialise(b, &len);
+    if (!bytes) {
+        fprintf(stderr, "tessera: %s: the scene and its meshes are too large to send (over %u MiB)\n",
+                a->scene_path, SCENE_BUNDLE_MAX_BYTES >> 20);
+        return -1;
+    }
+    proto_job job = {.id = 1, .width = s->settings.width, .height = s->settings.height, .spp = s->settings.spp,
+                     .max_depth = s->settings.max_depth, .seed = s->settings.seed,
+                     .integrator = a->ro.integrator};
+    scene_bundle_hash(bytes, len, job.scene_hash);
+    local_farm_options lo = {.workers = a->workers, .threads_per_worker = a->threads_given ? a->threads : 1,
+                             .tile_size = a->tile_size, .farm = a->farm, .listening = a->listen != NULL,
+                             .progress = a->progress && isatty(STDERR_FILENO), .verbose = a->verbose};
+    lo.farm.verbose = a->verbose;
+    local_farm_report rep;
+    char err[700];
+    int rc = local_farm_render(&lo, &job, bytes, len, img->rgb, &rep, err, sizeof err);
+    free(bytes);
+    if (rc) {
+        fprintf(stderr, "tessera: %s\n", err);
+        return -1;
+    }
+    *st = rep.stats;
+    if (a->verbose)
+        fprintf(stderr,
+                "farm: %d tiles, coordinator CPU %.3f s, %.0f bytes in and %.0f out per tile, "
+                "%llu requeued, %llu backups, %llu duplicates dropped\n",
+                rep.tiles, rep.coordinator_cpu_s, (double)rep.bytes_in / rep.tiles,
+                (double)rep.bytes_out / rep.tiles, (unsigned long long)rep.requeued,
+                (unsigned long long)rep.backups, (unsigned long long)rep.duplicates);
+    return 0;
+}
+
+static int save_image(const render_args *a, const scene *s, const image *img, double secs) {
+    char spp[32], seed[32], secs_s[32], err[1024];
+    snprintf(spp, sizeof spp, "%d", s->settings.spp);
+    snprintf(seed, sizeof seed, "%llu", (unsigned long long)s->settings.seed);
+    snprintf(secs_s, sizeof secs_s, "%.3f", secs);
+    codec_attribute attrs[] = {{"tessera:scene", a->scene_path}, {"tessera:spp", spp}, {"tessera:seed", seed},
+                               {"tessera:renderSeconds", secs_s}, {"tessera:version", TESSERA_VERSION}};
+    image_write_options wo = {.tonemap = a->tm, .jpeg_quality = a->jpeg_quality, .png16 = a->png16, .exr = a->exr};
+    wo.exr.attrs = attrs;
+    wo.exr.attr_count = 5;
+    if (image_write(a->out_path, img, &wo, err, sizeof err) == 0) return 0;
+    fprintf(stderr, "tessera: %s\n", err);
+    return -1;
+}
+
 static int cmd_render(int argc, char **argv) {
     render_args a;
     char err[1024], out_default[512];
@@ -235,50 +335,34 @@ static int cmd_render(int argc, char **argv) {
         default_output(a.scene_path, out_default, sizeof out_default);
         a.out_path = out_default;
     }
-    scene *s = scene_load(a.scene_path, &a.ov, err, sizeof err);
+    scene_bundle b;
+    if (scene_bundle_read(a.scene_path, &b, err, sizeof err)) {
+        fprintf(stderr, "tessera: %s\n", err);
+        return 1;
+    }
+    scene *s = scene_load_bundle(&b, &a.ov, err, sizeof err);
     if (!s) {
         fprintf(stderr, "tessera: %s\n", err);
+        scene_bundle_free(&b);
         return 1;
     }
     if (a.verbose) print_scene_info(s);
     image img;
-    if (image_alloc(&img, s->settings.width, s->settings.height)) {
-        fprintf(stderr, "tessera: out of memory for a %dx%d image\n", s->settings.width, s->settings.height);
-        scene_free(s);
-        return 1;
-    }
-    progress_state ps = {now_seconds(), (uint64_t)s->settings.width * (uint64_t)s->settings.height * (uint64_t)s->settings.spp};
-    a.ro.threads = a.threads;
-    a.ro.tile_size = a.tile_size;
-    if (a.progress && isatty(STDERR_FILENO)) {
-        a.ro.progress = show_progress;
-        a.ro.progress_ctx = &ps;
-    }
-    trace_stats st;
+    int rc = image_alloc(&img, s->settings.width, s->settings.height);
+    if (rc) fprintf(stderr, "tessera: out of memory for a %dx%d image\n", s->settings.width, s->settings.height);
+    trace_stats st = {0};
     double t0 = now_seconds();
-    int rc = render_frame(s, &a.ro, img.rgb, &st);
+    int farm_mode = a.listen || a.workers > 0;
+    if (rc == 0) rc = farm_mode ? render_on_farm(&a, s, &b, &img, &st) : render_in_process(&a, s, &img, &st);
     double secs = now_seconds() - t0;
-    if (rc) {
-        fprintf(stderr, "tessera: could not start %d render threads\n", a.threads);
-    } else {
-        char spp[32], seed[32], secs_s[32];
-        snprintf(spp, sizeof spp, "%d", s->settings.spp);
-        snprintf(seed, sizeof seed, "%llu", (unsigned long long)s->settings.seed);
-        snprintf(secs_s, sizeof secs_s, "%.3f", secs);
-        codec_attribute attrs[] = {{"tessera:scene", a.scene_path}, {"tessera:spp", spp}, {"tessera:seed", seed},
-                                   {"tessera:renderSeconds", secs_s}, {"tessera:version", TESSERA_VERSION}};
-        image_write_options wo = {.tonemap = a.tm, .jpeg_quality = a.jpeg_quality, .png16 = a.png16, .exr = a.exr};
-        wo.exr.attrs = attrs;
-        wo.exr.attr_count = 5;
-        rc = image_write(a.out_path, &img, &wo, err, sizeof err);
-        if (rc) fprintf(stderr, "tessera: %s\n", err);
-    }
+    if (rc == 0) rc = save_image(&a, s, &img, secs);
     if (rc == 0)
         printf("rendered %s: %.2f s, %.3f Msamples/s, %.2f Mrays/s, %llu NaN/Inf samples, image: %s\n",
                a.scene_path, secs, (double)st.samples / secs / 1e6,
                (double)(st.rays + st.shadow_rays) / secs / 1e6, (unsigned long long)st.bad_samples, a.out_path);
-    image_free(&img);
+    if (img.rgb) image_free(&img);
     scene_free(s);
+    scene_bundle_free(&b);
     return rc ? 1 : 0;
 }
 

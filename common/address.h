@@ -1,0 +1,12 @@
+/* address.h - "HOST:PORT" strings as given on command lines. */
+#ifndef TESSERA_ADDRESS_H
+#define TESSERA_ADDRESS_H
+
+#include <stddef.h>
+
+/* Split "HOST:PORT", "[V6ADDR]:PORT" or ":PORT" (host "0.0.0.0") into host
+ * (NUL-terminated, at most host_len bytes) and a port from 0 to 65535.
+ * Returns 0, or -1 with the reason in err. */
+int address_parse(const char *s, char *host, size_t host_len, int *port, char *err, size_t err_len);
+
+#endif

@@ -1,0 +1,172 @@
+/* conn.c - framed TCP connections over libuv (see conn.h). */
+#include "conn.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "wire.h"
+
+#define CONN_READ_BYTES (64u << 10)
+
+struct conn {
+    uv_tcp_t tcp; /* first: libuv hands back this pointer */
+    conn_callbacks cb;
+    void *data;
+    wire_decoder dec;
+    char readbuf[CONN_READ_BYTES];
+    int closing;
+    uint64_t bytes_in, bytes_out;
+    uv_shutdown_t shutdown;
+};
+
+typedef struct {
+    uv_write_t req;
+    uint8_t *owned;
+    conn_blob *blob;
+} write_req;
+
+conn_blob *conn_blob_new(size_t len) {
+    conn_blob *b = malloc(sizeof *b + len);
+    if (!b) return NULL;
+    b->refs = 1;
+    b->len = len;
+    return b;
+}
+
+void conn_blob_unref(conn_blob *b) {
+    if (b && --b->refs == 0) free(b);
+}
+
+conn *conn_new(uv_loop_t *loop, const conn_callbacks *cb, void *data, size_t max_frame) {
+    conn *c = calloc(1, sizeof *c);
+    if (!c) return NULL;
+    c->cb = *cb;
+    c->data = data;
+    wire_decoder_init(&c->dec, max_frame);
+    uv_tcp_init(loop, &c->tcp);
+    c->tcp.data = c;
+    return c;
+}
+
+uv_tcp_t *conn_tcp(conn *c) { return &c->tcp; }
+void *conn_data(const conn *c) { return c->data; }
+void conn_set_max_frame(conn *c, size_t max_frame) { c->dec.max_frame = max_frame; }
+int conn_is_closing(const conn *c) { return c->closing; }
+uint64_t conn_bytes_in(const conn *c) { return c->bytes_in; }
+uint64_t conn_bytes_out(const conn *c) { return c->bytes_out; }
+size_t conn_write_queue(const conn *c) { return c->tcp.write_queue_size; }
+
+static void on_alloc(uv_handle_t *h, size_t suggested, uv_buf_t *buf) {
+    (void)suggested;
+    conn *c = h->data;
+    *buf = uv_buf_init(c->readbuf, sizeof c->readbuf);
+}
+
+static int on_decoded(void *ctx, int kind, const uint8_t *body, size_t len) {
+    conn *c = ctx;
+    if (c->closing) return 1; /* closed by an earlier frame's handler */
+    return c->cb.on_frame(c, kind, body, len);
+}
+
+static void on_read(uv_stream_t *s, ssize_t n, const uv_buf_t *buf) {
+    (void)buf;
+    conn *c = s->data;
+    if (c->closing) return;
+    char reason[256];
+    if (n < 0) {
+        size_t pending = wire_decoder_pending(&c->dec);
+        if (n == UV_EOF && pending)
+            snprintf(reason, sizeof reason, "connection closed in the middle of a frame (%zu bytes received)",
+                     pending);
+        else
+            snprintf(reason, sizeof reason, "%s", n == UV_EOF ? "connection closed by peer" : uv_strerror((int)n));
+        conn_close(c, reason, 0);
+        return;
+    }
+    c->bytes_in += (uint64_t)n;
+    int rc = wire_decoder_feed(&c->dec, (const uint8_t *)c->readbuf, (size_t)n, on_decoded, c, reason,
+                               sizeof reason);
+    if (rc == -1) conn_close(c, reason, 0);
+}
+
+int conn_start(conn *c) { return uv_read_start((uv_stream_t *)&c->tcp, on_alloc, on_read); }
+
+static void on_written(uv_write_t *req, int status) {
+    (void)status; /* a failed write shows up as a read error or EOF too */
+    write_req *w = (write_req *)req;
+    free(w->owned);
+    conn_blob_unref(w->blob);
+    free(w);
+}
+
+/* Queue buf for writing with w holding what to release afterwards. */
+static int conn_write(conn *c, write_req *w, uint8_t *data, size_t len) {
+    uv_buf_t b = uv_buf_init((char *)data, (unsigned)len);
+    if (c->closing || uv_write(&w->req, (uv_stream_t *)&c->tcp, &b, 1, on_written) != 0) {
+        on_written(&w->req, -1);
+        return -1;
+    }
+    c->bytes_out += len;
+    return 0;
+}
+
+int conn_send(conn *c, uint8_t *frame, size_t len) {
+    write_req *w = calloc(1, sizeof *w);
+    if (!w) {
+        free(frame);
+        return -1;
+    }
+    w->owned = frame;
+    return conn_write(c, w, frame, len);
+}
+
+int conn_send_blob(conn *c, conn_blob *b) {
+    write_req *w = calloc(1, sizeof *w);
+    if (!w) return -1;
+    b->refs++;
+    w->blob = b;
+    return conn_write(c, w, b->data, b->len);
+}
+
+static void on_closed(uv_handle_t *h) {
+    conn *c = h->data;
+    wire_decoder_free(&c->dec);
+    memset(c, 0xdb, sizeof *c); /* poison: a use after free fails loudly */
+    free(c);
+}
+
+static void on_shutdown(uv_shutdown_t *req, int status) {
+    (void)status;
+    conn *c = req->data;
+    uv_close((uv_handle_t *)&c->tcp, on_closed);
+}
+
+void conn_close(conn *c, const char *reason, int flush) {
+    if (c->closing) return;
+    c->closing = 1;
+    if (c->cb.on_close) c->cb.on_close(c, reason);
+    uv_read_stop((uv_stream_t *)&c->tcp);
+    c->shutdown.data = c;
+    if (flush && uv_is_writable((uv_stream_t *)&c->tcp) &&
+        uv_shutdown(&c->shutdown, (uv_stream_t *)&c->tcp, on_shutdown) == 0)
+        return;
+    uv_close((uv_handle_t *)&c->tcp, on_closed);
+}
+
+void conn_peer_address(const conn *c, char *out, size_t len) {
+    struct sockaddr_storage ss;
+    int n = sizeof ss;
+    char host[64] = "?";
+    int port = 0;
+    if (uv_tcp_getpeername(&c->tcp, (struct sockaddr *)&ss, &n) == 0) {
+        if (ss.ss_family == AF_INET) {
+            uv_ip4_name((struct sockaddr_in *)&ss, host, sizeof host);
+            port = ntohs(((struct sockaddr_in *)&ss)->sin_port);
+        } else if (ss.ss_family == AF_INET6) {
+            uv_ip6_name((struct sockaddr_in6 *)&ss, host, sizeof host);
+            port = ntohs(((struct sockaddr_in6 *)&ss)->sin6_port);
+        }
+    }
+    snprintf(out, len, "%s:%d", host, port);
+}

@@ -1,0 +1,84 @@
+/* farm.h - the coordinator's farm: accepts workers, hands out tiles under
+ * leases, takes back and checks results, stitches them into the frame.
+ *
+ * Runs entirely on one libuv loop (the caller's). Workers may join and leave
+ * at any time. A tile is handed out on a worker's request ("ready" slots);
+ * it goes back to the queue when its worker disconnects, falls silent for
+ * timeout_s, or holds it past lease_s; when the queue is empty an idle
+ * worker may take a copy of a tile that is running long (a backup task) and
+ * the first result wins. A peer that breaks the protocol is disconnected
+ * with a log line naming it and why; the render goes on. */
+#ifndef TESSERA_FARM_H
+#define TESSERA_FARM_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <uv.h>
+
+#include "../common/protocol.h"
+
+typedef struct farm farm;
+
+typedef struct {
+    const char *host;   /* listen address ("127.0.0.1", "0.0.0.0", "::") */
+    int port;           /* 0: any free port (see farm_port) */
+    double heartbeat_s; /* how often each side says it is alive */
+    double timeout_s;   /* a worker silent this long loses its tiles */
+    double drop_s;      /* ...and this long is disconnected */
+    double lease_s;     /* longest a worker may hold a tile */
+    int max_tile_side;  /* bounds the frames accepted from workers */
+    int verbose;        /* log every join, assignment problem and requeue */
+    FILE *log;          /* where log lines go (stderr if NULL) */
+} farm_options;
+
+/* Fill o with the defaults (heartbeat 1 s, timeout 5 s, drop 30 s, lease
+ * 300 s, tiles up to 256 px, 127.0.0.1 port 0). Can't fail. */
+void farm_options_default(farm_options *o);
+
+/* Listen on o->host:o->port. Returns the farm, or NULL with the reason in
+ * err ("cannot listen on 127.0.0.1:7000: address already in use"). */
+farm *farm_new(uv_loop_t *loop, const farm_options *o, char *err, size_t err_len);
+
+/* The port actually listened on. Can't fail. */
+int farm_port(const farm *f);
+
+/* What a render's caller learns when it ends and as it goes. */
+typedef struct {
+    int tiles_total, tiles_done;
+    trace_stats stats;      /* summed over the tiles stitched */
+    int workers;            /* connected and not stalled now */
+    uint64_t duplicates;    /* results dropped because the tile was done */
+    uint64_t requeued;      /* tiles put back after a loss, stall or lease */
+    uint64_t backups;       /* copies handed out near the end */
+    uint64_t bytes_in, bytes_out; /* over every connection, so far */
+    int failed;             /* the job cannot finish (error says why) */
+    char error[512];
+} farm_report;
+
+/* Called on the loop thread: after each stitched tile (done = 0) and once
+ * at the end (done = 1, the job complete or failed). */
+typedef void (*farm_job_cb)(void *ctx, const farm_report *r, int done);
+
+/* Render job desc over the farm: bundle (serialised scene bundle, copied)
+ * is sent once to each worker that needs it; finished tiles are stitched
+ * into rgb (width * height * 3 floats, the caller's, top row first). Tiles
+ * are tile_size squares. Returns 0, or -1 when out of memory. */
+int farm_submit(farm *f, const proto_job *desc, const uint8_t *bundle, size_t bundle_len, int tile_size,
+                float *rgb, farm_job_cb cb, void *ctx);
+
+/* The current figures of the job with this id (0 if known). */
+int farm_job_report(const farm *f, uint32_t job, farm_report *r);
+
+/* Print one line per worker, current and departed: name, address,
+ * threads, tiles, bytes. Can't fail. */
+void farm_print_workers(const farm *f, FILE *out);
+
+/* Stop listening and disconnect every worker; cb runs once everything is
+ * closed, after which farm_free may be called. */
+void farm_close(farm *f, void (*cb)(void *ctx), void *ctx);
+
+/* Free a closed farm and its jobs. */
+void farm_free(farm *f);
+
+#endif

@@ -1,0 +1,287 @@
+/* local_farm.c - one render on a farm run from this process (see
+ * local_farm.h): listen, spawn the local workers, feed the farm the job,
+ * show progress, and tear everything down when the last tile is stitched.
+ *
+ * Local workers run with --once, so they exit when the coordinator closes
+ * their connection; a local worker that dies early is started again (up to
+ * LOCAL_RESTARTS times per slot), and its tiles go back to the queue. */
+#define _GNU_SOURCE
+#include "local_farm.h"
+
+#include <limits.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <unistd.h>
+#include <uv.h>
+
+#define LOCAL_RESTARTS 3
+#define EXIT_GRACE_MS 10000 /* after the render, how long workers get to exit */
+
+typedef struct local_run local_run;
+
+typedef struct {
+    uv_process_t proc;
+    local_run *run;
+    int slot;
+} local_proc;
+
+typedef struct {
+    int alive, restarts;
+} local_slot;
+
+struct local_run {
+    const local_farm_options *o;
+    uv_loop_t loop;
+    farm *f;
+    local_slot *slots;
+    int alive;
+    char exe[PATH_MAX];
+    char connect[300];
+    uv_signal_t sigint, sigterm;
+    uv_timer_t grace;
+    int finished, failed;
+    char err[600];
+    farm_report last;
+    uint64_t total_samples;
+    double start, last_shown;
+};
+
+static double mono_now(const local_run *r) { return (double)uv_hrtime() / 1e9 - r->start; }
+
+/* tessera-worker next to this executable, or $TESSERA_WORKER. */
+static int find_worker_exe(char *out, size_t n, char *err, size_t err_len) {
+    const char *env = getenv("TESSERA_WORKER");
+    if (env && *env) {
+        snprintf(out, n, "%s", env);
+    } else {
+        char self[PATH_MAX];
+        ssize_t len = readlink("/proc/self/exe", self, sizeof self - 1);
+        if (len <= 0) {
+            snprintf(err, err_len, "cannot find this program's path to locate tessera-worker");
+            return -1;
+        }
+        self[len] = '\0';
+        char *slash = strrchr(self, '/');
+        if (slash) *slash = '\0';
+        if ((size_t)snprintf(out, n, "%.*s/tessera-worker", (int)(n - 16), self) >= n) return -1;
+    }
+    if (access(out, X_OK) != 0) {
+        snprintf(err, err_len, "cannot run the worker program %s (build it with make, or set TESSERA_WORKER)", out);
+        return -1;
+    }
+    return 0;
+}
+
+static void render_stop(local_run *r);
+
+static void on_proc_closed(uv_handle_t *h) { free(h->data); }
+
+static int spawn_worker(local_run *r, int slot);
+
+static void on_worker_exit(uv_process_t *p, int64_t status, int signal) {
+    local_proc *lp = p->data;
+    local_run *r = lp->run;
+    int slot = lp->slot;
+    lp->proc.data = lp;
+    uv_close((uv_handle_t *)p, on_proc_closed);
+    r->slots[slot].alive = 0;
+    r->alive--;
+    if (r->finished) {
+        if (r->alive == 0 && !uv_is_closing((uv_handle_t *)&r->grace)) uv_close((uv_handle_t *)&r->grace, NULL);
+        return;
+    }
+    if (signal)
+        fprintf(stderr, "tessera: local worker local-%d was killed by signal %d\n", slot, signal);
+    else
+        fprintf(stderr, "tessera: local worker local-%d exited with status %lld\n", slot, (long long)status);
+    if (r->slots[slot].restarts < LOCAL_RESTARTS) {
+        r->slots[slot].restarts++;
+        fprintf(stderr, "tessera: starting local-%d again (restart %d of %d)\n", slot, r->slots[slot].restarts,
+                LOCAL_RESTARTS);
+        if (spawn_worker(r, slot) == 0) return;
+    }
+    if (r->alive == 0 && !r->o->listening) {
+        snprintf(r->err, sizeof r->err, "every local worker failed (the last: %s %lld); see the messages above",
+                 signal ? "signal" : "status", signal ? (long long)signal : (long long)status);
+        r->failed = 1;
+        render_stop(r);
+    }
+}
+
+static int spawn_worker(local_run *r, int slot) {
+    local_proc *lp = calloc(1, sizeof *lp);
+    if (!lp) return -1;
+    lp->run = r;
+    lp->slot = slot;
+    lp->proc.data = lp;
+    char threads[16], name[32];
+    snprintf(threads, sizeof threads, "%d", r->o->threads_per_worker);
+    snprintf(name, sizeof name, "local-%d", slot);
+    char *args[] = {r->exe, "--connect", r->connect, "--threads", threads, "--name", name, "--once", "--quiet", NULL};
+    uv_stdio_container_t stdio[3] = {{.flags = UV_IGNORE}, {.flags = UV_IGNORE},
+                                     {.flags = UV_INHERIT_FD, .data.fd = STDERR_FILENO}};
+    uv_process_options_t po = {.exit_cb = on_worker_exit, .file = r->exe, .args = args,
+                               .stdio_count = 3, .stdio = stdio};
+    int rc = uv_spawn(&r->loop, &lp->proc, &po);
+    if (rc) {
+        fprintf(stderr, "tessera: cannot start %s: %s\n", r->exe, uv_strerror(rc));
+        uv_close((uv_handle_t *)&lp->proc, on_proc_closed);
+        return -1;
+    }
+    r->slots[slot].alive = 1;
+    r->alive++;
+    return 0;
+}
+
+static void show_progress(local_run *r, const farm_report *rep, int final) {
+    double el = mono_now(r);
+    double rate = el > 0 ? (double)rep->stats.samples / el : 0;
+    double eta = rate > 0 ? (double)(r->total_samples - rep->stats.samples) / rate : 0;
+    int width = 30, filled = rep->tiles_total ? rep->tiles_done * width / rep->tiles_total : width;
+    char bar[64];
+    for (int i = 0; i < width; i++) bar[i] = i < filled ? '#' : '.';
+    bar[width] = '\0';
+    fprintf(stderr, "\r[%s] %d/%d tiles  %.2f Msamples/s  %d workers  ETA %.0fs   ", bar, rep->tiles_done,
+            rep->tiles_total, rate / 1e6, rep->workers, eta);
+    if (final) fputc('\n', stderr);
+    fflush(stderr);
+}
+
+/* Kill what remains after the grace period. */
+static void kill_walk(uv_handle_t *h, void *arg) {
+    (void)arg;
+    if (h->type == UV_PROCESS && !uv_is_closing(h)) uv_process_kill((uv_process_t *)h, SIGKILL);
+}
+
+static void on_grace_timer(uv_timer_t *t) {
+    fprintf(stderr, "tessera: local workers still running %d s after the render; killing them\n",
+            EXIT_GRACE_MS / 1000);
+    uv_walk(t->loop, kill_walk, NULL);
+    uv_close((uv_handle_t *)t, NULL);
+}
+
+static void on_farm_closed(void *ctx) { (void)ctx; }
+
+static void term_walk(uv_handle_t *h, void *arg) {
+    (void)arg;
+    if (h->type == UV_PROCESS && !uv_is_closing(h)) uv_process_kill((uv_process_t *)h, SIGTERM);
+}
+
+/* The render is over (done, failed or interrupted): close the farm, let the
+ * workers exit, close our own handles. */
+static void render_stop(local_run *r) {
+    if (r->finished) return;
+    r->finished = 1;
+    farm_close(r->f, on_farm_closed, r);
+    uv_close((uv_handle_t *)&r->sigint, NULL);
+    uv_close((uv_handle_t *)&r->sigterm, NULL);
+    if (r->failed) uv_walk(&r->loop, term_walk, NULL);
+    if (r->alive > 0)
+        uv_timer_start(&r->grace, on_grace_timer, EXIT_GRACE_MS, 0);
+    else
+        uv_close((uv_handle_t *)&r->grace, NULL);
+}
+
+static void on_job(void *ctx, const farm_report *rep, int done) {
+    local_run *r = ctx;
+    r->last = *rep;
+    double now = mono_now(r);
+    if (r->o->progress && (done || now - r->last_shown >= 0.1)) {
+        show_progress(r, rep, done);
+        r->last_shown = now;
+    }
+    if (!done) return;
+    if (rep->failed) {
+        snprintf(r->err, sizeof r->err, "%s", rep->error);
+        r->failed = 1;
+    }
+    render_stop(r);
+}
+
+static void on_signal(uv_signal_t *s, int signum) {
+    local_run *r = s->data;
+    snprintf(r->err, sizeof r->err, "interrupted by %s", signum == SIGINT ? "SIGINT" : "SIGTERM");
+    r->failed = 1;
+    render_stop(r);
+}
+
+static double cpu_seconds(void) {
+    struct rusage ru;
+    getrusage(RUSAGE_SELF, &ru);
+    return (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec + (double)ru.ru_stime.tv_sec +
+           1e-6 * (double)ru.ru_stime.tv_usec;
+}
+
+int local_farm_render(const local_farm_options *o, const proto_job *job, const uint8_t *bundle, size_t bundle_len,
+                      float *rgb, local_farm_report *rep, char *err, size_t err_len) {
+    local_run *r = calloc(1, sizeof *r);
+    if (!r || (o->workers > 0 && !(r->slots = calloc((size_t)o->workers, sizeof *r->slots)))) {
+        free(r);
+        snprintf(err, err_len, "out of memory");
+        return -1;
+    }
+    r->o = o;
+    memset(rep, 0, sizeof *rep);
+    if (o->workers > 0 && find_worker_exe(r->exe, sizeof r->exe, err, err_len)) {
+        free(r->slots);
+        free(r);
+        return -1;
+    }
+    double cpu0 = cpu_seconds();
+    uv_loop_init(&r->loop);
+    r->f = farm_new(&r->loop, &o->farm, err, err_len);
+    if (!r->f) {
+        uv_loop_close(&r->loop);
+        free(r->slots);
+        free(r);
+        return -1;
+    }
+    const char *host = o->farm.host;
+    if (strcmp(host, "0.0.0.0") == 0) host = "127.0.0.1";
+    if (strcmp(host, "::") == 0) host = "::1";
+    snprintf(r->connect, sizeof r->connect, strchr(host, ':') ? "[%s]:%d" : "%s:%d", host, farm_port(r->f));
+    if (o->listening) {
+        fprintf(stderr, "tessera: coordinator listening on %s:%d\n", o->farm.host, farm_port(r->f));
+        fflush(stderr);
+    }
+    r->start = (double)uv_hrtime() / 1e9;
+    r->total_samples = (uint64_t)job->width * (uint64_t)job->height * (uint64_t)job->spp;
+    uv_signal_init(&r->loop, &r->sigint);
+    uv_signal_init(&r->loop, &r->sigterm);
+    r->sigint.data = r->sigterm.data = r;
+    uv_signal_start(&r->sigint, on_signal, SIGINT);
+    uv_signal_start(&r->sigterm, on_signal, SIGTERM);
+    uv_timer_init(&r->loop, &r->grace);
+    r->grace.data = r;
+    for (int i = 0; i < o->workers; i++) spawn_worker(r, i);
+    if (o->workers > 0 && r->alive == 0 && !o->listening) {
+        snprintf(r->err, sizeof r->err, "could not start any local worker");
+        r->failed = 1;
+        render_stop(r);
+    } else if (farm_submit(r->f, job, bundle, bundle_len, o->tile_size, rgb, on_job, r)) {
+        snprintf(r->err, sizeof r->err, "out of memory for the job");
+        r->failed = 1;
+        render_stop(r);
+    }
+    uv_run(&r->loop, UV_RUN_DEFAULT);
+    if (o->verbose) farm_print_workers(r->f, stderr);
+    farm_free(r->f);
+    int rc = uv_loop_close(&r->loop);
+    if (rc) fprintf(stderr, "tessera: event loop closed with handles open: %s\n", uv_strerror(rc));
+    rep->stats = r->last.stats;
+    rep->coordinator_cpu_s = cpu_seconds() - cpu0;
+    rep->bytes_in = r->last.bytes_in;
+    rep->bytes_out = r->last.bytes_out;
+    rep->tiles = r->last.tiles_total;
+    rep->duplicates = r->last.duplicates;
+    rep->requeued = r->last.requeued;
+    rep->backups = r->last.backups;
+    int failed = r->failed;
+    if (failed) snprintf(err, err_len, "%s", r->err);
+    free(r->slots);
+    free(r);
+    return failed ? -1 : 0;
+}

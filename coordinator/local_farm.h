@@ -1,0 +1,39 @@
+/* local_farm.h - render one scene on a farm driven from this process: the
+ * coordinator (farm.c) on a private event loop, `workers` tessera-worker
+ * processes spawned on loopback, and optionally remote workers dialling in
+ * on a --listen address. This is what `tessera render` does by default. */
+#ifndef TESSERA_LOCAL_FARM_H
+#define TESSERA_LOCAL_FARM_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "../common/protocol.h"
+#include "farm.h"
+
+typedef struct {
+    int workers;            /* local worker processes to spawn (may be 0 with a listen address) */
+    int threads_per_worker; /* their --threads */
+    int tile_size;
+    farm_options farm;      /* host/port: where to listen (port 0: any) */
+    int listening;          /* farm.host/port were given: say where, wait for remote workers */
+    int progress;           /* show a progress bar on stderr */
+    int verbose;            /* per-worker table and farm figures at the end */
+} local_farm_options;
+
+typedef struct {
+    trace_stats stats;
+    double coordinator_cpu_s; /* user + system time of this process during the render */
+    uint64_t bytes_in, bytes_out;
+    int tiles;
+    uint64_t duplicates, requeued, backups;
+} local_farm_report;
+
+/* Render job over the farm; bundle is the serialised scene bundle (sent to
+ * the workers), rgb the caller's width * height * 3 floats. Returns 0, or
+ * -1 with the reason in err (no worker program, cannot listen, every local
+ * worker died, interrupted, a tile failed repeatedly). */
+int local_farm_render(const local_farm_options *o, const proto_job *job, const uint8_t *bundle, size_t bundle_len,
+                      float *rgb, local_farm_report *rep, char *err, size_t err_len);
+
+#endif

@@ -1,0 +1,97 @@
+/* main.c - `tessera-worker --connect HOST:PORT [--threads N] [--name NAME]`:
+ * command-line parsing for a farm worker (worker.c does the work). */
+#define _GNU_SOURCE
+#include <errno.h>
+#include <getopt.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "../common/address.h"
+#include "../common/protocol.h"
+#include "worker.h"
+
+static void usage(FILE *f) {
+    fprintf(f,
+            "usage: tessera-worker --connect HOST:PORT [options]\n"
+            "\n"
+            "Join a Tessera farm: render the tiles the coordinator hands out and send\n"
+            "them back; reconnect with backoff whenever the coordinator goes away.\n"
+            "\n"
+            "options:\n"
+            "  -c, --connect HOST:PORT  the coordinator (required)\n"
+            "  -t, --threads N          render threads (default: all cores)\n"
+            "  -n, --name NAME          name in the coordinator's logs (default: HOST-PID)\n"
+            "      --prefetch N         tiles held beyond one per thread (default 1)\n"
+            "      --retry-max S        longest wait between connection attempts (default 5)\n"
+            "      --once               exit when the connection ends (local farms)\n"
+            "      --throttle-ms MS     sleep after each tile: simulates a slow machine (tests)\n"
+            "  -v, --verbose            log jobs and totals\n"
+            "  -q, --quiet              log errors only\n"
+            "      --version            print the version and build id\n"
+            "  -h, --help               this text\n"
+            "\n"
+            "SIGTERM or SIGINT: abandon the tiles in hand (the coordinator hands them to\n"
+            "others) and exit with status 0.\n");
+}
+
+static long parse_long(const char *opt, const char *s, long lo, long hi) {
+    char *end;
+    errno = 0;
+    long v = strtol(s, &end, 10);
+    if (errno || end == s || *end || v < lo || v > hi) {
+        fprintf(stderr, "tessera-worker: %s: expected an integer from %ld to %ld, got \"%s\"\n", opt, lo, hi, s);
+        exit(2);
+    }
+    return v;
+}
+
+enum { OPT_PREFETCH = 256, OPT_ONCE, OPT_THROTTLE, OPT_RETRY, OPT_VERSION };
+
+int main(int argc, char **argv) {
+    static const struct option opts[] = {
+        {"connect", required_argument, 0, 'c'}, {"threads", required_argument, 0, 't'},
+        {"name", required_argument, 0, 'n'}, {"prefetch", required_argument, 0, OPT_PREFETCH},
+        {"retry-max", required_argument, 0, OPT_RETRY}, {"once", no_argument, 0, OPT_ONCE},
+        {"throttle-ms", required_argument, 0, OPT_THROTTLE}, {"verbose", no_argument, 0, 'v'},
+        {"quiet", no_argument, 0, 'q'}, {"version", no_argument, 0, OPT_VERSION}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
+    worker_config cfg = {.threads = (int)sysconf(_SC_NPROCESSORS_ONLN), .prefetch = 1, .retry_max_s = 5};
+    const char *connect = NULL;
+    char host[256], name[128], err[256] = "";
+    int c;
+    while ((c = getopt_long(argc, argv, "c:t:n:vqh", opts, NULL)) != -1) {
+        switch (c) {
+        case 'c': connect = optarg; break;
+        case 't': cfg.threads = (int)parse_long("--threads", optarg, 1, 1024); break;
+        case 'n': cfg.name = optarg; break;
+        case OPT_PREFETCH: cfg.prefetch = (int)parse_long("--prefetch", optarg, 0, 1024); break;
+        case OPT_RETRY: cfg.retry_max_s = (double)parse_long("--retry-max", optarg, 1, 3600); break;
+        case OPT_ONCE: cfg.once = 1; break;
+        case OPT_THROTTLE: cfg.throttle_ms = (int)parse_long("--throttle-ms", optarg, 0, 600000); break;
+        case 'v': cfg.verbose = 1; break;
+        case 'q': cfg.quiet = 1; break;
+        case OPT_VERSION: printf("tessera-worker %s (protocol %d)\n", protocol_build_id(), PROTOCOL_VERSION); return 0;
+        case 'h': usage(stdout); return 0;
+        default: usage(stderr); return 2;
+        }
+    }
+    if (!connect || optind != argc) {
+        fprintf(stderr, "tessera-worker: %s\n", connect ? "unexpected arguments" : "--connect HOST:PORT is required");
+        usage(stderr);
+        return 2;
+    }
+    if (address_parse(connect, host, sizeof host, &cfg.port, err, sizeof err) || cfg.port == 0) {
+        fprintf(stderr, "tessera-worker: --connect %s\n", cfg.port == 0 && !err[0] ? "port 0" : err);
+        return 2;
+    }
+    cfg.host = host;
+    if (!cfg.name) {
+        char hn[64] = "worker";
+        gethostname(hn, sizeof hn - 1);
+        hn[sizeof hn - 1] = '\0';
+        snprintf(name, sizeof name, "%s-%d", hn, (int)getpid());
+        cfg.name = name;
+    }
+    return worker_run(&cfg);
+}

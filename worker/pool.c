@@ -1,0 +1,348 @@
+/* pool.c - render threads fed from a queue of tile tasks (see pool.h).
+ *
+ * One mutex guards the queue, the finished list, the running slots and the
+ * job reference counts; render threads hold it only to pop and push tasks.
+ * A job's scene is built by the first thread that needs it, under the
+ * job's own lock, so a big mesh never stalls the event loop. */
+#include "pool.h"
+
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "../common/scene.h"
+
+struct pool_job {
+    proto_job desc;
+    scene_bundle bundle;
+    scene *s;
+    int load_state; /* 0 not tried, 1 loaded, -1 failed (load_error says why) */
+    char load_error[512];
+    pthread_mutex_t load_lock;
+    int refs;  /* the pool's table (until ended) + one per task; under pool.lock */
+    int ended;
+    pool_job *next;
+};
+
+struct pool {
+    pthread_mutex_t lock;
+    pthread_cond_t cond;
+    pool_task *queue_head, *queue_tail;
+    pool_task *done_head, *done_tail;
+    pool_task **running; /* per thread, or NULL */
+    pool_job *jobs;
+    pthread_t *threads;
+    int thread_count;
+    int stopping;
+    int throttle_ms;
+    void (*wake)(void *);
+    void *ctx;
+};
+
+typedef struct {
+    pool *p;
+    int index;
+} thread_arg;
+
+/* Unlink j from the table; under the lock. */
+static void job_unlink(pool *p, pool_job *j) {
+    for (pool_job **pp = &p->jobs; *pp; pp = &(*pp)->next)
+        if (*pp == j) {
+            *pp = j->next;
+            break;
+        }
+}
+
+static void job_free(pool_job *j) {
+    scene_free(j->s);
+    scene_bundle_free(&j->bundle);
+    pthread_mutex_destroy(&j->load_lock);
+    free(j);
+}
+
+/* Drop one reference; under the lock. Frees the job at zero. */
+static void job_unref(pool_job *j) {
+    if (--j->refs == 0) job_free(j);
+}
+
+/* Build the job's scene if no thread has yet. Returns 0 when it is ready. */
+static int job_ensure_scene(pool_job *j) {
+    pthread_mutex_lock(&j->load_lock);
+    if (j->load_state == 0) {
+        const proto_job *d = &j->desc;
+        scene_overrides ov = {d->width, d->height, d->spp, d->max_depth, 1, d->seed};
+        j->s = scene_load_bundle(&j->bundle, &ov, j->load_error, sizeof j->load_error);
+        j->load_state = j->s ? 1 : -1;
+    }
+    int rc = j->load_state == 1 ? 0 : -1;
+    pthread_mutex_unlock(&j->load_lock);
+    return rc;
+}
+
+static void sleep_ms(int ms) {
+    struct timespec ts = {ms / 1000, (long)(ms % 1000) * 1000000L};
+    nanosleep(&ts, NULL);
+}
+
+/* Render one task, setting its status and frame or error. */
+static void task_render(pool *p, pool_task *t) {
+    pool_job *j = t->job;
+    const proto_assign *a = &t->assign;
+    if (job_ensure_scene(j)) {
+        t->status = TASK_FAILED;
+        snprintf(t->error, sizeof t->error, "%s", j->load_error);
+        return;
+    }
+    if (a->rect.x1 > j->desc.width || a->rect.y1 > j->desc.height || a->first != 0 ||
+        a->count != (uint32_t)j->desc.spp) {
+        t->status = TASK_FAILED;
+        snprintf(t->error, sizeof t->error, "tile %u: rectangle or sample range outside job %u", a->tile, a->job);
+        return;
+    }
+    int w = tile_width(&a->rect), h = tile_height(&a->rect);
+    double *accum = malloc(3 * sizeof(double) * (size_t)w);
+    float *rgb = malloc(3 * sizeof(float) * (size_t)w * (size_t)h);
+    proto_tile hdr = {a->job, a->tile, (uint32_t)w, (uint32_t)h, {0, 0, 0, 0}};
+    t->status = TASK_FAILED;
+    snprintf(t->error, sizeof t->error, "out of memory for tile %u", a->tile);
+    if (accum && rgb) {
+        if (render_tile_means(j->s, &j->desc.integrator, &a->rect, j->desc.spp, 1, accum, rgb, &hdr.stats,
+                              &t->cancel) != 0) {
+            t->status = TASK_CANCELLED;
+        } else if ((t->frame = proto_tile_frame(&hdr, rgb, &t->frame_len)) != NULL) {
+            t->status = TASK_DONE;
+            if (p->throttle_ms > 0) sleep_ms(p->throttle_ms);
+        }
+    }
+    free(accum);
+    free(rgb);
+}
+
+/* Append t to the finished list; under the lock. */
+static void done_append(pool *p, pool_task *t) {
+    t->next = NULL;
+    if (p->done_tail)
+        p->done_tail->next = t;
+    else
+        p->done_head = t;
+    p->done_tail = t;
+}
+
+static void *pool_thread(void *arg) {
+    thread_arg *ta = arg;
+    pool *p = ta->p;
+    pthread_mutex_lock(&p->lock);
+    for (;;) {
+        while (!p->stopping && !p->queue_head) pthread_cond_wait(&p->cond, &p->lock);
+        if (p->stopping) break;
+        pool_task *t = p->queue_head;
+        p->queue_head = t->next;
+        if (!p->queue_head) p->queue_tail = NULL;
+        p->running[ta->index] = t;
+        pthread_mutex_unlock(&p->lock);
+        if (atomic_load(&t->cancel))
+            t->status = TASK_CANCELLED;
+        else
+            task_render(p, t);
+        pthread_mutex_lock(&p->lock);
+        p->running[ta->index] = NULL;
+        done_append(p, t);
+        pthread_mutex_unlock(&p->lock);
+        p->wake(p->ctx);
+        pthread_mutex_lock(&p->lock);
+    }
+    pthread_mutex_unlock(&p->lock);
+    free(ta);
+    return NULL;
+}
+
+pool *pool_new(int threads, int throttle_ms, void (*wake)(void *), void *ctx) {
+    pool *p = calloc(1, sizeof *p);
+    if (!p) return NULL;
+    p->running = calloc((size_t)threads, sizeof *p->running);
+    p->threads = calloc((size_t)threads, sizeof *p->threads);
+    p->throttle_ms = throttle_ms;
+    p->wake = wake;
+    p->ctx = ctx;
+    pthread_mutex_init(&p->lock, NULL);
+    pthread_cond_init(&p->cond, NULL);
+    if (!p->running || !p->threads) {
+        pool_free(p);
+        return NULL;
+    }
+    for (int i = 0; i < threads; i++) {
+        thread_arg *ta = malloc(sizeof *ta);
+        if (ta) *ta = (thread_arg){p, i};
+        if (!ta || pthread_create(&p->threads[i], NULL, pool_thread, ta) != 0) {
+            free(ta);
+            pool_free(p);
+            return NULL;
+        }
+        p->thread_count++;
+    }
+    return p;
+}
+
+void pool_free(pool *p) {
+    if (!p) return;
+    pool_cancel_all(p);
+    pthread_mutex_lock(&p->lock);
+    p->stopping = 1;
+    pthread_cond_broadcast(&p->cond);
+    pthread_mutex_unlock(&p->lock);
+    for (int i = 0; i < p->thread_count; i++) pthread_join(p->threads[i], NULL);
+    pool_task *t = pool_take_done(p);
+    while (t) {
+        pool_task *next = t->next;
+        pool_task_free(p, t);
+        t = next;
+    }
+    while (p->jobs) {
+        pool_job *j = p->jobs;
+        p->jobs = j->next;
+        job_unref(j);
+    }
+    pthread_mutex_destroy(&p->lock);
+    pthread_cond_destroy(&p->cond);
+    free(p->running);
+    free(p->threads);
+    free(p);
+}
+
+pool_job *pool_job_new(pool *p, const proto_job *desc, scene_bundle *b) {
+    pool_job *j = calloc(1, sizeof *j);
+    if (!j) {
+        scene_bundle_free(b);
+        return NULL;
+    }
+    j->desc = *desc;
+    j->bundle = *b;
+    memset(b, 0, sizeof *b);
+    pthread_mutex_init(&j->load_lock, NULL);
+    j->refs = 1;
+    pthread_mutex_lock(&p->lock);
+    j->next = p->jobs;
+    p->jobs = j;
+    pthread_mutex_unlock(&p->lock);
+    return j;
+}
+
+pool_job *pool_job_find(pool *p, uint32_t id) {
+    pthread_mutex_lock(&p->lock);
+    pool_job *j = p->jobs;
+    while (j && j->desc.id != id) j = j->next;
+    pthread_mutex_unlock(&p->lock);
+    return j;
+}
+
+/* Any live job, or NULL. */
+static pool_job *pool_job_first(pool *p) {
+    pthread_mutex_lock(&p->lock);
+    pool_job *j = p->jobs;
+    pthread_mutex_unlock(&p->lock);
+    return j;
+}
+
+const proto_job *pool_job_desc(const pool_job *j) { return &j->desc; }
+
+/* Move queued tasks that match (job, or all when job is NULL) to the
+ * finished list as cancelled, and flag matching running ones; under the
+ * lock. Returns how many matched. */
+static int cancel_matching(pool *p, const pool_job *job, int match_tile, uint32_t tile) {
+    int n = 0;
+    pool_task **pp = &p->queue_head, *prev = NULL;
+    while (*pp) {
+        pool_task *t = *pp;
+        if ((!job || t->job == job) && (!match_tile || t->assign.tile == tile)) {
+            *pp = t->next;
+            t->status = TASK_CANCELLED;
+            done_append(p, t);
+            n++;
+        } else {
+            prev = t;
+            pp = &t->next;
+        }
+    }
+    p->queue_tail = prev;
+    for (int i = 0; i < p->thread_count; i++) {
+        pool_task *t = p->running[i];
+        if (t && (!job || t->job == job) && (!match_tile || t->assign.tile == tile)) {
+            atomic_store(&t->cancel, 1);
+            n++;
+        }
+    }
+    return n;
+}
+
+void pool_job_end(pool *p, pool_job *j) {
+    pthread_mutex_lock(&p->lock);
+    int n = 0;
+    if (!j->ended) {
+        j->ended = 1;
+        job_unlink(p, j);
+        n = cancel_matching(p, j, 0, 0);
+        job_unref(j);
+    }
+    pthread_mutex_unlock(&p->lock);
+    if (n) p->wake(p->ctx);
+}
+
+void pool_job_end_all(pool *p) {
+    pool_job *j;
+    while ((j = pool_job_first(p)) != NULL) pool_job_end(p, j);
+}
+
+int pool_push(pool *p, pool_job *j, const proto_assign *a, uint64_t generation) {
+    pool_task *t = calloc(1, sizeof *t);
+    if (!t) return -1;
+    t->job = j;
+    t->assign = *a;
+    t->generation = generation;
+    atomic_init(&t->cancel, 0);
+    pthread_mutex_lock(&p->lock);
+    j->refs++;
+    if (p->queue_tail)
+        p->queue_tail->next = t;
+    else
+        p->queue_head = t;
+    p->queue_tail = t;
+    pthread_cond_signal(&p->cond);
+    pthread_mutex_unlock(&p->lock);
+    return 0;
+}
+
+int pool_cancel(pool *p, uint32_t job, uint32_t tile) {
+    pthread_mutex_lock(&p->lock);
+    pool_job *j = p->jobs;
+    while (j && j->desc.id != job) j = j->next;
+    int n = j ? cancel_matching(p, j, 1, tile) : 0;
+    pthread_mutex_unlock(&p->lock);
+    if (n) p->wake(p->ctx);
+    return n > 0;
+}
+
+void pool_cancel_all(pool *p) {
+    pthread_mutex_lock(&p->lock);
+    int n = cancel_matching(p, NULL, 0, 0);
+    pthread_mutex_unlock(&p->lock);
+    if (n) p->wake(p->ctx);
+}
+
+pool_task *pool_take_done(pool *p) {
+    pthread_mutex_lock(&p->lock);
+    pool_task *t = p->done_head;
+    p->done_head = p->done_tail = NULL;
+    pthread_mutex_unlock(&p->lock);
+    return t;
+}
+
+void pool_task_free(pool *p, pool_task *t) {
+    if (!t) return;
+    pthread_mutex_lock(&p->lock);
+    job_unref(t->job);
+    pthread_mutex_unlock(&p->lock);
+    free(t->frame);
+    free(t);
+}

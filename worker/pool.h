@@ -1,0 +1,81 @@
+/* pool.h - a worker's render threads, the jobs they render, and the queue
+ * of tiles between the event loop and them.
+ *
+ * The event loop thread (worker.c) creates jobs and pushes tasks; render
+ * threads pop tasks, load the job's scene on first use, render the tile and
+ * hand the finished task back through pool_take_done(), after calling the
+ * `wake` callback (a uv_async_send) so the loop collects it. Network I/O
+ * therefore never blocks a render thread, and rendering never blocks the
+ * loop. All functions are called from the loop thread unless noted. */
+#ifndef TESSERA_WORKER_POOL_H
+#define TESSERA_WORKER_POOL_H
+
+#include <stdatomic.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "../common/protocol.h"
+#include "../common/scene_bundle.h"
+
+typedef struct pool pool;
+typedef struct pool_job pool_job;
+
+typedef enum { TASK_DONE, TASK_CANCELLED, TASK_FAILED } task_status;
+
+typedef struct pool_task {
+    pool_job *job;
+    proto_assign assign;
+    uint64_t generation; /* the connection it came on (worker.c's counter) */
+    atomic_int cancel;
+    /* Filled by the render thread: */
+    task_status status;
+    uint8_t *frame; /* TASK_DONE: the complete 'T' frame; the loop frees it */
+    size_t frame_len;
+    char error[512]; /* TASK_FAILED: why */
+    struct pool_task *next;
+} pool_task;
+
+/* Start `threads` render threads. wake(ctx) is called from a render thread
+ * whenever a task finishes. throttle_ms > 0 sleeps that long after each
+ * tile (tests use it to simulate a slow machine). Returns NULL when the
+ * threads or memory can't be had. */
+pool *pool_new(int threads, int throttle_ms, void (*wake)(void *), void *ctx);
+
+/* Cancel everything, join the threads and free the pool, its jobs and any
+ * finished tasks not taken. */
+void pool_free(pool *p);
+
+/* A job rendering bundle b (the pool copies nothing: b must be a parsed
+ * bundle the job may own; the job frees it). Returns NULL when out of
+ * memory (b is then freed too). */
+pool_job *pool_job_new(pool *p, const proto_job *desc, scene_bundle *b);
+
+/* Look up a live job by id, or NULL. */
+pool_job *pool_job_find(pool *p, uint32_t id);
+const proto_job *pool_job_desc(const pool_job *j);
+
+/* Forget a job: it is freed when its last task is done. Queued tasks of it
+ * are cancelled. */
+void pool_job_end(pool *p, pool_job *j);
+
+/* End every job (a new connection may reuse their ids). */
+void pool_job_end_all(pool *p);
+
+/* Queue a tile. The task is the pool's until it comes back from
+ * pool_take_done(). Returns 0 or -1 when out of memory. */
+int pool_push(pool *p, pool_job *j, const proto_assign *a, uint64_t generation);
+
+/* Ask the task rendering or queued for (job, tile) to stop. Returns 1 if
+ * one was found. */
+int pool_cancel(pool *p, uint32_t job, uint32_t tile);
+
+/* Cancel every task (queued ones come back as TASK_CANCELLED). */
+void pool_cancel_all(pool *p);
+
+/* Finished tasks, oldest first, as a list whose tasks the caller frees with
+ * pool_task_free (which releases the task's hold on its job). Can't fail;
+ * NULL when none. */
+pool_task *pool_take_done(pool *p);
+void pool_task_free(pool *p, pool_task *t);
+
+#endif

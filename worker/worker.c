@@ -1,0 +1,457 @@
+/* worker.c - the worker's event loop: connection, handshake, messages from
+ * the coordinator, results back to it (see worker.h, docs/protocol.md).
+ *
+ * Everything here runs on the loop thread. Render threads (pool.c) hand
+ * finished tiles back through an async handle; each finished task frees a
+ * slot, announced to the coordinator with a "ready" message (pull-based
+ * scheduling: the coordinator never sends more tiles than asked for). Each
+ * connection has a generation number: results of tiles given on an earlier
+ * connection are dropped, never sent to a coordinator that did not ask. */
+#include "worker.h"
+
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <uv.h>
+
+#include "../common/conn.h"
+#include "../common/protocol.h"
+#include "../common/wire.h"
+#include "pool.h"
+
+#define WORKER_MAX_BUNDLES 8
+#define TICK_MS 100
+
+typedef struct {
+    char hash[SCENE_BUNDLE_HASH_HEX];
+    uint8_t *bytes;
+    size_t len;
+} cached_bundle;
+
+typedef struct {
+    worker_config cfg;
+    uv_loop_t loop;
+    pool *pool;
+    uv_async_t wake;
+    uv_timer_t tick;
+    uv_signal_t sigterm, sigint;
+    uv_getaddrinfo_t resolve;
+    uv_connect_t connect;
+    conn *c;
+    int resolving, connected, welcomed;
+    uint64_t generation;
+    int held;             /* tasks pushed and not yet back from the pool */
+    double backoff;       /* seconds before the next attempt */
+    double next_attempt;  /* loop time (s) of the next connection attempt */
+    double last_heard, last_sent;
+    double heartbeat_s, timeout_s;
+    cached_bundle bundles[WORKER_MAX_BUNDLES];
+    int stopping, exit_code;
+    unsigned long tiles_sent;
+    char label[160]; /* "worker NAME" for logs */
+} worker;
+
+static double now_s(worker *w) { return (double)uv_now(&w->loop) / 1e3; }
+
+static void worker_log(worker *w, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void worker_log(worker *w, const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    fprintf(stderr, "tessera-worker %s: ", w->cfg.name);
+    vfprintf(stderr, fmt, ap);
+    fputc('\n', stderr);
+    va_end(ap);
+}
+
+static int capacity(const worker *w) { return w->cfg.threads + w->cfg.prefetch; }
+
+/* Send a frame if connected; frees it otherwise. */
+static void worker_send(worker *w, uint8_t *frame, size_t len) {
+    if (!frame) return;
+    if (!w->c || !w->welcomed) {
+        free(frame);
+        return;
+    }
+    conn_send(w->c, frame, len);
+    w->last_sent = now_s(w);
+}
+
+static void send_json(worker *w, cJSON *m) {
+    size_t len;
+    uint8_t *f = m ? wire_frame_json(m, &len) : NULL;
+    cJSON_Delete(m);
+    if (f) worker_send(w, f, len);
+}
+
+static void send_ready(worker *w, int slots) {
+    if (slots <= 0) return;
+    cJSON *m = cJSON_CreateObject();
+    cJSON_AddStringToObject(m, "type", "ready");
+    cJSON_AddNumberToObject(m, "slots", slots);
+    send_json(w, m);
+}
+
+/* {"type": TYPE, "job": J, "tile": T[, "reason": R]} */
+static void send_tile_note(worker *w, const char *type, const proto_assign *a, const char *reason) {
+    cJSON *m = cJSON_CreateObject();
+    cJSON_AddStringToObject(m, "type", type);
+    cJSON_AddNumberToObject(m, "job", a->job);
+    cJSON_AddNumberToObject(m, "tile", a->tile);
+    if (reason) cJSON_AddStringToObject(m, "reason", reason);
+    send_json(w, m);
+}
+
+static void forget_bundles(worker *w) {
+    for (int i = 0; i < WORKER_MAX_BUNDLES; i++) {
+        free(w->bundles[i].bytes);
+        memset(&w->bundles[i], 0, sizeof w->bundles[i]);
+    }
+}
+
+/* ---- finished tiles ------------------------------------------------------ */
+
+static void on_wake(uv_async_t *a) {
+    worker *w = a->data;
+    int freed = 0;
+    if (!w->pool) return;
+    for (pool_task *t = pool_take_done(w->pool), *next; t; t = next) {
+        next = t->next;
+        w->held--;
+        freed++;
+        if (t->generation == w->generation && w->welcomed) {
+            if (t->status == TASK_DONE) {
+                worker_send(w, t->frame, t->frame_len);
+                t->frame = NULL;
+                w->tiles_sent++;
+            } else if (t->status == TASK_FAILED) {
+                worker_log(w, "tile %u of job %u failed: %s", t->assign.tile, t->assign.job, t->error);
+                send_tile_note(w, "failed", &t->assign, t->error);
+            } else {
+                send_tile_note(w, "cancelled", &t->assign, NULL);
+            }
+        }
+        pool_task_free(w->pool, t);
+    }
+    if (w->welcomed && !w->stopping) send_ready(w, freed);
+}
+
+/* ---- messages from the coordinator ----------------------------------------- */
+
+/* Close the connection over a protocol error; returns 1 for on_frame. */
+static int protocol_error(worker *w, conn *c, const char *reason) {
+    worker_log(w, "coordinator broke the protocol: %s; disconnecting", reason);
+    conn_close(c, reason, 0);
+    return 1;
+}
+
+static int on_welcome(worker *w, conn *c, const cJSON *m) {
+    const cJSON *hb = cJSON_GetObjectItemCaseSensitive(m, "heartbeat_ms");
+    const cJSON *to = cJSON_GetObjectItemCaseSensitive(m, "timeout_ms");
+    if (!cJSON_IsNumber(hb) || !cJSON_IsNumber(to) || !(hb->valuedouble >= 10) || !(to->valuedouble > hb->valuedouble))
+        return protocol_error(w, c, "welcome: heartbeat_ms and timeout_ms must be numbers, 10 <= heartbeat < timeout");
+    w->heartbeat_s = hb->valuedouble / 1e3;
+    w->timeout_s = to->valuedouble / 1e3;
+    w->welcomed = 1;
+    w->backoff = 0.1;
+    if (!w->cfg.quiet)
+        worker_log(w, "joined the farm at %s:%d (%d threads, %d prefetch)", w->cfg.host, w->cfg.port, w->cfg.threads,
+               w->cfg.prefetch);
+    send_ready(w, capacity(w) - w->held);
+    return 0;
+}
+
+static int on_job(worker *w, conn *c, const cJSON *m) {
+    char err[512];
+    proto_job d;
+    if (proto_job_parse(m, "coordinator", &d, err, sizeof err)) return protocol_error(w, c, err);
+    if (pool_job_find(w->pool, d.id)) return protocol_error(w, c, "job: id already in use");
+    for (int i = 0; i < WORKER_MAX_BUNDLES; i++) {
+        cached_bundle *cb = &w->bundles[i];
+        if (!cb->bytes || strcmp(cb->hash, d.scene_hash) != 0) continue;
+        scene_bundle b;
+        if (scene_bundle_parse(cb->bytes, cb->len, &b, err, sizeof err)) return protocol_error(w, c, err);
+        if (!pool_job_new(w->pool, &d, &b)) return protocol_error(w, c, "out of memory for a job");
+        if (w->cfg.verbose) worker_log(w, "job %u: scene %.12s, %dx%d, %d spp", d.id, d.scene_hash, d.width, d.height, d.spp);
+        return 0;
+    }
+    snprintf(err, sizeof err, "job %u: scene %s was never sent", d.id, d.scene_hash);
+    return protocol_error(w, c, err);
+}
+
+static int on_assign(worker *w, conn *c, const cJSON *m) {
+    char err[512];
+    proto_assign a;
+    if (proto_assign_parse(m, "coordinator", &a, err, sizeof err)) return protocol_error(w, c, err);
+    pool_job *j = pool_job_find(w->pool, a.job);
+    if (!j) {
+        snprintf(err, sizeof err, "assign: tile %u of unknown job %u", a.tile, a.job);
+        return protocol_error(w, c, err);
+    }
+    if (pool_push(w->pool, j, &a, w->generation)) return protocol_error(w, c, "out of memory for a tile");
+    w->held++;
+    return 0;
+}
+
+/* Read the "job" (and "tile") numbers of a cancel/job_end message. */
+static int read_ids(const cJSON *m, int want_tile, uint32_t *job, uint32_t *tile) {
+    const cJSON *j = cJSON_GetObjectItemCaseSensitive(m, "job"), *t = cJSON_GetObjectItemCaseSensitive(m, "tile");
+    if (!cJSON_IsNumber(j) || j->valuedouble < 0 || j->valuedouble > UINT32_MAX) return -1;
+    if (want_tile && (!cJSON_IsNumber(t) || t->valuedouble < 0 || t->valuedouble > UINT32_MAX)) return -1;
+    *job = (uint32_t)j->valuedouble;
+    *tile = want_tile ? (uint32_t)t->valuedouble : 0;
+    return 0;
+}
+
+static int on_json(worker *w, conn *c, const uint8_t *body, size_t len) {
+    char err[256];
+    const char *type;
+    cJSON *m = proto_parse_json(body, len, &type, err, sizeof err);
+    if (!m) return protocol_error(w, c, err);
+    int rc = 0;
+    uint32_t job, tile;
+    if (strcmp(type, "welcome") == 0) {
+        rc = on_welcome(w, c, m);
+    } else if (strcmp(type, "refused") == 0) {
+        const cJSON *r = cJSON_GetObjectItemCaseSensitive(m, "reason");
+        worker_log(w, "the coordinator refused this worker: %s", cJSON_IsString(r) ? r->valuestring : "(no reason)");
+        w->exit_code = 1;
+        w->stopping = 1;
+        conn_close(c, "refused", 0);
+        rc = 1;
+    } else if (!w->welcomed) {
+        rc = protocol_error(w, c, "message before the welcome");
+    } else if (strcmp(type, "job") == 0) {
+        rc = on_job(w, c, m);
+    } else if (strcmp(type, "assign") == 0) {
+        rc = on_assign(w, c, m);
+    } else if (strcmp(type, "cancel") == 0) {
+        if (read_ids(m, 1, &job, &tile)) rc = protocol_error(w, c, "cancel: expected job and tile numbers");
+        else pool_cancel(w->pool, job, tile);
+    } else if (strcmp(type, "job_end") == 0) {
+        pool_job *j;
+        if (read_ids(m, 0, &job, &tile)) rc = protocol_error(w, c, "job_end: expected a job number");
+        else if ((j = pool_job_find(w->pool, job)) != NULL) pool_job_end(w->pool, j);
+    } else if (strcmp(type, "error") == 0) {
+        const cJSON *r = cJSON_GetObjectItemCaseSensitive(m, "reason");
+        worker_log(w, "coordinator says: %s", cJSON_IsString(r) ? r->valuestring : "(no reason)");
+    } else if (strcmp(type, "heartbeat") != 0) {
+        snprintf(err, sizeof err, "unknown message type \"%.40s\"", type);
+        rc = protocol_error(w, c, err);
+    }
+    cJSON_Delete(m);
+    return rc;
+}
+
+static int on_scene(worker *w, conn *c, const uint8_t *body, size_t len) {
+    int slot = 0;
+    for (int i = 0; i < WORKER_MAX_BUNDLES; i++)
+        if (!w->bundles[i].bytes) slot = i;
+    cached_bundle *cb = &w->bundles[slot];
+    free(cb->bytes);
+    cb->bytes = malloc(len ? len : 1);
+    if (!cb->bytes) return protocol_error(w, c, "out of memory for a scene");
+    memcpy(cb->bytes, body, len);
+    cb->len = len;
+    scene_bundle_hash(body, len, cb->hash);
+    return 0;
+}
+
+static int on_frame(conn *c, int kind, const uint8_t *body, size_t len) {
+    worker *w = conn_data(c);
+    w->last_heard = now_s(w);
+    if (kind == WIRE_KIND_JSON) return on_json(w, c, body, len);
+    if (kind == WIRE_KIND_SCENE && w->welcomed) return on_scene(w, c, body, len);
+    char err[64];
+    snprintf(err, sizeof err, "unexpected frame kind 0x%02x", kind);
+    return protocol_error(w, c, err);
+}
+
+/* ---- connection ---------------------------------------------------------- */
+
+static void schedule_retry(worker *w) {
+    w->next_attempt = now_s(w) + w->backoff;
+    w->backoff = w->backoff * 2 < w->cfg.retry_max_s ? w->backoff * 2 : w->cfg.retry_max_s;
+}
+
+static void on_conn_close(conn *c, const char *reason) {
+    worker *w = conn_data(c);
+    if (w->c != c) return;
+    int was_welcomed = w->welcomed;
+    w->c = NULL;
+    w->connected = w->welcomed = 0;
+    w->generation++;
+    pool_job_end_all(w->pool); /* the next coordinator may reuse job ids */
+    forget_bundles(w);
+    if (w->stopping) return;
+    if (w->cfg.once) {
+        if (!was_welcomed)
+            worker_log(w, "cannot reach the coordinator at %s:%d: %s", w->cfg.host, w->cfg.port, reason);
+        else if (!w->cfg.quiet)
+            worker_log(w, "connection ended (%s); exiting (--once)", reason);
+        w->exit_code = was_welcomed ? 0 : 1;
+        w->stopping = 1;
+        return;
+    }
+    worker_log(w, "%s %s:%d: %s; retrying in %.1f s", was_welcomed ? "lost the coordinator at" : "cannot reach",
+               w->cfg.host, w->cfg.port, reason, w->backoff);
+    schedule_retry(w);
+}
+
+static const conn_callbacks worker_conn_cb = {on_frame, on_conn_close};
+
+static void send_hello(worker *w) {
+    cJSON *m = cJSON_CreateObject();
+    cJSON_AddStringToObject(m, "type", "hello");
+    cJSON_AddNumberToObject(m, "protocol", PROTOCOL_VERSION);
+    cJSON_AddStringToObject(m, "build", protocol_build_id());
+    cJSON_AddStringToObject(m, "name", w->cfg.name);
+    cJSON_AddNumberToObject(m, "threads", w->cfg.threads);
+    size_t len;
+    uint8_t *f = wire_frame_json(m, &len);
+    cJSON_Delete(m);
+    if (f) conn_send(w->c, f, len);
+}
+
+static void on_connected(uv_connect_t *req, int status) {
+    worker *w = req->data;
+    if (!w->c || conn_tcp(w->c) != (uv_tcp_t *)req->handle) return;
+    if (status == 0) status = conn_start(w->c);
+    if (status != 0) {
+        conn_close(w->c, uv_strerror(status), 0);
+        return;
+    }
+    uv_tcp_nodelay(conn_tcp(w->c), 1); /* small control messages must not wait for Nagle */
+    w->connected = 1;
+    w->last_heard = now_s(w);
+    send_hello(w);
+}
+
+static void on_resolved(uv_getaddrinfo_t *req, int status, struct addrinfo *res) {
+    worker *w = req->data;
+    w->resolving = 0;
+    if (w->stopping) {
+        uv_freeaddrinfo(res);
+        return;
+    }
+    if (status != 0) {
+        if (w->cfg.once) {
+            worker_log(w, "cannot resolve %s: %s", w->cfg.host, uv_strerror(status));
+            w->exit_code = 1;
+            w->stopping = 1;
+        } else {
+            worker_log(w, "cannot resolve %s: %s; retrying in %.1f s", w->cfg.host, uv_strerror(status), w->backoff);
+            schedule_retry(w);
+        }
+        return;
+    }
+    w->c = conn_new(&w->loop, &worker_conn_cb, w, WIRE_JSON_MAX);
+    int rc = w->c ? 0 : UV_ENOMEM;
+    if (rc == 0) {
+        w->connect.data = w;
+        rc = uv_tcp_connect(&w->connect, conn_tcp(w->c), res->ai_addr, on_connected);
+    }
+    uv_freeaddrinfo(res);
+    if (rc != 0 && w->c) conn_close(w->c, uv_strerror(rc), 0);
+}
+
+static void try_connect(worker *w) {
+    char port[16];
+    snprintf(port, sizeof port, "%d", w->cfg.port);
+    struct addrinfo hints = {.ai_family = AF_UNSPEC, .ai_socktype = SOCK_STREAM};
+    w->resolve.data = w;
+    w->next_attempt = 1e300;
+    if (uv_getaddrinfo(&w->loop, &w->resolve, on_resolved, w->cfg.host, port, &hints) == 0)
+        w->resolving = 1;
+    else
+        schedule_retry(w);
+}
+
+/* ---- timers and signals -------------------------------------------------- */
+
+static void close_handles(worker *w);
+
+static void on_tick(uv_timer_t *t) {
+    worker *w = t->data;
+    double now = now_s(w);
+    if (w->stopping) {
+        if (!w->c && !w->resolving) close_handles(w);
+        return;
+    }
+    if (w->welcomed && now - w->last_sent >= w->heartbeat_s) {
+        size_t len;
+        worker_send(w, proto_frame_simple("heartbeat", &len), len);
+    }
+    if (w->c && w->connected && now - w->last_heard > (w->welcomed ? w->timeout_s : 10.0)) {
+        char reason[96];
+        snprintf(reason, sizeof reason, "no message from the coordinator for %.1f s", now - w->last_heard);
+        conn_close(w->c, reason, 0);
+    }
+    if (!w->c && !w->resolving && now >= w->next_attempt) try_connect(w);
+}
+
+static void on_signal(uv_signal_t *s, int signum) {
+    worker *w = s->data;
+    if (w->stopping) return;
+    worker_log(w, "%s: abandoning %d tiles and leaving", signum == SIGTERM ? "SIGTERM" : "SIGINT", w->held);
+    w->stopping = 1;
+    if (w->c && w->welcomed) {
+        size_t len;
+        worker_send(w, proto_frame_simple("bye", &len), len);
+    }
+    pool_cancel_all(w->pool);
+    if (w->c) conn_close(w->c, "leaving", 1);
+}
+
+/* Stop: join the render threads (they may still wake the loop), then close
+ * every handle so that uv_run returns. */
+static void close_handles(worker *w) {
+    if (uv_is_closing((uv_handle_t *)&w->tick)) return;
+    pool_free(w->pool);
+    w->pool = NULL;
+    uv_close((uv_handle_t *)&w->tick, NULL);
+    uv_close((uv_handle_t *)&w->wake, NULL);
+    uv_close((uv_handle_t *)&w->sigterm, NULL);
+    uv_close((uv_handle_t *)&w->sigint, NULL);
+}
+
+static void wake_loop(void *ctx) { uv_async_send(ctx); }
+
+int worker_run(const worker_config *cfg) {
+    worker *w = calloc(1, sizeof *w);
+    if (!w) {
+        fprintf(stderr, "tessera-worker: out of memory\n");
+        return 1;
+    }
+    w->cfg = *cfg;
+    w->backoff = 0.1;
+    uv_loop_init(&w->loop);
+    uv_async_init(&w->loop, &w->wake, on_wake);
+    w->wake.data = w;
+    w->pool = pool_new(cfg->threads, cfg->throttle_ms, wake_loop, &w->wake);
+    if (!w->pool) {
+        worker_log(w, "cannot start %d render threads", cfg->threads);
+        uv_close((uv_handle_t *)&w->wake, NULL);
+        uv_run(&w->loop, UV_RUN_DEFAULT);
+        uv_loop_close(&w->loop);
+        free(w);
+        return 1;
+    }
+    uv_timer_init(&w->loop, &w->tick);
+    w->tick.data = w;
+    uv_timer_start(&w->tick, on_tick, 0, TICK_MS);
+    uv_signal_init(&w->loop, &w->sigterm);
+    uv_signal_init(&w->loop, &w->sigint);
+    w->sigterm.data = w->sigint.data = w;
+    uv_signal_start(&w->sigterm, on_signal, SIGTERM);
+    uv_signal_start(&w->sigint, on_signal, SIGINT);
+    try_connect(w);
+    uv_run(&w->loop, UV_RUN_DEFAULT);
+    forget_bundles(w);
+    int rc = uv_loop_close(&w->loop);
+    if (rc) worker_log(w, "event loop closed with handles open: %s", uv_strerror(rc));
+    int code = w->exit_code;
+    if (cfg->verbose) worker_log(w, "sent %lu tiles", w->tiles_sent);
+    free(w);
+    return code;
+}

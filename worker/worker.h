@@ -1,0 +1,25 @@
+/* worker.h - a farm worker: connects to a coordinator, renders the tiles it
+ * is given on a pool of threads, sends them back, and reconnects with
+ * backoff whenever the coordinator goes away (docs/protocol.md). */
+#ifndef TESSERA_WORKER_H
+#define TESSERA_WORKER_H
+
+typedef struct {
+    const char *host; /* coordinator name or address */
+    int port;
+    const char *name;   /* shown in the coordinator's logs */
+    int threads;        /* render threads (>= 1) */
+    int prefetch;       /* tiles asked for beyond one per thread */
+    int once;           /* exit when the connection ends instead of reconnecting */
+    int throttle_ms;    /* sleep after each tile (tests: a slow machine) */
+    double retry_max_s; /* longest wait between connection attempts */
+    int verbose;
+    int quiet;          /* errors only (local farms) */
+} worker_config;
+
+/* Run until SIGTERM/SIGINT, a refused handshake, or (with once) the end of
+ * the connection. Returns the process exit status: 0 after a clean stop,
+ * 1 on a fatal error (printed on stderr). */
+int worker_run(const worker_config *cfg);
+
+#endif
