@@ -16,6 +16,7 @@ struct conn {
     wire_decoder dec;
     char readbuf[CONN_READ_BYTES];
     int closing;
+    int malformed; /* closed because the peer's byte stream was not frames */
     uint64_t bytes_in, bytes_out;
     uv_shutdown_t shutdown;
 };
@@ -53,6 +54,7 @@ uv_tcp_t *conn_tcp(conn *c) { return &c->tcp; }
 void *conn_data(const conn *c) { return c->data; }
 void conn_set_max_frame(conn *c, size_t max_frame) { c->dec.max_frame = max_frame; }
 int conn_is_closing(const conn *c) { return c->closing; }
+int conn_malformed(const conn *c) { return c->malformed; }
 uint64_t conn_bytes_in(const conn *c) { return c->bytes_in; }
 uint64_t conn_bytes_out(const conn *c) { return c->bytes_out; }
 size_t conn_write_queue(const conn *c) { return c->tcp.write_queue_size; }
@@ -76,7 +78,8 @@ static void on_read(uv_stream_t *s, ssize_t n, const uv_buf_t *buf) {
     char reason[256];
     if (n < 0) {
         size_t pending = wire_decoder_pending(&c->dec);
-        if (n == UV_EOF && pending)
+        c->malformed = n == UV_EOF && pending;
+        if (c->malformed)
             snprintf(reason, sizeof reason, "connection closed in the middle of a frame (%zu bytes received)",
                      pending);
         else
@@ -87,7 +90,10 @@ static void on_read(uv_stream_t *s, ssize_t n, const uv_buf_t *buf) {
     c->bytes_in += (uint64_t)n;
     int rc = wire_decoder_feed(&c->dec, (const uint8_t *)c->readbuf, (size_t)n, on_decoded, c, reason,
                                sizeof reason);
-    if (rc == -1) conn_close(c, reason, 0);
+    if (rc == -1) {
+        c->malformed = 1;
+        conn_close(c, reason, 0);
+    }
 }
 
 int conn_start(conn *c) { return uv_read_start((uv_stream_t *)&c->tcp, on_alloc, on_read); }

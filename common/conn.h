@@ -63,6 +63,10 @@ void conn_close(conn *c, const char *reason, int flush);
 
 int conn_is_closing(const conn *c);
 
+/* In on_close: whether the close is because the peer sent something that is
+ * not a well-formed frame (too long, empty, truncated). */
+int conn_malformed(const conn *c);
+
 /* Bytes received and queued for sending so far, and bytes still queued. */
 uint64_t conn_bytes_in(const conn *c);
 uint64_t conn_bytes_out(const conn *c);

@@ -410,6 +410,8 @@ static int on_tile(peer *p, const uint8_t *body, size_t len) {
         if (f->opt.verbose) farm_log(f, "%s: tile %u of job %u was already done; dropped", p->label, h.tile, h.job);
         return 0;
     }
+    if (!was_live && f->opt.verbose)
+        farm_log(f, "%s: late result for tile %u of job %u used (nobody had finished it)", p->label, h.tile, h.job);
     job_stitch(j, &h, px);
     j->done[h.tile] = 1;
     j->rep.tiles_done++;
@@ -587,7 +589,9 @@ static void on_conn_close(conn *c, const char *reason) {
         lease_release(l);
         free(l);
     }
-    if ((p->state != PEER_HELLO && !f->closing) || f->opt.verbose)
+    if (conn_malformed(c))
+        farm_log(f, "%s: %s; disconnecting", p->label, reason);
+    else if ((p->state != PEER_HELLO && !f->closing) || f->opt.verbose)
         farm_log(f, "%s left: %s (%llu tiles done%s)", p->label, reason, (unsigned long long)p->rec.tiles,
                  requeued ? ", its unfinished tiles go back to the queue" : "");
     peer_record_departure(f, p, reason);
@@ -669,9 +673,10 @@ static void peer_check(peer *p, double now) {
                      l->tile, l->job->desc.id, now - l->start);
             lease_release(l);
         }
-    if (p->state == PEER_ACTIVE && now - p->last_sent >= f->opt.heartbeat_s) {
+    if (now - p->last_sent >= f->opt.heartbeat_s) {
         size_t len;
-        peer_send(p, proto_frame_simple("heartbeat", &len), len);
+        uint8_t *frame = proto_frame_simple("heartbeat", &len);
+        peer_send(p, frame, len);
     }
 }
 

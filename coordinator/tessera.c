@@ -7,6 +7,7 @@
 #define _GNU_SOURCE
 #include <errno.h>
 #include <getopt.h>
+#include <signal.h>
 #include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -41,7 +42,7 @@ static void usage_render(FILE *f) {
             "usage: tessera render SCENE.json [-o OUT] [options]\n"
             "\n"
             "Render a scene and save the image; the format follows OUT's extension:\n"
-            "  .pfm .exr  linear float RGB (HDR); EXR records scene, spp, seed, time\n"
+            "  .pfm .exr  linear float RGB (HDR); EXR records scene, spp, seed\n"
             "  .ppm .png .jpg .jpeg  8-bit sRGB, tone mapped\n"
             "\n"
             "options:\n"
@@ -312,16 +313,16 @@ static int render_on_farm(render_args *a, const scene *s, const scene_bundle *b,
     return 0;
 }
 
-static int save_image(const render_args *a, const scene *s, const image *img, double secs) {
-    char spp[32], seed[32], secs_s[32], err[1024];
+static int save_image(const render_args *a, const scene *s, const image *img) {
+    /* No time or host in the file: the same render gives the same bytes. */
+    char spp[32], seed[32], err[1024];
     snprintf(spp, sizeof spp, "%d", s->settings.spp);
     snprintf(seed, sizeof seed, "%llu", (unsigned long long)s->settings.seed);
-    snprintf(secs_s, sizeof secs_s, "%.3f", secs);
     codec_attribute attrs[] = {{"tessera:scene", a->scene_path}, {"tessera:spp", spp}, {"tessera:seed", seed},
-                               {"tessera:renderSeconds", secs_s}, {"tessera:version", TESSERA_VERSION}};
+                               {"tessera:version", TESSERA_VERSION}};
     image_write_options wo = {.tonemap = a->tm, .jpeg_quality = a->jpeg_quality, .png16 = a->png16, .exr = a->exr};
     wo.exr.attrs = attrs;
-    wo.exr.attr_count = 5;
+    wo.exr.attr_count = 4;
     if (image_write(a->out_path, img, &wo, err, sizeof err) == 0) return 0;
     fprintf(stderr, "tessera: %s\n", err);
     return -1;
@@ -355,7 +356,7 @@ static int cmd_render(int argc, char **argv) {
     int farm_mode = a.listen || a.workers > 0;
     if (rc == 0) rc = farm_mode ? render_on_farm(&a, s, &b, &img, &st) : render_in_process(&a, s, &img, &st);
     double secs = now_seconds() - t0;
-    if (rc == 0) rc = save_image(&a, s, &img, secs);
+    if (rc == 0) rc = save_image(&a, s, &img);
     if (rc == 0)
         printf("rendered %s: %.2f s, %.3f Msamples/s, %.2f Mrays/s, %llu NaN/Inf samples, image: %s\n",
                a.scene_path, secs, (double)st.samples / secs / 1e6,
@@ -426,6 +427,7 @@ static void usage(FILE *f) {
 }
 
 int main(int argc, char **argv) {
+    signal(SIGPIPE, SIG_IGN); /* a vanished worker is an error to handle, not a reason to die */
     if (argc < 2) {
         usage(stderr);
         return 2;

@@ -1,18 +1,32 @@
 /* util.c - helpers shared by the tests. */
 #include "util.h"
 
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
 
-const char *util_write_temp(const char *name, const char *text) {
+const char *util_temp_path(const char *name) {
     static char dir[64], path[256];
     if (!dir[0]) {
         snprintf(dir, sizeof dir, "/tmp/tessera-test-XXXXXX");
         if (!mkdtemp(dir)) return NULL;
     }
     snprintf(path, sizeof path, "%s/%s", dir, name);
+    return path;
+}
+
+const char *util_write_temp(const char *name, const char *text) {
+    const char *path = util_temp_path(name);
+    if (!path) return NULL;
     FILE *f = fopen(path, "w");
     if (!f) return NULL;
     fputs(text, f);
@@ -44,4 +58,103 @@ int util_run(const char *cmd, char *out, size_t cap) {
     out[n] = '\0';
     int st = pclose(p);
     return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+const char *util_bin(const char *name) {
+    static char path[4096];
+    const char *t = getenv("TESSERA_BIN");
+    if (!t) t = "build/release/bin/tessera";
+    const char *slash = strrchr(t, '/');
+    int dir = slash ? (int)(slash - t) : 1;
+    snprintf(path, sizeof path, "%.*s/%s", dir, slash ? t : ".", name);
+    return path;
+}
+
+pid_t util_spawn(const char *const *argv, const char *log_path) {
+    fflush(NULL);
+    pid_t pid = fork();
+    if (pid != 0) return pid;
+    int in = open("/dev/null", O_RDONLY);
+    int out = open(log_path, O_WRONLY | O_CREAT | O_APPEND, 0644);
+    if (in < 0 || out < 0) _exit(127);
+    dup2(in, 0);
+    dup2(out, 1);
+    dup2(out, 2);
+    execv(argv[0], (char *const *)argv);
+    _exit(127);
+}
+
+void util_sleep(double s) {
+    struct timespec ts = {(time_t)s, (long)((s - (double)(time_t)s) * 1e9)};
+    nanosleep(&ts, NULL);
+}
+
+static double mono(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+int util_wait(pid_t pid, double timeout_s, long *maxrss_kb) {
+    double end = mono() + timeout_s;
+    int st;
+    struct rusage ru;
+    for (;;) {
+        pid_t r = wait4(pid, &st, WNOHANG, &ru);
+        if (r == pid) break;
+        if (r < 0) return -1;
+        if (mono() > end) {
+            kill(pid, SIGKILL);
+            waitpid(pid, &st, 0);
+            return -1;
+        }
+        util_sleep(0.01);
+    }
+    if (maxrss_kb) *maxrss_kb = ru.ru_maxrss;
+    return WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
+}
+
+int util_file_count(const char *path, const char *text) {
+    FILE *f = fopen(path, "rb");
+    if (!f) return 0;
+    static char buf[1 << 20];
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    buf[n] = '\0';
+    int count = 0;
+    for (const char *p = buf; (p = strstr(p, text)) != NULL; p += strlen(text)) count++;
+    return count;
+}
+
+int util_wait_for_text(const char *path, const char *text, double timeout_s) {
+    double end = mono() + timeout_s;
+    while (!util_file_count(path, text)) {
+        if (mono() > end) return -1;
+        util_sleep(0.01);
+    }
+    return 0;
+}
+
+int util_free_port(void) {
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    struct sockaddr_in a = {.sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
+    socklen_t len = sizeof a;
+    int port = -1;
+    if (fd >= 0 && bind(fd, (struct sockaddr *)&a, sizeof a) == 0 && getsockname(fd, (struct sockaddr *)&a, &len) == 0)
+        port = ntohs(a.sin_port);
+    if (fd >= 0) close(fd);
+    return port;
+}
+
+int util_same_file(const char *a, const char *b) {
+    FILE *fa = fopen(a, "rb"), *fb = fopen(b, "rb");
+    int same = fa && fb;
+    while (same) {
+        int ca = fgetc(fa), cb = fgetc(fb);
+        if (ca != cb) same = 0;
+        if (ca == EOF || cb == EOF) break;
+    }
+    if (fa) fclose(fa);
+    if (fb) fclose(fb);
+    return same;
 }

@@ -11,6 +11,10 @@
  * (static storage, overwritten by the next call). */
 const char *util_write_temp(const char *name, const char *text);
 
+/* A path for name under the tests' temporary folder, without creating the
+ * file (static storage, overwritten by the next call). */
+const char *util_temp_path(const char *name);
+
 /* Load a scene from JSON text; on failure returns NULL with the error. */
 scene *util_scene_from_text(const char *json, char *err, size_t err_len);
 
@@ -21,5 +25,38 @@ float *util_render(const scene *s, int threads, int tile, int passes, trace_stat
 /* Run a shell command, capture up to cap bytes of its stdout+stderr into out;
  * returns the exit status (or -1). */
 int util_run(const char *cmd, char *out, size_t cap);
+
+/* ---- processes (farm tests) ---- */
+
+#include <sys/types.h>
+
+/* Path of a program built next to $TESSERA_BIN ("tessera",
+ * "tessera-worker"); static storage. */
+const char *util_bin(const char *name);
+
+/* Start argv (NULL-terminated) with stdout and stderr appended to log_path
+ * and stdin from /dev/null. Returns the pid, or -1. */
+pid_t util_spawn(const char *const *argv, const char *log_path);
+
+/* Wait up to timeout_s for pid to exit. Returns its exit status (128 + the
+ * signal if killed); on timeout kills it with SIGKILL and returns -1.
+ * maxrss_kb, if not NULL, receives its peak resident memory. */
+int util_wait(pid_t pid, double timeout_s, long *maxrss_kb);
+
+/* Wait up to timeout_s until the file at path contains text. Returns 0 or
+ * -1 on timeout. */
+int util_wait_for_text(const char *path, const char *text, double timeout_s);
+
+/* Whether the file at path contains text (0/1); count how often. */
+int util_file_count(const char *path, const char *text);
+
+/* A TCP port on 127.0.0.1 that was free a moment ago. */
+int util_free_port(void);
+
+/* Whole-file comparison: 1 when both exist and are byte-identical. */
+int util_same_file(const char *a, const char *b);
+
+/* Sleep for the given seconds. */
+void util_sleep(double s);
 
 #endif

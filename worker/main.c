@@ -3,6 +3,7 @@
 #define _GNU_SOURCE
 #include <errno.h>
 #include <getopt.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -56,6 +57,7 @@ int main(int argc, char **argv) {
         {"retry-max", required_argument, 0, OPT_RETRY}, {"once", no_argument, 0, OPT_ONCE},
         {"throttle-ms", required_argument, 0, OPT_THROTTLE}, {"verbose", no_argument, 0, 'v'},
         {"quiet", no_argument, 0, 'q'}, {"version", no_argument, 0, OPT_VERSION}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
+    signal(SIGPIPE, SIG_IGN); /* a vanished coordinator is an error to handle, not a reason to die */
     worker_config cfg = {.threads = (int)sysconf(_SC_NPROCESSORS_ONLN), .prefetch = 1, .retry_max_s = 5};
     const char *connect = NULL;
     char host[256], name[128], err[256] = "";

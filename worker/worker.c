@@ -44,7 +44,7 @@ typedef struct {
     int held;             /* tasks pushed and not yet back from the pool */
     double backoff;       /* seconds before the next attempt */
     double next_attempt;  /* loop time (s) of the next connection attempt */
-    double last_heard, last_sent;
+    double last_heard, last_sent, last_tick;
     double heartbeat_s, timeout_s;
     cached_bundle bundles[WORKER_MAX_BUNDLES];
     int stopping, exit_code;
@@ -374,13 +374,19 @@ static void close_handles(worker *w);
 static void on_tick(uv_timer_t *t) {
     worker *w = t->data;
     double now = now_s(w);
+    /* A long gap between ticks means this process was not running (SIGSTOP,
+     * a suspended VM): the silence is ours, so give the coordinator a fresh
+     * chance to speak before calling it gone. */
+    if (now - w->last_tick > 5 * TICK_MS / 1e3) w->last_heard = now;
+    w->last_tick = now;
     if (w->stopping) {
         if (!w->c && !w->resolving) close_handles(w);
         return;
     }
     if (w->welcomed && now - w->last_sent >= w->heartbeat_s) {
         size_t len;
-        worker_send(w, proto_frame_simple("heartbeat", &len), len);
+        uint8_t *frame = proto_frame_simple("heartbeat", &len);
+        worker_send(w, frame, len);
     }
     if (w->c && w->connected && now - w->last_heard > (w->welcomed ? w->timeout_s : 10.0)) {
         char reason[96];
@@ -397,7 +403,8 @@ static void on_signal(uv_signal_t *s, int signum) {
     w->stopping = 1;
     if (w->c && w->welcomed) {
         size_t len;
-        worker_send(w, proto_frame_simple("bye", &len), len);
+        uint8_t *frame = proto_frame_simple("bye", &len);
+        worker_send(w, frame, len);
     }
     pool_cancel_all(w->pool);
     if (w->c) conn_close(w->c, "leaving", 1);

@@ -1,0 +1,433 @@
+/* test_farm.c - the farm end to end: a real coordinator (`tessera render
+ * --listen`), real tessera-worker processes and fake workers on loopback.
+ *
+ * Every test checks that the image is bit-for-bit the single-process one,
+ * whatever was done to the workers on the way: killed, stopped, joined late,
+ * told to leave, outrun by a backup, or mixed with peers that send garbage.
+ * Workers are slowed with --throttle-ms so that "mid-render" is a fact, not
+ * a race; timeouts are generous so the ASan build passes on a busy machine. */
+#include <arpa/inet.h>
+#include <math.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include "../common/protocol.h"
+#include "../common/wire.h"
+#include "harness.h"
+#include "util.h"
+
+#define SCENE "tests/scenes/cornell-small.json"
+#define LONG 120.0 /* seconds: only hit when something is broken */
+
+typedef struct {
+    char path[256];
+} tpath;
+
+static tpath temp(const char *name) {
+    tpath t;
+    snprintf(t.path, sizeof t.path, "%s", util_temp_path(name));
+    unlink(t.path);
+    return t;
+}
+
+/* The single-process image every farm render must equal (64 spp). */
+static const char *reference(const char *ext) {
+    static char pfm[256], exr[256];
+    char *path = strcmp(ext, "exr") == 0 ? exr : pfm;
+    if (path[0]) return path;
+    snprintf(path, 256, "%s", util_temp_path(strcmp(ext, "exr") == 0 ? "reference.exr" : "reference.pfm"));
+    char cmd[1024], out[4096];
+    snprintf(cmd, sizeof cmd, "%s render " SCENE " --workers 0 --threads 2 -o %s", harness_tessera(), path);
+    if (util_run(cmd, out, sizeof out) != 0) {
+        fprintf(stderr, "reference render failed: %s\n", out);
+        path[0] = '\0';
+        return "(no reference)";
+    }
+    return path;
+}
+
+/* Start a coordinator that waits for remote workers; returns its pid and
+ * port (parsed from its log). extra: more arguments, NULL-terminated. */
+static pid_t start_coordinator(const char *log, const char *out, int port, const char *const *extra, int *port_out) {
+    const char *argv[40] = {harness_tessera(), "render", SCENE, "--tile-size", "8", "--no-progress", "-v", "-o", out,
+                            "--listen"};
+    int n = 10;
+    char listen[64];
+    snprintf(listen, sizeof listen, "127.0.0.1:%d", port);
+    argv[n++] = listen;
+    for (int i = 0; extra && extra[i] && n < 38; i++) argv[n++] = extra[i];
+    argv[n] = NULL;
+    pid_t pid = util_spawn(argv, log);
+    *port_out = -1;
+    if (pid < 0 || util_wait_for_text(log, "coordinator listening on 127.0.0.1:", LONG)) return pid;
+    FILE *f = fopen(log, "r");
+    char line[512];
+    while (f && fgets(line, sizeof line, f))
+        if (sscanf(line, "tessera: coordinator listening on 127.0.0.1:%d", port_out) == 1) break;
+    if (f) fclose(f);
+    return pid;
+}
+
+static pid_t start_worker(const char *log, int port, const char *name, const char *throttle_ms) {
+    char connect[64];
+    snprintf(connect, sizeof connect, "127.0.0.1:%d", port);
+    const char *argv[] = {util_bin("tessera-worker"), "--connect", connect, "--threads", "1", "--name", name,
+                          "--retry-max", "1", "--throttle-ms", throttle_ms, NULL};
+    return util_spawn(argv, log);
+}
+
+/* Number of tiles the coordinator's -v table credits to worker name. */
+static int tiles_of(const char *log, const char *name) {
+    FILE *f = fopen(log, "r");
+    char line[1024], who[128];
+    int tiles = -1, threads, t;
+    while (f && fgets(line, sizeof line, f))
+        if (sscanf(line, " %127s %*s %d threads %d tiles", who, &threads, &t) == 3 && strcmp(who, name) == 0)
+            tiles = tiles < 0 ? t : tiles + t;
+    if (f) fclose(f);
+    return tiles;
+}
+
+/* Stop a worker with SIGTERM and check that it exits cleanly. */
+static void stop_worker(pid_t pid, const char *log) {
+    kill(pid, SIGTERM);
+    int st = util_wait(pid, LONG, NULL);
+    CHECK(st == 0, "worker exited with %d after SIGTERM; log %s", st, log);
+}
+
+TEST(farm_thread_same_image_any_workers_and_tiles) {
+    const char *ref = reference("pfm");
+    static const struct {
+        const char *workers, *threads, *tile, *ext;
+    } runs[] = {{"1", "1", "32", "pfm"}, {"3", "1", "5", "pfm"}, {"2", "2", "13", "exr"}, {"0", "1", "7", "exr"}};
+    for (size_t i = 0; i < sizeof runs / sizeof runs[0]; i++) {
+        char name[64], cmd[1024], out[8192];
+        snprintf(name, sizeof name, "farm-%zu.%s", i, runs[i].ext);
+        tpath img = temp(name);
+        snprintf(cmd, sizeof cmd, "%s render " SCENE " --workers %s --threads %s --tile-size %s -o %s",
+                 harness_tessera(), runs[i].workers, runs[i].threads, runs[i].tile, img.path);
+        int st = util_run(cmd, out, sizeof out);
+        CHECK(st == 0, "%s failed (%d): %s", cmd, st, out);
+        const char *want = strcmp(runs[i].ext, "exr") == 0 ? reference("exr") : ref;
+        CHECK(util_same_file(img.path, want), "%s: %s differs from the single-process %s", cmd, img.path, want);
+    }
+}
+
+TEST(farm_kill9_worker_mid_render) {
+    tpath clog = temp("kill9-coord.log"), alog = temp("kill9-a.log"), blog = temp("kill9-b.log"),
+          img = temp("kill9.pfm");
+    int port;
+    pid_t coord = start_coordinator(clog.path, img.path, 0, NULL, &port);
+    CHECK(port > 0, "coordinator did not start; log %s", clog.path);
+    pid_t a = start_worker(alog.path, port, "A", "40");
+    pid_t b = start_worker(blog.path, port, "B", "40");
+    CHECK(util_wait_for_text(clog.path, "worker B (", LONG) == 0, "B never joined");
+    util_sleep(0.5); /* B holds tiles now (it asks for two at once) */
+    kill(b, SIGKILL);
+    util_wait(b, LONG, NULL);
+    int st = util_wait(coord, LONG, NULL);
+    CHECK(st == 0, "coordinator exited with %d; log %s", st, clog.path);
+    CHECK(util_file_count(clog.path, "worker B (127.0.0.1:") && util_file_count(clog.path, "go back to the queue"),
+          "the coordinator did not notice B's death; log %s", clog.path);
+    CHECK(util_same_file(img.path, reference("pfm")), "image differs after kill -9; log %s", clog.path);
+    stop_worker(a, alog.path);
+}
+
+TEST(farm_sigstop_worker_lease_expires) {
+    tpath clog = temp("stop-coord.log"), alog = temp("stop-a.log"), blog = temp("stop-b.log"), img = temp("stop.pfm");
+    const char *extra[] = {"--heartbeat", "0.1", "--worker-timeout", "0.6", NULL};
+    int port;
+    pid_t coord = start_coordinator(clog.path, img.path, 0, extra, &port);
+    CHECK(port > 0, "coordinator did not start; log %s", clog.path);
+    pid_t a = start_worker(alog.path, port, "A", "40");
+    pid_t b = start_worker(blog.path, port, "B", "40");
+    CHECK(util_wait_for_text(clog.path, "worker B (", LONG) == 0, "B never joined");
+    util_sleep(0.4);
+    kill(b, SIGSTOP);
+    CHECK(util_wait_for_text(clog.path, "(127.0.0.1", LONG) == 0 &&
+              util_wait_for_text(clog.path, "silent for", LONG) == 0,
+          "B's stall was not noticed; log %s", clog.path);
+    util_sleep(0.3);
+    kill(b, SIGCONT); /* its late results must be ignored or used, never harmful */
+    int st = util_wait(coord, LONG, NULL);
+    CHECK(st == 0, "coordinator exited with %d; log %s", st, clog.path);
+    CHECK(util_file_count(clog.path, "worker B") && util_file_count(clog.path, "tiles go back to the queue"),
+          "no requeue after the stall; log %s", clog.path);
+    CHECK(util_file_count(clog.path, "is responding again") && !util_file_count(clog.path, "left: connection"),
+          "B was not taken back after waking up; log %s", clog.path);
+    CHECK(util_file_count(clog.path, "was already done; dropped") + util_file_count(clog.path, "late result for") >= 1,
+          "B's late results were neither dropped nor used; log %s", clog.path);
+    CHECK(util_same_file(img.path, reference("pfm")), "image differs after SIGSTOP; log %s", clog.path);
+    stop_worker(a, alog.path);
+    stop_worker(b, blog.path);
+}
+
+TEST(farm_worker_joins_mid_render_and_one_leaves) {
+    tpath clog = temp("join-coord.log"), alog = temp("join-a.log"), blog = temp("join-b.log"), img = temp("join.pfm");
+    int port;
+    pid_t coord = start_coordinator(clog.path, img.path, 0, NULL, &port);
+    CHECK(port > 0, "coordinator did not start; log %s", clog.path);
+    pid_t a = start_worker(alog.path, port, "A", "30");
+    CHECK(util_wait_for_text(clog.path, "worker A (", LONG) == 0, "A never joined");
+    util_sleep(0.5);
+    pid_t b = start_worker(blog.path, port, "B", "0");
+    CHECK(util_wait_for_text(clog.path, "worker B (", LONG) == 0, "B never joined");
+    util_sleep(0.2);
+    kill(a, SIGTERM); /* A gives its tiles back and leaves */
+    CHECK(util_wait(a, LONG, NULL) == 0, "A did not exit cleanly on SIGTERM; log %s", alog.path);
+    int st = util_wait(coord, LONG, NULL);
+    CHECK(st == 0, "coordinator exited with %d; log %s", st, clog.path);
+    CHECK(tiles_of(clog.path, "A") > 0 && tiles_of(clog.path, "B") > 0, "tiles: A %d, B %d; log %s",
+          tiles_of(clog.path, "A"), tiles_of(clog.path, "B"), clog.path);
+    CHECK(util_file_count(clog.path, "worker A (") && util_file_count(clog.path, "left: worker left"),
+          "A's departure not logged; log %s", clog.path);
+    CHECK(util_same_file(img.path, reference("pfm")), "image differs; log %s", clog.path);
+    stop_worker(b, blog.path);
+}
+
+TEST(farm_backup_tasks_beat_a_slow_worker) {
+    tpath clog = temp("backup-coord.log"), alog = temp("backup-a.log"), blog = temp("backup-b.log"),
+          img = temp("backup.pfm");
+    const char *extra[] = {"--tile-size", "16", NULL};
+    int port;
+    pid_t coord = start_coordinator(clog.path, img.path, 0, extra, &port);
+    CHECK(port > 0, "coordinator did not start; log %s", clog.path);
+    pid_t b = start_worker(blog.path, port, "slow", "4000"); /* 4 s per tile */
+    CHECK(util_wait_for_text(clog.path, "worker slow (", LONG) == 0, "slow never joined");
+    pid_t a = start_worker(alog.path, port, "fast", "0");
+    int st = util_wait(coord, LONG, NULL);
+    CHECK(st == 0, "coordinator exited with %d; log %s", st, clog.path);
+    int backups = 0;
+    FILE *f = fopen(clog.path, "r");
+    char line[1024];
+    while (f && fgets(line, sizeof line, f)) {
+        const char *p = strstr(line, " requeued, ");
+        if (p) sscanf(p, " requeued, %d backups", &backups);
+    }
+    if (f) fclose(f);
+    CHECK(backups >= 1, "no backup tasks were handed out; log %s", clog.path);
+    CHECK(tiles_of(clog.path, "fast") == 16, "the fast worker stitched %d of 16 tiles; log %s",
+          tiles_of(clog.path, "fast"), clog.path);
+    CHECK(util_same_file(img.path, reference("pfm")), "image differs; log %s", clog.path);
+    stop_worker(a, alog.path);
+    stop_worker(b, blog.path);
+}
+
+TEST(farm_workers_wait_for_and_survive_a_coordinator) {
+    tpath c1 = temp("restart-coord1.log"), c2 = temp("restart-coord2.log"), wlog = temp("restart-w.log"),
+          img1 = temp("restart1.pfm"), img2 = temp("restart2.pfm");
+    int port = util_free_port(), got;
+    pid_t w = start_worker(wlog.path, port, "W", "20"); /* nothing listens yet */
+    CHECK(util_wait_for_text(wlog.path, "retrying", LONG) == 0, "worker does not say it retries; log %s", wlog.path);
+    pid_t coord = start_coordinator(c1.path, img1.path, port, NULL, &got);
+    CHECK(got == port, "coordinator 1 did not listen on %d; log %s", port, c1.path);
+    CHECK(util_wait_for_text(c1.path, "worker W (", LONG) == 0, "W never joined coordinator 1");
+    util_sleep(0.3);
+    kill(coord, SIGKILL); /* the coordinator dies mid-render */
+    util_wait(coord, LONG, NULL);
+    CHECK(util_wait_for_text(wlog.path, "lost the coordinator", LONG) == 0, "worker did not notice; log %s",
+          wlog.path);
+    coord = start_coordinator(c2.path, img2.path, port, NULL, &got);
+    CHECK(got == port, "coordinator 2 did not listen on %d; log %s", port, c2.path);
+    int st = util_wait(coord, LONG, NULL);
+    CHECK(st == 0, "coordinator 2 exited with %d; log %s", st, c2.path);
+    CHECK(tiles_of(c2.path, "W") == 64, "W rendered %d of 64 tiles for coordinator 2", tiles_of(c2.path, "W"));
+    CHECK(util_same_file(img2.path, reference("pfm")), "image differs; log %s", c2.path);
+    stop_worker(w, wlog.path);
+}
+
+/* ---- fake workers -------------------------------------------------------- */
+
+static int dial(int port) {
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    struct sockaddr_in a = {.sin_family = AF_INET, .sin_port = htons((uint16_t)port),
+                            .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
+    if (fd >= 0 && connect(fd, (struct sockaddr *)&a, sizeof a) != 0) {
+        close(fd);
+        return -1;
+    }
+    return fd;
+}
+
+static void send_all(int fd, const void *buf, size_t len) {
+    const char *p = buf;
+    while (len > 0) {
+        ssize_t n = send(fd, p, len, MSG_NOSIGNAL);
+        if (n <= 0) return;
+        p += n;
+        len -= (size_t)n;
+    }
+}
+
+static void send_json_text(int fd, const char *text) {
+    size_t len;
+    uint8_t *f = wire_frame_new(WIRE_KIND_JSON, strlen(text), &len);
+    memcpy(f + WIRE_HEADER_BYTES, text, strlen(text));
+    send_all(fd, f, len);
+    free(f);
+}
+
+static void send_hello(int fd, const char *name, int protocol) {
+    char text[512];
+    snprintf(text, sizeof text, "{\"type\":\"hello\",\"protocol\":%d,\"build\":\"%s\",\"name\":\"%s\",\"threads\":1}",
+             protocol, protocol_build_id(), name);
+    send_json_text(fd, text);
+}
+
+/* Read exactly want bytes, waiting up to 2 s for each piece. */
+static int read_exact(int fd, uint8_t *dst, size_t want) {
+    size_t have = 0;
+    while (have < want) {
+        struct pollfd p = {fd, POLLIN, 0};
+        if (poll(&p, 1, 2000) <= 0) return -1;
+        ssize_t n = recv(fd, dst + have, want - have, 0);
+        if (n <= 0) return -1;
+        have += (size_t)n;
+    }
+    return 0;
+}
+
+/* Read one frame; returns its kind with the body in buf, or -1. */
+static int read_frame(int fd, uint8_t *buf, size_t cap, size_t *len) {
+    uint8_t hdr[WIRE_HEADER_BYTES];
+    if (read_exact(fd, hdr, sizeof hdr)) return -1;
+    uint32_t l = wire_get_u32(hdr);
+    if (l < 1 || l - 1 > cap || read_exact(fd, buf, l - 1)) return -1;
+    *len = l - 1;
+    return hdr[4];
+}
+
+/* Whether the coordinator closed fd (EOF within 5 s). */
+static int closed_by_peer(int fd) {
+    char b[4096];
+    for (int i = 0; i < 50; i++) {
+        struct pollfd p = {fd, POLLIN, 0};
+        if (poll(&p, 1, 100) > 0) {
+            ssize_t n = recv(fd, b, sizeof b, 0);
+            if (n <= 0) return 1;
+        }
+    }
+    return 0;
+}
+
+/* Hello, ready, and wait for an assignment; returns the tile rect. */
+static int fake_get_tile(int fd, const char *name, proto_assign *a) {
+    static uint8_t buf[1 << 20];
+    size_t len;
+    send_hello(fd, name, PROTOCOL_VERSION);
+    send_json_text(fd, "{\"type\":\"ready\",\"slots\":1}");
+    for (int i = 0; i < 10; i++) {
+        int kind = read_frame(fd, buf, sizeof buf, &len);
+        if (kind < 0) return -1;
+        if (kind != WIRE_KIND_JSON) continue; /* the scene */
+        const char *type;
+        char err[256];
+        cJSON *m = proto_parse_json(buf, len, &type, err, sizeof err);
+        int rc = m && strcmp(type, "assign") == 0 ? proto_assign_parse(m, "test", a, err, sizeof err) : 1;
+        cJSON_Delete(m);
+        if (rc == 0) return 0;
+    }
+    return -1;
+}
+
+static void send_tile(int fd, uint32_t job, uint32_t tile, int w, int h, float value) {
+    float *rgb = calloc((size_t)w * (size_t)h * 3, sizeof(float));
+    rgb[0] = value;
+    proto_tile t = {job, tile, (uint32_t)w, (uint32_t)h, {0, 0, 0, 0}};
+    size_t len;
+    uint8_t *f = proto_tile_frame(&t, rgb, &len);
+    send_all(fd, f, len);
+    free(f);
+    free(rgb);
+}
+
+TEST(farm_bad_peers_are_dropped_and_the_render_goes_on) {
+    tpath clog = temp("bad-coord.log"), wlog = temp("bad-w.log"), img = temp("bad.pfm");
+    int port;
+    pid_t coord = start_coordinator(clog.path, img.path, 0, NULL, &port);
+    CHECK(port > 0, "coordinator did not start; log %s", clog.path);
+    int fd;
+    /* Not our protocol at all: "GET " read as a length. */
+    fd = dial(port);
+    send_all(fd, "GET / HTTP/1.1\r\n\r\n", 18);
+    CHECK(closed_by_peer(fd), "HTTP request not dropped");
+    close(fd);
+    /* A frame claiming 4 GiB, followed by a flood: nothing is buffered. */
+    fd = dial(port);
+    uint8_t huge[4] = {0xff, 0xff, 0xff, 0xff};
+    send_all(fd, huge, 4);
+    static char flood[1 << 20];
+    for (int i = 0; i < 64; i++) send_all(fd, flood, sizeof flood);
+    CHECK(closed_by_peer(fd), "4 GiB frame not dropped");
+    close(fd);
+    /* Wrong protocol version: refused, with both versions named. */
+    fd = dial(port);
+    send_hello(fd, "old", 99);
+    CHECK(closed_by_peer(fd), "version mismatch not refused");
+    close(fd);
+    /* Malformed JSON after a good hello. */
+    fd = dial(port);
+    send_hello(fd, "badjson", PROTOCOL_VERSION);
+    send_json_text(fd, "{\"type\": \"ready\", slots");
+    CHECK(closed_by_peer(fd), "bad JSON not dropped");
+    close(fd);
+    /* A truncated frame, then the peer hangs up. */
+    fd = dial(port);
+    send_hello(fd, "truncated", PROTOCOL_VERSION);
+    uint8_t part[14] = {100, 0, 0, 0, 'J', '{'};
+    send_all(fd, part, sizeof part);
+    close(fd);
+    /* A tile for a job it was never given. */
+    fd = dial(port);
+    send_hello(fd, "wrongjob", PROTOCOL_VERSION);
+    send_tile(fd, 99, 0, 8, 8, 0.5f);
+    CHECK(closed_by_peer(fd), "tile of an unknown job not dropped");
+    close(fd);
+    /* Given a tile: answers with NaN, with the wrong size, or another tile. */
+    static const char *const names[] = {"nan", "wrongsize", "othertile"};
+    for (int k = 0; k < 3; k++) {
+        proto_assign a;
+        fd = dial(port);
+        CHECK(fake_get_tile(fd, names[k], &a) == 0, "fake worker %s got no tile", names[k]);
+        int w = tile_width(&a.rect), h = tile_height(&a.rect);
+        if (k == 0) send_tile(fd, a.job, a.tile, w, h, NAN);
+        if (k == 1) send_tile(fd, a.job, a.tile, w + 1, h, 0.5f);
+        if (k == 2) send_tile(fd, a.job, a.tile + 1, w, h, 0.5f);
+        CHECK(closed_by_peer(fd), "fake worker %s not dropped", names[k]);
+        close(fd);
+    }
+    /* A real worker finishes the job. */
+    pid_t w = start_worker(wlog.path, port, "real", "0");
+    long rss_kb = 0;
+    int st = util_wait(coord, LONG, &rss_kb);
+    CHECK(st == 0, "coordinator exited with %d; log %s", st, clog.path);
+    static const char *const expect[] = {
+        "frame of 542393671 bytes exceeds the limit",
+        "frame of 4294967295 bytes exceeds the limit",
+        "worker old (127.0.0.1:",
+        "version mismatch: worker speaks protocol 99, build ",
+        "worker badjson (127.0.0.1:",
+        "malformed JSON message",
+        "worker truncated (127.0.0.1:",
+        "closed in the middle of a frame",
+        "worker wrongjob (127.0.0.1:",
+        "sent tile 0 of job 99, a job it was not given",
+        "worker nan (127.0.0.1:",
+        "with a NaN, infinite or negative value",
+        "worker wrongsize (127.0.0.1:",
+        "pixels; it is",
+        "worker othertile (127.0.0.1:",
+        "which was not assigned to it",
+    };
+    for (size_t i = 0; i < sizeof expect / sizeof expect[0]; i++)
+        CHECK(util_file_count(clog.path, expect[i]), "log lacks \"%s\"; log %s", expect[i], clog.path);
+    CHECK(util_same_file(img.path, reference("pfm")), "image differs; log %s", clog.path);
+    CHECK(rss_kb > 0 && rss_kb < 64 * 1024, "coordinator peak memory %ld KiB after a 64 MiB flood", rss_kb);
+    stop_worker(w, wlog.path);
+}
