@@ -99,6 +99,15 @@ static void stop_worker(pid_t pid, const char *log) {
     kill(pid, SIGTERM);
     int st = util_wait(pid, LONG, NULL);
     CHECK(st == 0, "worker exited with %d after SIGTERM; log %s", st, log);
+    CHECK(!util_file_count(log, "Sanitizer"), "sanitizer report in %s", log);
+}
+
+/* Wait for a coordinator and check that it succeeded without sanitizer
+ * reports (from itself or local workers, which share its stderr). */
+static void coordinator_done(pid_t pid, const char *log, long *rss_kb) {
+    int st = util_wait(pid, LONG, rss_kb);
+    CHECK(st == 0, "coordinator exited with %d; log %s", st, log);
+    CHECK(!util_file_count(log, "Sanitizer"), "sanitizer report in %s", log);
 }
 
 TEST(farm_thread_same_image_any_workers_and_tiles) {
@@ -114,6 +123,7 @@ TEST(farm_thread_same_image_any_workers_and_tiles) {
                  harness_tessera(), runs[i].workers, runs[i].threads, runs[i].tile, img.path);
         int st = util_run(cmd, out, sizeof out);
         CHECK(st == 0, "%s failed (%d): %s", cmd, st, out);
+        CHECK(!strstr(out, "Sanitizer"), "sanitizer report: %s", out);
         const char *want = strcmp(runs[i].ext, "exr") == 0 ? reference("exr") : ref;
         CHECK(util_same_file(img.path, want), "%s: %s differs from the single-process %s", cmd, img.path, want);
     }
@@ -131,8 +141,7 @@ TEST(farm_kill9_worker_mid_render) {
     util_sleep(0.5); /* B holds tiles now (it asks for two at once) */
     kill(b, SIGKILL);
     util_wait(b, LONG, NULL);
-    int st = util_wait(coord, LONG, NULL);
-    CHECK(st == 0, "coordinator exited with %d; log %s", st, clog.path);
+    coordinator_done(coord, clog.path, NULL);
     CHECK(util_file_count(clog.path, "worker B (127.0.0.1:") && util_file_count(clog.path, "go back to the queue"),
           "the coordinator did not notice B's death; log %s", clog.path);
     CHECK(util_same_file(img.path, reference("pfm")), "image differs after kill -9; log %s", clog.path);
@@ -155,8 +164,7 @@ TEST(farm_sigstop_worker_lease_expires) {
           "B's stall was not noticed; log %s", clog.path);
     util_sleep(0.3);
     kill(b, SIGCONT); /* its late results must be ignored or used, never harmful */
-    int st = util_wait(coord, LONG, NULL);
-    CHECK(st == 0, "coordinator exited with %d; log %s", st, clog.path);
+    coordinator_done(coord, clog.path, NULL);
     CHECK(util_file_count(clog.path, "worker B") && util_file_count(clog.path, "tiles go back to the queue"),
           "no requeue after the stall; log %s", clog.path);
     CHECK(util_file_count(clog.path, "is responding again") && !util_file_count(clog.path, "left: connection"),
@@ -181,8 +189,7 @@ TEST(farm_worker_joins_mid_render_and_one_leaves) {
     util_sleep(0.2);
     kill(a, SIGTERM); /* A gives its tiles back and leaves */
     CHECK(util_wait(a, LONG, NULL) == 0, "A did not exit cleanly on SIGTERM; log %s", alog.path);
-    int st = util_wait(coord, LONG, NULL);
-    CHECK(st == 0, "coordinator exited with %d; log %s", st, clog.path);
+    coordinator_done(coord, clog.path, NULL);
     CHECK(tiles_of(clog.path, "A") > 0 && tiles_of(clog.path, "B") > 0, "tiles: A %d, B %d; log %s",
           tiles_of(clog.path, "A"), tiles_of(clog.path, "B"), clog.path);
     CHECK(util_file_count(clog.path, "worker A (") && util_file_count(clog.path, "left: worker left"),
@@ -201,8 +208,7 @@ TEST(farm_backup_tasks_beat_a_slow_worker) {
     pid_t b = start_worker(blog.path, port, "slow", "4000"); /* 4 s per tile */
     CHECK(util_wait_for_text(clog.path, "worker slow (", LONG) == 0, "slow never joined");
     pid_t a = start_worker(alog.path, port, "fast", "0");
-    int st = util_wait(coord, LONG, NULL);
-    CHECK(st == 0, "coordinator exited with %d; log %s", st, clog.path);
+    coordinator_done(coord, clog.path, NULL);
     int backups = 0;
     FILE *f = fopen(clog.path, "r");
     char line[1024];
@@ -235,8 +241,7 @@ TEST(farm_workers_wait_for_and_survive_a_coordinator) {
           wlog.path);
     coord = start_coordinator(c2.path, img2.path, port, NULL, &got);
     CHECK(got == port, "coordinator 2 did not listen on %d; log %s", port, c2.path);
-    int st = util_wait(coord, LONG, NULL);
-    CHECK(st == 0, "coordinator 2 exited with %d; log %s", st, c2.path);
+    coordinator_done(coord, c2.path, NULL);
     CHECK(tiles_of(c2.path, "W") == 64, "W rendered %d of 64 tiles for coordinator 2", tiles_of(c2.path, "W"));
     CHECK(util_same_file(img2.path, reference("pfm")), "image differs; log %s", c2.path);
     stop_worker(w, wlog.path);
@@ -405,8 +410,7 @@ TEST(farm_bad_peers_are_dropped_and_the_render_goes_on) {
     /* A real worker finishes the job. */
     pid_t w = start_worker(wlog.path, port, "real", "0");
     long rss_kb = 0;
-    int st = util_wait(coord, LONG, &rss_kb);
-    CHECK(st == 0, "coordinator exited with %d; log %s", st, clog.path);
+    coordinator_done(coord, clog.path, &rss_kb);
     static const char *const expect[] = {
         "frame of 542393671 bytes exceeds the limit",
         "frame of 4294967295 bytes exceeds the limit",
@@ -429,5 +433,54 @@ TEST(farm_bad_peers_are_dropped_and_the_render_goes_on) {
         CHECK(util_file_count(clog.path, expect[i]), "log lacks \"%s\"; log %s", expect[i], clog.path);
     CHECK(util_same_file(img.path, reference("pfm")), "image differs; log %s", clog.path);
     CHECK(rss_kb > 0 && rss_kb < 64 * 1024, "coordinator peak memory %ld KiB after a 64 MiB flood", rss_kb);
+    stop_worker(w, wlog.path);
+}
+
+TEST(farm_ships_scene_and_meshes_to_workers) {
+    /* A mesh of 7200 triangles (about 200 KB of OBJ: more than a control
+     * frame), in a folder deleted before the worker starts: the worker can
+     * only have it from the scene bundle. */
+    static char obj[1 << 20];
+    size_t n = 0;
+    const int g = 60;
+    for (int z = 0; z <= g; z++)
+        for (int x = 0; x <= g; x++)
+            n += (size_t)snprintf(obj + n, sizeof obj - n, "v %g %g %g\n", -1.0 + 2.0 * x / g,
+                                  0.1 * sin(x * 0.7) * cos(z * 0.5), -1.0 + 2.0 * z / g);
+    for (int z = 0; z < g; z++)
+        for (int x = 0; x < g; x++) {
+            int a = z * (g + 1) + x + 1, b = a + 1, c = a + g + 1, d = c + 1;
+            n += (size_t)snprintf(obj + n, sizeof obj - n, "f %d %d %d\nf %d %d %d\n", a, c, b, b, c, d);
+        }
+    CHECK(n > 100000 && n < sizeof obj - 100, "OBJ is %zu bytes", n);
+    util_write_temp("bumps.obj", obj);
+    const char *scene_path = util_write_temp(
+        "bumps.json",
+        "{\"render\": {\"width\": 40, \"height\": 30, \"spp\": 8, \"max_depth\": 8, \"seed\": 5},"
+        " \"camera\": {\"type\": \"perspective\", \"position\": [0, 1.5, -3], \"look_at\": [0, 0, 0], \"fov\": 45},"
+        " \"materials\": {\"white\": {\"type\": \"diffuse\", \"albedo\": [0.7, 0.7, 0.7]}},"
+        " \"shapes\": [{\"type\": \"mesh\", \"file\": \"bumps.obj\", \"material\": \"white\"},"
+        "  {\"type\": \"sphere\", \"center\": [0, 3, 0], \"radius\": 0.5, \"emission\": [20, 20, 20]}]}");
+    char scene[256], cmd[1024], out[4096];
+    snprintf(scene, sizeof scene, "%s", scene_path);
+    tpath ref = temp("bumps-ref.exr"), img = temp("bumps.exr"), clog = temp("bumps-coord.log"),
+          wlog = temp("bumps-w.log");
+    snprintf(cmd, sizeof cmd, "%s render %s --workers 0 -o %s", harness_tessera(), scene, ref.path);
+    CHECK(util_run(cmd, out, sizeof out) == 0, "in-process render failed: %s", out);
+    const char *argv[] = {harness_tessera(), "render", scene, "--listen", "127.0.0.1:0", "--no-progress", "-v",
+                          "-o", img.path, NULL};
+    pid_t coord = util_spawn(argv, clog.path);
+    CHECK(util_wait_for_text(clog.path, "coordinator listening on 127.0.0.1:", LONG) == 0, "no coordinator");
+    int port = -1;
+    FILE *f = fopen(clog.path, "r");
+    char line[512];
+    while (f && fgets(line, sizeof line, f))
+        if (sscanf(line, "tessera: coordinator listening on 127.0.0.1:%d", &port) == 1) break;
+    if (f) fclose(f);
+    unlink(util_temp_path("bumps.obj"));
+    unlink(scene);
+    pid_t w = start_worker(wlog.path, port, "meshes", "0");
+    coordinator_done(coord, clog.path, NULL);
+    CHECK(util_same_file(img.path, ref.path), "farm image of a mesh scene differs; log %s", clog.path);
     stop_worker(w, wlog.path);
 }

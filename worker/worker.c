@@ -154,6 +154,7 @@ static int on_welcome(worker *w, conn *c, const cJSON *m) {
     w->timeout_s = to->valuedouble / 1e3;
     w->welcomed = 1;
     w->backoff = 0.1;
+    conn_set_max_frame(c, SCENE_BUNDLE_MAX_BYTES + 1); /* scene bundles may follow */
     if (!w->cfg.quiet)
         worker_log(w, "joined the farm at %s:%d (%d threads, %d prefetch)", w->cfg.host, w->cfg.port, w->cfg.threads,
                w->cfg.prefetch);
@@ -345,7 +346,7 @@ static void on_resolved(uv_getaddrinfo_t *req, int status, struct addrinfo *res)
         }
         return;
     }
-    w->c = conn_new(&w->loop, &worker_conn_cb, w, WIRE_JSON_MAX);
+    w->c = conn_new(&w->loop, &worker_conn_cb, w, WIRE_JSON_MAX + 1);
     int rc = w->c ? 0 : UV_ENOMEM;
     if (rc == 0) {
         w->connect.data = w;
