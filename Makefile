@@ -79,6 +79,11 @@ $(TESSERA): $(COORD_OBJ) $(COMMON_OBJ)
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
+LOADGEN := $(BUILD)/bin/loadgen
+$(LOADGEN): $(BUILD)/bench/loadgen.o $(COMMON_OBJ)
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
+
 $(WORKER): $(WORKER_OBJ) $(COMMON_OBJ)
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
@@ -99,12 +104,13 @@ test-asan:
 
 # ThreadSanitizer on the tests that run several render threads.
 test-tsan:
-	$(MAKE) VARIANT=tsan build/tsan/bin/run-tests build/tsan/bin/tessera
+	$(MAKE) VARIANT=tsan build/tsan/bin/run-tests build/tsan/bin/tessera build/tsan/bin/tessera-worker
 	TESSERA_BIN=build/tsan/bin/tessera build/tsan/bin/run-tests --filter thread
 
-bench: $(TESSERA) $(WORKER)
+bench: $(TESSERA) $(WORKER) $(LOADGEN)
 	bench/bench.sh $(TESSERA) scenes/cornell-box.json 16
 	bench/bench.sh $(TESSERA) scenes/cornell-spheres.json 16
+	bench/farm.sh $(BUILD)/bin scenes/cornell-box.json 8 5
 
 reference: $(TESSERA)
 	@mkdir -p tests/data

@@ -28,6 +28,7 @@
 #define MAX_TILE_FAILURES 3   /* a tile that fails this often fails its job */
 #define MAX_PEER_FAILURES 3   /* a worker that fails this often gets no more work */
 #define BACKUP_AGE_FACTOR 1.5 /* back up tiles running this many times the mean */
+#define BACKUP_MIN_AGE_S 0.5  /* ...and at least this long: younger copies gain nothing */
 
 typedef struct job job;
 typedef struct peer peer;
@@ -54,6 +55,7 @@ struct job {
     void *ctx;
     farm_report rep;
     double tile_seconds; /* sum of assign-to-result times, for the mean */
+    int reported;        /* tiles_done at the last progress callback */
     int finished;
     job *next;
 };
@@ -303,6 +305,7 @@ static int job_pick_backup(const farm *f, job *j, peer *p, uint32_t *out) {
     int done = j->rep.tiles_done;
     if (done == 0) return 0;
     double mean = j->tile_seconds / done, now = farm_now(f), best_age = BACKUP_AGE_FACTOR * mean;
+    if (best_age < BACKUP_MIN_AGE_S) best_age = BACKUP_MIN_AGE_S;
     int found = 0;
     for (int t = 0; t < j->tile_count; t++) {
         if (j->done[t] || j->holders[t] != 1 || now - j->first_start[t] <= best_age) continue;
@@ -423,13 +426,7 @@ static int on_tile(peer *p, const uint8_t *body, size_t len) {
     p->rec.tiles++;
     p->rec.samples += h.stats.samples;
     if (j->holders[h.tile]) job_cancel_copies(f, j, h.tile, p);
-    if (j->rep.tiles_done == j->tile_count) {
-        job_finish(f, j);
-    } else if (j->cb) {
-        farm_report rep;
-        farm_report_fill(f, j, &rep);
-        j->cb(j->ctx, &rep, 0);
-    }
+    if (j->rep.tiles_done == j->tile_count) job_finish(f, j);
     return 0;
 }
 
@@ -688,6 +685,13 @@ static void on_tick(uv_timer_t *t) {
         if (!conn_is_closing(p->c)) peer_check(p, now);
     }
     farm_schedule_all(f);
+    for (job *j = f->jobs; j; j = j->next)
+        if (!j->finished && j->cb && j->reported != j->rep.tiles_done) {
+            farm_report r;
+            farm_report_fill(f, j, &r);
+            j->reported = j->rep.tiles_done;
+            j->cb(j->ctx, &r, 0);
+        }
 }
 
 /* ---- public ------------------------------------------------------------------ */

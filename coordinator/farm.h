@@ -56,8 +56,8 @@ typedef struct {
     char error[512];
 } farm_report;
 
-/* Called on the loop thread: after each stitched tile (done = 0) and once
- * at the end (done = 1, the job complete or failed). */
+/* Called on the loop thread: every 100 ms while tiles are being stitched
+ * (done = 0), and once at the end (done = 1, the job complete or failed). */
 typedef void (*farm_job_cb)(void *ctx, const farm_report *r, int done);
 
 /* Render job desc over the farm: bundle (serialised scene bundle, copied)

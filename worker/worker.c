@@ -52,6 +52,8 @@ typedef struct {
     char label[160]; /* "worker NAME" for logs */
 } worker;
 
+static void close_handles(worker *w);
+
 static double now_s(worker *w) { return (double)uv_now(&w->loop) / 1e3; }
 
 static void worker_log(worker *w, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
@@ -284,14 +286,16 @@ static void on_conn_close(conn *c, const char *reason) {
     w->generation++;
     pool_job_end_all(w->pool); /* the next coordinator may reuse job ids */
     forget_bundles(w);
-    if (w->stopping) return;
-    if (w->cfg.once) {
+    if (w->cfg.once && !w->stopping) {
         if (!was_welcomed)
             worker_log(w, "cannot reach the coordinator at %s:%d: %s", w->cfg.host, w->cfg.port, reason);
         else if (!w->cfg.quiet)
             worker_log(w, "connection ended (%s); exiting (--once)", reason);
         w->exit_code = was_welcomed ? 0 : 1;
         w->stopping = 1;
+    }
+    if (w->stopping) {
+        if (!w->resolving) close_handles(w); /* exit now, not at the next tick */
         return;
     }
     worker_log(w, "%s %s:%d: %s; retrying in %.1f s", was_welcomed ? "lost the coordinator at" : "cannot reach",
@@ -370,7 +374,6 @@ static void try_connect(worker *w) {
 
 /* ---- timers and signals -------------------------------------------------- */
 
-static void close_handles(worker *w);
 
 static void on_tick(uv_timer_t *t) {
     worker *w = t->data;
