@@ -435,7 +435,7 @@ int main(int argc, char **argv) {
     if (strcmp(argv[1], "render") == 0) return cmd_render(argc - 1, argv + 1);
     if (strcmp(argv[1], "tonemap") == 0) return cmd_tonemap(argc - 1, argv + 1);
     if (strcmp(argv[1], "version") == 0) {
-        printf("tessera %s\n", TESSERA_VERSION);
+        printf("tessera %s (build %s, protocol %d)\n", TESSERA_VERSION, protocol_build_id(), PROTOCOL_VERSION);
         return 0;
     }
     if (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0) {
