@@ -484,3 +484,19 @@ TEST(farm_ships_scene_and_meshes_to_workers) {
     CHECK(util_same_file(img.path, ref.path), "farm image of a mesh scene differs; log %s", clog.path);
     stop_worker(w, wlog.path);
 }
+
+TEST(farm_local_workers_that_fail_end_the_render_with_an_error) {
+    char cmd[1024], out[8192];
+    /* A worker program that exits at once: restarted 3 times per slot, then
+     * a clear error, never a hang. */
+    snprintf(cmd, sizeof cmd, "TESSERA_WORKER=/bin/false %s render " SCENE " --workers 2 -o %s", harness_tessera(),
+             temp("never.pfm").path);
+    int st = util_run(cmd, out, sizeof out);
+    CHECK(st == 1 && strstr(out, "every local worker failed") && strstr(out, "local worker local-1 exited with status 1"),
+          "status %d: %s", st, out);
+    snprintf(cmd, sizeof cmd, "TESSERA_WORKER=/nonexistent/worker %s render " SCENE " --workers 2 -o %s",
+             harness_tessera(), temp("never.pfm").path);
+    st = util_run(cmd, out, sizeof out);
+    CHECK(st == 1 && strstr(out, "cannot run the worker program /nonexistent/worker"), "status %d: %s", st, out);
+    CHECK(access(temp("never.pfm").path, F_OK) != 0, "an image was written by a failed render");
+}
