@@ -120,4 +120,4 @@ reference: $(TESSERA)
 clean:
 	rm -rf build out
 
--include $(COMMON_OBJ:.o=.d) $(TEST_OBJ:.o=.d)
+-include $(COMMON_OBJ:.o=.d) $(TEST_OBJ:.o=.d) $(COORD_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(BUILD)/bench/loadgen.d

@@ -51,6 +51,11 @@ conn *conn_new(uv_loop_t *loop, const conn_callbacks *cb, void *data, size_t max
 }
 
 uv_tcp_t *conn_tcp(conn *c) { return &c->tcp; }
+
+void conn_set_callbacks(conn *c, const conn_callbacks *cb, void *data) {
+    c->cb = *cb;
+    c->data = data;
+}
 void *conn_data(const conn *c) { return c->data; }
 void conn_set_max_frame(conn *c, size_t max_frame) { c->dec.max_frame = max_frame; }
 int conn_is_closing(const conn *c) { return c->closing; }

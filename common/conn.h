@@ -43,6 +43,10 @@ conn *conn_new(uv_loop_t *loop, const conn_callbacks *cb, void *data, size_t max
 uv_tcp_t *conn_tcp(conn *c);
 void *conn_data(const conn *c);
 
+/* Hand the connection to a new owner: frames still buffered or arriving
+ * later go to cb with data. Can't fail. */
+void conn_set_callbacks(conn *c, const conn_callbacks *cb, void *data);
+
 /* Start reading. Returns 0 or a libuv error code. */
 int conn_start(conn *c);
 

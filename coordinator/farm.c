@@ -52,7 +52,9 @@ struct job {
     int q_head, q_len;
     float *rgb;
     farm_job_cb cb;
+    farm_tile_cb on_tile;
     void *ctx;
+    int priority;
     farm_report rep;
     double tile_seconds; /* sum of assign-to-result times, for the mean */
     int reported;        /* tiles_done at the last progress callback */
@@ -390,8 +392,9 @@ static int on_tile(peer *p, const uint8_t *body, size_t len) {
     proto_tile h;
     if (proto_tile_parse(body, len, &h, err, sizeof err)) return peer_violation(p, "%s", err);
     job *j = farm_find_job(f, h.job);
-    if (!j || !peer_told_job(p, h.job))
+    if (!peer_told_job(p, h.job))
         return peer_violation(p, "sent tile %u of job %u, a job it was not given", h.tile, h.job);
+    if (!j) return 0; /* a job that ended and was forgotten: a late result */
     lease **link, *l = peer_find_lease(p, h.job, h.tile, &link);
     if (!l) return peer_violation(p, "sent tile %u of job %u, which was not assigned to it", h.tile, h.job);
     const tile_rect *r = &j->rects[h.tile];
@@ -416,6 +419,10 @@ static int on_tile(peer *p, const uint8_t *body, size_t len) {
     if (!was_live && f->opt.verbose)
         farm_log(f, "%s: late result for tile %u of job %u used (nobody had finished it)", p->label, h.tile, h.job);
     job_stitch(j, &h, px);
+    if (j->on_tile && j->on_tile(j->ctx, h.tile, &j->rects[h.tile], err, sizeof err)) {
+        job_fail(f, j, "%s", err);
+        return 0;
+    }
     j->done[h.tile] = 1;
     j->rep.tiles_done++;
     j->tile_seconds += took;
@@ -432,6 +439,27 @@ static int on_tile(peer *p, const uint8_t *body, size_t len) {
 
 /* ---- control messages ---------------------------------------------------------- */
 
+static void peer_unlink(farm *f, peer *p) {
+    for (peer **pp = &f->peers; *pp; pp = &(*pp)->next)
+        if (*pp == p) {
+            *pp = p->next;
+            break;
+        }
+}
+
+/* Give a client's connection to opt.on_client and forget the peer. */
+static void peer_hand_over(peer *p, const cJSON *hello) {
+    farm *f = p->f;
+    conn *c = p->c;
+    char addr[64];
+    snprintf(addr, sizeof addr, "%s", p->rec.addr);
+    peer_unlink(f, p);
+    free(p->scenes);
+    free(p->jobs);
+    free(p);
+    f->opt.on_client(f->opt.client_ctx, c, hello, addr);
+}
+
 static int on_hello(peer *p, const cJSON *m) {
     farm *f = p->f;
     const cJSON *proto = cJSON_GetObjectItemCaseSensitive(m, "protocol");
@@ -443,6 +471,15 @@ static int on_hello(peer *p, const cJSON *m) {
         return peer_violation(p, "hello: expected protocol, build, name and threads (1 to 4096)");
     snprintf(p->rec.name, sizeof p->rec.name, "%s", name->valuestring);
     snprintf(p->label, sizeof p->label, "worker %s (%s)", p->rec.name, p->rec.addr);
+    const cJSON *role = cJSON_GetObjectItemCaseSensitive(m, "role");
+    if (cJSON_IsString(role) && strcmp(role->valuestring, "client") == 0) {
+        if (!f->opt.on_client) return peer_violation(p, "this coordinator takes no clients (it renders one scene)");
+        if (proto->valuedouble != PROTOCOL_VERSION)
+            return peer_violation(p, "version mismatch: client speaks protocol %g; coordinator speaks protocol %d",
+                                  proto->valuedouble, PROTOCOL_VERSION);
+        peer_hand_over(p, m);
+        return 0; /* the connection lives on with the client's callbacks */
+    }
     if (proto->valuedouble != PROTOCOL_VERSION || strcmp(build->valuestring, protocol_build_id()) != 0) {
         char reason[400];
         snprintf(reason, sizeof reason,
@@ -592,11 +629,7 @@ static void on_conn_close(conn *c, const char *reason) {
         farm_log(f, "%s left: %s (%llu tiles done%s)", p->label, reason, (unsigned long long)p->rec.tiles,
                  requeued ? ", its unfinished tiles go back to the queue" : "");
     peer_record_departure(f, p, reason);
-    for (peer **pp = &f->peers; *pp; pp = &(*pp)->next)
-        if (*pp == p) {
-            *pp = p->next;
-            break;
-        }
+    peer_unlink(f, p);
     free(p->scenes);
     free(p->jobs);
     memset(p, 0xdb, sizeof *p);
@@ -735,16 +768,18 @@ farm *farm_new(uv_loop_t *loop, const farm_options *o, char *err, size_t err_len
 
 int farm_port(const farm *f) { return f->port; }
 
-int farm_submit(farm *f, const proto_job *desc, const uint8_t *bundle, size_t bundle_len, int tile_size,
-                float *rgb, farm_job_cb cb, void *ctx) {
+int farm_submit(farm *f, const proto_job *desc, const uint8_t *bundle, size_t bundle_len,
+                const farm_job_options *o, float *rgb, farm_job_cb cb, void *ctx) {
     job *j = calloc(1, sizeof *j);
     if (!j) return -1;
     j->desc = *desc;
-    j->tile_size = tile_size;
+    j->tile_size = o->tile_size;
+    j->priority = o->priority;
+    j->on_tile = o->on_tile;
     j->rgb = rgb;
     j->cb = cb;
     j->ctx = ctx;
-    j->tile_count = render_split_tiles(desc->width, desc->height, tile_size, NULL, 0);
+    j->tile_count = render_split_tiles(desc->width, desc->height, o->tile_size, NULL, 0);
     size_t n = (size_t)j->tile_count;
     j->rects = calloc(n, sizeof *j->rects);
     j->done = calloc(n, 1);
@@ -762,13 +797,78 @@ int farm_submit(farm *f, const proto_job *desc, const uint8_t *bundle, size_t bu
     wire_put_u32(j->scene->data, (uint32_t)(bundle_len + 1));
     j->scene->data[4] = WIRE_KIND_SCENE;
     memcpy(j->scene->data + WIRE_HEADER_BYTES, bundle, bundle_len);
-    render_split_tiles(desc->width, desc->height, tile_size, j->rects, j->tile_count);
-    for (int t = 0; t < j->tile_count; t++) job_enqueue(j, (uint32_t)t);
-    job **pp = &f->jobs;
-    while (*pp) pp = &(*pp)->next;
+    render_split_tiles(desc->width, desc->height, o->tile_size, j->rects, j->tile_count);
+    for (int t = 0; t < j->tile_count; t++) {
+        if (o->done && o->done[t]) {
+            j->done[t] = 1;
+            j->rep.tiles_done++;
+        }
+        job_enqueue(j, (uint32_t)t);
+    }
+    j->reported = j->rep.tiles_done;
+    job **pp = &f->jobs; /* by priority, then submission order */
+    while (*pp && (*pp)->priority >= j->priority) pp = &(*pp)->next;
+    j->next = *pp;
     *pp = j;
-    farm_schedule_all(f);
+    if (j->rep.tiles_done == j->tile_count)
+        job_finish(f, j);
+    else
+        farm_schedule_all(f);
     return 0;
+}
+
+int farm_cancel(farm *f, uint32_t id) {
+    job *j = farm_find_job(f, id);
+    if (!j || j->finished) return -1;
+    j->rep.cancelled = 1;
+    snprintf(j->rep.error, sizeof j->rep.error, "cancelled");
+    job_finish(f, j);
+    farm_schedule_all(f); /* the freed workers take other jobs */
+    return 0;
+}
+
+int farm_forget(farm *f, uint32_t id) {
+    for (job **pp = &f->jobs; *pp; pp = &(*pp)->next)
+        if ((*pp)->desc.id == id) {
+            job *j = *pp;
+            if (!j->finished) return -1;
+            for (peer *p = f->peers; p; p = p->next) /* leases of it die with it */
+                for (lease **lp = &p->leases; *lp;) {
+                    lease *l = *lp;
+                    if (l->job == j) {
+                        *lp = l->next;
+                        free(l);
+                    } else {
+                        lp = &l->next;
+                    }
+                }
+            *pp = j->next;
+            job_free(j);
+            return 0;
+        }
+    return -1;
+}
+
+int farm_list_workers(const farm *f, farm_worker_info *out, int max) {
+    int n = 0;
+    double now = farm_now(f);
+    for (const peer *p = f->peers; p; p = p->next) {
+        if (p->state == PEER_HELLO) continue;
+        if (n < max) {
+            farm_worker_info *w = &out[n];
+            memset(w, 0, sizeof *w);
+            snprintf(w->name, sizeof w->name, "%s", p->rec.name);
+            snprintf(w->addr, sizeof w->addr, "%s", p->rec.addr);
+            w->threads = p->rec.threads;
+            w->stalled = p->state == PEER_STALLED;
+            w->tiles = p->rec.tiles;
+            w->samples = p->rec.samples;
+            w->connected_s = now - p->joined;
+            w->silent_s = now - p->last_heard;
+        }
+        n++;
+    }
+    return n;
 }
 
 int farm_job_report(const farm *f, uint32_t id, farm_report *r) {

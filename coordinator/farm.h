@@ -18,6 +18,8 @@
 
 #include "../common/protocol.h"
 
+struct conn;
+
 typedef struct farm farm;
 
 typedef struct {
@@ -30,6 +32,12 @@ typedef struct {
     int max_tile_side;  /* bounds the frames accepted from workers */
     int verbose;        /* log every join, assignment problem and requeue */
     FILE *log;          /* where log lines go (stderr if NULL) */
+    /* A peer whose hello says "role": "client" is handed over: the farm
+     * forgets it and calls this with its connection and hello message; the
+     * callee must take the connection (conn_set_callbacks) or close it.
+     * NULL: clients are refused. */
+    void (*on_client)(void *ctx, struct conn *c, const cJSON *hello, const char *addr);
+    void *client_ctx;
 } farm_options;
 
 /* Fill o with the defaults (heartbeat 1 s, timeout 5 s, drop 30 s, lease
@@ -53,6 +61,7 @@ typedef struct {
     uint64_t backups;       /* copies handed out near the end */
     uint64_t bytes_in, bytes_out; /* over every connection, so far */
     int failed;             /* the job cannot finish (error says why) */
+    int cancelled;          /* farm_cancel ended it */
     char error[512];
 } farm_report;
 
@@ -60,12 +69,47 @@ typedef struct {
  * (done = 0), and once at the end (done = 1, the job complete or failed). */
 typedef void (*farm_job_cb)(void *ctx, const farm_report *r, int done);
 
+/* Called when a checked tile is about to count as done, with its pixels
+ * already in the frame. Return 0; non-zero fails the job with the message
+ * the callee wrote into err (e.g. the journal could not be written). */
+typedef int (*farm_tile_cb)(void *ctx, uint32_t tile, const tile_rect *rect, char *err, size_t err_len);
+
+typedef struct {
+    int tile_size;
+    int priority;          /* higher first; equal priorities in submission order */
+    const uint8_t *done;   /* tiles already in rgb (resumed jobs), one byte each, or NULL */
+    farm_tile_cb on_tile;  /* may be NULL */
+} farm_job_options;
+
 /* Render job desc over the farm: bundle (serialised scene bundle, copied)
  * is sent once to each worker that needs it; finished tiles are stitched
- * into rgb (width * height * 3 floats, the caller's, top row first). Tiles
- * are tile_size squares. Returns 0, or -1 when out of memory. */
-int farm_submit(farm *f, const proto_job *desc, const uint8_t *bundle, size_t bundle_len, int tile_size,
-                float *rgb, farm_job_cb cb, void *ctx);
+ * into rgb (width * height * 3 floats, the caller's, top row first).
+ * cb, on_tile and the callbacks' ctx stay the caller's. Returns 0, or -1
+ * when out of memory. */
+int farm_submit(farm *f, const proto_job *desc, const uint8_t *bundle, size_t bundle_len,
+                const farm_job_options *o, float *rgb, farm_job_cb cb, void *ctx);
+
+/* Stop a job: its workers are told to drop it, its callback runs with
+ * cancelled set. Returns 0, or -1 if no such job is running. */
+int farm_cancel(farm *f, uint32_t job);
+
+/* Free a job that has finished (complete, failed or cancelled). Late
+ * results for it are then dropped quietly. Returns 0 or -1 (unknown or
+ * still running). */
+int farm_forget(farm *f, uint32_t job);
+
+/* One line of `tessera workers`. */
+typedef struct {
+    char name[64], addr[64];
+    int threads;
+    int stalled;
+    uint64_t tiles, samples;
+    double connected_s, silent_s; /* since it joined; since it last spoke */
+} farm_worker_info;
+
+/* Fill out with up to max connected workers; returns how many there are.
+ * Can't fail. */
+int farm_list_workers(const farm *f, farm_worker_info *out, int max);
 
 /* The current figures of the job with this id (0 if known). */
 int farm_job_report(const farm *f, uint32_t job, farm_report *r);

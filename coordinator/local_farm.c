@@ -261,7 +261,8 @@ int local_farm_render(const local_farm_options *o, const proto_job *job, const u
         snprintf(r->err, sizeof r->err, "could not start any local worker");
         r->failed = 1;
         render_stop(r);
-    } else if (farm_submit(r->f, job, bundle, bundle_len, o->tile_size, rgb, on_job, r)) {
+    } else if (farm_submit(r->f, job, bundle, bundle_len, &(farm_job_options){.tile_size = o->tile_size}, rgb,
+                           on_job, r)) {
         snprintf(r->err, sizeof r->err, "out of memory for the job");
         r->failed = 1;
         render_stop(r);
