@@ -78,6 +78,7 @@ $(BUILD)/%.o: %.c | $(DEPS_STAMP)
 $(TESSERA): $(COORD_OBJ) $(COMMON_OBJ)
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
+	ln -sf tessera $(BUILD)/bin/tessera-coordinator
 
 LOADGEN := $(BUILD)/bin/loadgen
 $(LOADGEN): $(BUILD)/bench/loadgen.o $(COMMON_OBJ)

@@ -22,7 +22,9 @@
 #include "../common/render.h"
 #include "../common/scene.h"
 #include "../common/version.h"
+#include "client.h"
 #include "local_farm.h"
+#include "service.h"
 
 typedef struct {
     const char *scene_path;
@@ -416,6 +418,78 @@ static int cmd_tonemap(int argc, char **argv) {
     return 0;
 }
 
+static void usage_coordinator(FILE *f) {
+    fprintf(f,
+            "usage: tessera-coordinator --data-dir DIR [--listen HOST:PORT] [options]\n"
+            "       (or: tessera coordinator ...)\n"
+            "\n"
+            "Run the render service until SIGINT/SIGTERM: workers (tessera-worker --connect)\n"
+            "and clients (tessera submit/status/workers/cancel/fetch) connect to HOST:PORT.\n"
+            "Jobs and finished tiles are journaled in DIR; a restarted service resumes them.\n"
+            "\n"
+            "options:\n"
+            "      --listen HOST:PORT   where to listen (default 127.0.0.1:7000)\n"
+            "      --data-dir DIR       journal, uploaded scenes and results (required)\n"
+            "      --tile-size N        tile side in pixels (default 32)\n"
+            "      --max-upload MIB     largest scene plus meshes a client may send (default 256)\n"
+            "      --max-jobs N         queued and running jobs at once (default 100)\n"
+            "      --keep-hours H       delete finished jobs after H hours (default 24)\n"
+            "      --heartbeat S, --worker-timeout S, --lease S   as for tessera render\n"
+            "  -v, --verbose            log every worker event\n");
+}
+
+enum { S_LISTEN = 400, S_DATA, S_TILE, S_UPLOAD, S_JOBS, S_KEEP, S_HB, S_TIMEOUT, S_LEASE };
+
+/* `tessera-coordinator`: the long-running service (service.c). */
+static int cmd_coordinator(int argc, char **argv) {
+    static const struct option opts[] = {
+        {"listen", required_argument, 0, S_LISTEN}, {"data-dir", required_argument, 0, S_DATA},
+        {"tile-size", required_argument, 0, S_TILE}, {"max-upload", required_argument, 0, S_UPLOAD},
+        {"max-jobs", required_argument, 0, S_JOBS}, {"keep-hours", required_argument, 0, S_KEEP},
+        {"heartbeat", required_argument, 0, S_HB}, {"worker-timeout", required_argument, 0, S_TIMEOUT},
+        {"lease", required_argument, 0, S_LEASE}, {"verbose", no_argument, 0, 'v'},
+        {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
+    service_options o = {.tile_size = 32, .max_upload = (size_t)256 << 20, .max_jobs = 100, .keep_s = 86400};
+    farm_options_default(&o.farm);
+    const char *listen = "127.0.0.1:7000";
+    char host[256], err[300];
+    int c;
+    optind = 1;
+    while ((c = getopt_long(argc, argv, "vh", opts, NULL)) != -1) {
+        switch (c) {
+        case S_LISTEN: listen = optarg; break;
+        case S_DATA: o.data_dir = optarg; break;
+        case S_TILE: o.tile_size = (int)parse_int("--tile-size", optarg, 1, 4096); break;
+        case S_UPLOAD: o.max_upload = (size_t)parse_int("--max-upload", optarg, 1, 512) << 20; break;
+        case S_JOBS: o.max_jobs = (int)parse_int("--max-jobs", optarg, 1, 100000); break;
+        case S_KEEP: o.keep_s = 3600 * parse_double("--keep-hours", optarg, 0, 1e6); break;
+        case S_HB: o.farm.heartbeat_s = parse_double("--heartbeat", optarg, 0.01, 3600); break;
+        case S_TIMEOUT: o.farm.timeout_s = parse_double("--worker-timeout", optarg, 0.05, 86400); break;
+        case S_LEASE: o.farm.lease_s = parse_double("--lease", optarg, 0.1, 1e7); break;
+        case 'v': o.farm.verbose = 1; break;
+        case 'h': usage_coordinator(stdout); return 0;
+        default: usage_coordinator(stderr); return 2;
+        }
+    }
+    if (optind != argc || !o.data_dir) {
+        fprintf(stderr, "tessera-coordinator: %s\n", o.data_dir ? "unexpected arguments" : "--data-dir DIR is required");
+        usage_coordinator(stderr);
+        return 2;
+    }
+    if (address_parse(listen, host, sizeof host, &o.farm.port, err, sizeof err)) {
+        fprintf(stderr, "tessera-coordinator: --listen %s\n", err);
+        return 2;
+    }
+    o.farm.host = host;
+    if (!(o.farm.heartbeat_s < o.farm.timeout_s)) {
+        fprintf(stderr, "tessera-coordinator: --worker-timeout must be longer than --heartbeat\n");
+        return 2;
+    }
+    if (o.farm.drop_s < 6 * o.farm.timeout_s) o.farm.drop_s = 6 * o.farm.timeout_s;
+    if (o.tile_size > o.farm.max_tile_side) o.farm.max_tile_side = o.tile_size;
+    return service_run(&o);
+}
+
 static void usage(FILE *f) {
     fprintf(f,
             "usage: tessera COMMAND [options]\n"
@@ -423,17 +497,26 @@ static void usage(FILE *f) {
             "commands:\n"
             "  render SCENE.json -o OUT   render a scene to an image (see tessera render --help)\n"
             "  tonemap IN.exr -o OUT      tone map a saved HDR image again (see tessera tonemap --help)\n"
+            "  coordinator --data-dir D   run the render service (also installed as tessera-coordinator)\n"
+            "  submit SCENE.json [--wait] send a job to the service; status, workers, cancel JOB,\n"
+            "                             fetch JOB -o OUT talk to it too (see tessera submit --help)\n"
             "  version                    print the version\n");
 }
 
 int main(int argc, char **argv) {
     signal(SIGPIPE, SIG_IGN); /* a vanished worker is an error to handle, not a reason to die */
+    const char *self = strrchr(argv[0], '/');
+    if (strcmp(self ? self + 1 : argv[0], "tessera-coordinator") == 0) return cmd_coordinator(argc, argv);
     if (argc < 2) {
         usage(stderr);
         return 2;
     }
     if (strcmp(argv[1], "render") == 0) return cmd_render(argc - 1, argv + 1);
     if (strcmp(argv[1], "tonemap") == 0) return cmd_tonemap(argc - 1, argv + 1);
+    if (strcmp(argv[1], "coordinator") == 0) return cmd_coordinator(argc - 1, argv + 1);
+    static const char *const client_cmds[] = {"submit", "status", "workers", "cancel", "fetch"};
+    for (int i = 0; i < 5; i++)
+        if (strcmp(argv[1], client_cmds[i]) == 0) return client_main(argc - 1, argv + 1);
     if (strcmp(argv[1], "version") == 0) {
         printf("tessera %s (build %s, protocol %d)\n", TESSERA_VERSION, protocol_build_id(), PROTOCOL_VERSION);
         return 0;

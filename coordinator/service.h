@@ -1,0 +1,25 @@
+/* service.h - the long-running coordinator (`tessera-coordinator`): a job
+ * queue rendered by every connected worker, clients that submit, watch,
+ * cancel and fetch, and a journal in the data dir so that nothing is lost
+ * when the process dies (docs/protocol.md, "Clients" and "Journal"). */
+#ifndef TESSERA_SERVICE_H
+#define TESSERA_SERVICE_H
+
+#include <stddef.h>
+
+#include "farm.h"
+
+typedef struct {
+    farm_options farm;    /* where to listen, timeouts */
+    const char *data_dir; /* journal, scenes and results; created if missing */
+    int tile_size;
+    size_t max_upload;    /* largest scene bundle a client may send */
+    int max_jobs;         /* queued and running jobs at once */
+    double keep_s;        /* finished jobs are deleted after this long */
+} service_options;
+
+/* Run the service until SIGINT or SIGTERM. Returns the exit status: 0
+ * after a signal, 1 when it cannot start (message on stderr). */
+int service_run(const service_options *o);
+
+#endif
