@@ -1,0 +1,240 @@
+/* test_service.c - the job service end to end: a real tessera-coordinator,
+ * real workers and the real CLI on loopback. Each test checks what a user
+ * would see: exit statuses, messages, and the fetched image compared byte
+ * for byte with a single-process render. */
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include "harness.h"
+#include "util.h"
+
+#define SCENE "tests/scenes/cornell-small.json"
+#define LONG 120.0
+
+typedef struct {
+    char dir[256], log[256], addr[64];
+    int port;
+    pid_t pid;
+} service;
+
+/* Start tessera-coordinator on a free port with a data dir under the test
+ * folder (kept between a kill and a restart when dir is reused). */
+static void service_start(service *s, const char *name) {
+    if (!s->port) {
+        s->port = util_free_port();
+        snprintf(s->dir, sizeof s->dir, "%s", util_temp_path(name));
+        char logname[128];
+        snprintf(logname, sizeof logname, "%s.log", name);
+        snprintf(s->log, sizeof s->log, "%s", util_temp_path(logname));
+        snprintf(s->addr, sizeof s->addr, "127.0.0.1:%d", s->port);
+    }
+    char coord[4096];
+    snprintf(coord, sizeof coord, "%s", util_bin("tessera-coordinator"));
+    const char *argv[] = {coord, "--listen", s->addr, "--data-dir", s->dir, "--heartbeat", "0.2",
+                          "--worker-timeout", "2", NULL};
+    int before = util_file_count(s->log, "listening on");
+    s->pid = util_spawn(argv, s->log);
+    for (int i = 0; i < 1000 && util_file_count(s->log, "listening on") == before; i++) util_sleep(0.01);
+}
+
+static pid_t worker_start(const service *s, const char *name, const char *throttle_ms) {
+    char path[4096], log[256], lname[64];
+    snprintf(path, sizeof path, "%s", util_bin("tessera-worker"));
+    snprintf(lname, sizeof lname, "%s.log", name);
+    snprintf(log, sizeof log, "%s", util_temp_path(lname));
+    const char *argv[] = {path, "--connect", s->addr, "--threads", "1", "--name", name, "--retry-max", "1",
+                          "--throttle-ms", throttle_ms, NULL};
+    return util_spawn(argv, log);
+}
+
+/* Run `tessera ARGS` against the service; output in out. */
+static int cli(const service *s, char *out, size_t cap, const char *fmt, ...) __attribute__((format(printf, 4, 5)));
+static int cli(const service *s, char *out, size_t cap, const char *fmt, ...) {
+    char args[2048], cmd[4096];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(args, sizeof args, fmt, ap);
+    va_end(ap);
+    snprintf(cmd, sizeof cmd, "TESSERA_COORDINATOR=%s %s %s", s->addr, harness_tessera(), args);
+    return util_run(cmd, out, cap);
+}
+
+static void service_stop(service *s) {
+    kill(s->pid, SIGTERM);
+    int st = util_wait(s->pid, LONG, NULL);
+    CHECK(st == 0, "coordinator exited with %d on SIGTERM; log %s", st, s->log);
+    CHECK(!util_file_count(s->log, "Sanitizer"), "sanitizer report in %s", s->log);
+}
+
+static void worker_stop(pid_t pid) {
+    kill(pid, SIGTERM);
+    CHECK(util_wait(pid, LONG, NULL) == 0, "worker did not exit cleanly");
+}
+
+static const char *reference(void) {
+    static char path[256];
+    if (path[0]) return path;
+    snprintf(path, sizeof path, "%s", util_temp_path("service-ref.pfm"));
+    char cmd[1024], out[4096];
+    snprintf(cmd, sizeof cmd, "%s render " SCENE " --workers 0 -o %s", harness_tessera(), path);
+    if (util_run(cmd, out, sizeof out) != 0) fprintf(stderr, "reference failed: %s\n", out);
+    return path;
+}
+
+/* Job id printed by `tessera submit` ("job N"), or -1. */
+static int job_id(const char *out) {
+    int id = -1;
+    const char *p = strstr(out, "job ");
+    if (p) sscanf(p, "job %d", &id);
+    return id;
+}
+
+TEST(service_submit_wait_fetch_status_workers) {
+    service s = {0};
+    service_start(&s, "svc-basic");
+    pid_t w1 = worker_start(&s, "w1", "0"), w2 = worker_start(&s, "w2", "0");
+    char out[8192], img[256], png[256];
+    snprintf(img, sizeof img, "%s", util_temp_path("svc-basic.pfm"));
+    snprintf(png, sizeof png, "%s", util_temp_path("svc-basic.png"));
+    int st = cli(&s, out, sizeof out, "submit " SCENE " --wait -o %s", img);
+    CHECK(st == 0 && strstr(out, "job 1 done, image: "), "submit --wait failed (%d): %s", st, out);
+    CHECK(util_same_file(img, reference()), "the fetched image differs from the single-process render");
+    st = cli(&s, out, sizeof out, "fetch 1 -o %s", png);
+    CHECK(st == 0 && access(png, F_OK) == 0, "fetch after the fact failed (%d): %s", st, out);
+    st = cli(&s, out, sizeof out, "status");
+    CHECK(st == 0 && strstr(out, "done") && strstr(out, "4/4") && strstr(out, SCENE),
+          "status table: %s", out);
+    st = cli(&s, out, sizeof out, "status 1 --json");
+    CHECK(st == 0 && strstr(out, "\"state\":\t\"done\"") && strstr(out, "\"tiles_total\""), "status --json: %s", out);
+    st = cli(&s, out, sizeof out, "workers");
+    CHECK(st == 0 && strstr(out, "w1") && strstr(out, "w2") && strstr(out, "127.0.0.1:"), "workers: %s", out);
+    st = cli(&s, out, sizeof out, "fetch 7 -o %s", png);
+    CHECK(st == 1 && strstr(out, "job 7: unknown job"), "fetch of an unknown job (%d): %s", st, out);
+    st = cli(&s, out, sizeof out, "cancel 1");
+    CHECK(st == 1 && strstr(out, "job 1 is already done"), "cancel of a finished job (%d): %s", st, out);
+    worker_stop(w1);
+    worker_stop(w2);
+    service_stop(&s);
+}
+
+TEST(service_queue_priority_and_cancel) {
+    service s = {0};
+    service_start(&s, "svc-queue");
+    pid_t w = worker_start(&s, "slow", "30");
+    char out[8192];
+    int a = job_id((cli(&s, out, sizeof out, "submit " SCENE " --tile-size 8"), out));
+    int b = job_id((cli(&s, out, sizeof out, "submit " SCENE " --seed 7 --tile-size 8"), out));
+    int c = job_id((cli(&s, out, sizeof out, "submit " SCENE " --seed 9 --tile-size 16 --priority 5"), out));
+    CHECK(a == 1 && b == 2 && c == 3, "job ids %d %d %d", a, b, c);
+    int st = cli(&s, out, sizeof out, "cancel 2");
+    CHECK(st == 0 && strstr(out, "job 2 cancelled"), "cancel (%d): %s", st, out);
+    for (int i = 0; i < 1200; i++) { /* wait until 1 and 3 are done */
+        cli(&s, out, sizeof out, "status --json");
+        if (util_file_count(s.log, "job 1 done") && util_file_count(s.log, "job 3 done")) break;
+        util_sleep(0.1);
+    }
+    CHECK(util_file_count(s.log, "job 1 done") && util_file_count(s.log, "job 3 done"), "jobs did not finish; log %s",
+          s.log);
+    CHECK(util_file_count(s.log, "job 2 cancelled (0 tiles from the journal"), "cancel not logged; log %s", s.log);
+    /* priority 5 overtakes job 1, which was submitted first */
+    FILE *f = fopen(s.log, "r");
+    char line[512];
+    int order = 0, first_done = 0;
+    while (f && fgets(line, sizeof line, f))
+        if (strstr(line, " done (")) {
+            order++;
+            if (order == 1) sscanf(line, "tessera-coordinator: job %d", &first_done);
+        }
+    if (f) fclose(f);
+    CHECK(first_done == 3, "job %d finished first; the high-priority job 3 should; log %s", first_done, s.log);
+    st = cli(&s, out, sizeof out, "status 2");
+    CHECK(st == 0 && strstr(out, "cancelled"), "status of the cancelled job: %s", out);
+    worker_stop(w);
+    service_stop(&s);
+}
+
+TEST(service_restart_resumes_without_rerendering) {
+    service s = {0};
+    service_start(&s, "svc-restart");
+    pid_t w = worker_start(&s, "w", "40");
+    char out[8192], img[256];
+    int st = cli(&s, out, sizeof out, "submit " SCENE " --tile-size 8");
+    CHECK(st == 0 && job_id(out) == 1, "submit (%d): %s", st, out);
+    for (int i = 0; i < 600; i++) { /* let about a third of the tiles finish */
+        cli(&s, out, sizeof out, "status 1 --json");
+        int done = 0;
+        const char *p = strstr(out, "\"tiles_done\":");
+        if (p) sscanf(p, "\"tiles_done\":\t%d", &done);
+        if (done >= 20) break;
+        util_sleep(0.05);
+    }
+    kill(s.pid, SIGKILL);
+    util_wait(s.pid, LONG, NULL);
+    service_start(&s, "svc-restart");
+    int resumed = -1, again = -1, rendered = -1;
+    CHECK(util_wait_for_text(s.log, "job 1 resumed: ", LONG) == 0, "no resume; log %s", s.log);
+    CHECK(util_wait_for_text(s.log, "job 1 done (", LONG) == 0, "resumed job never finished; log %s", s.log);
+    FILE *f = fopen(s.log, "r");
+    char line[512];
+    while (f && fgets(line, sizeof line, f)) {
+        sscanf(line, "tessera-coordinator: job 1 resumed: %d of 64", &resumed);
+        sscanf(line, "tessera-coordinator: job 1 done (%d tiles from the journal, %d rendered", &again, &rendered);
+    }
+    if (f) fclose(f);
+    CHECK(resumed >= 20 && again == resumed && resumed + rendered == 64,
+          "resumed %d, then %d from the journal and %d rendered: finished tiles must not be rendered again", resumed,
+          again, rendered);
+    snprintf(img, sizeof img, "%s", util_temp_path("svc-restart.pfm"));
+    st = cli(&s, out, sizeof out, "fetch 1 -o %s", img);
+    CHECK(st == 0 && util_same_file(img, reference()), "image after a restart differs (%d): %s", st, out);
+    worker_stop(w);
+    service_stop(&s);
+}
+
+TEST(service_survives_bad_clients_and_reports_errors) {
+    service s = {0};
+    service_start(&s, "svc-bad");
+    char out[8192];
+    /* A client that sends garbage, and one that disconnects mid-upload. */
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    struct sockaddr_in a = {.sin_family = AF_INET, .sin_port = htons((uint16_t)s.port),
+                            .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
+    CHECK(connect(fd, (struct sockaddr *)&a, sizeof a) == 0, "connect");
+    send(fd, "GET / HTTP/1.0\r\n\r\n", 18, MSG_NOSIGNAL);
+    close(fd);
+    fd = socket(AF_INET, SOCK_STREAM, 0);
+    CHECK(connect(fd, (struct sockaddr *)&a, sizeof a) == 0, "connect");
+    const char hello[] = "{\"type\":\"hello\",\"role\":\"client\",\"protocol\":1,\"build\":\"x\",\"name\":\"c\",\"threads\":1}";
+    uint8_t hdr[5] = {(uint8_t)(sizeof hello), 0, 0, 0, 'J'};
+    send(fd, hdr, 5, MSG_NOSIGNAL);
+    send(fd, hello, sizeof hello - 1, MSG_NOSIGNAL);
+    uint8_t up[5] = {0, 0, 16, 0, 'S'}; /* a 1 MiB scene upload... */
+    send(fd, up, 5, MSG_NOSIGNAL);
+    send(fd, "partial", 7, MSG_NOSIGNAL); /* ...cut short */
+    close(fd);
+    util_sleep(0.2);
+    int st = cli(&s, out, sizeof out, "status");
+    CHECK(st == 0 && strstr(out, "0 workers connected"), "service unhealthy after bad clients (%d): %s", st, out);
+    CHECK(util_file_count(s.log, "closed in the middle of a frame"), "truncated upload not logged; log %s", s.log);
+    /* An invalid scene: the coordinator's own message, with file and field. */
+    const char *bad = util_write_temp("bad-scene.json", "{\"render\": {\"spp\": 0}}");
+    st = cli(&s, out, sizeof out, "submit %s", bad);
+    CHECK(st == 1 && strstr(out, "bad-scene.json: render.spp: expected an integer"), "invalid scene (%d): %s", st, out);
+    st = cli(&s, out, sizeof out, "submit tests/scenes/missing.json");
+    CHECK(st == 1 && strstr(out, "missing.json"), "missing scene (%d): %s", st, out);
+    service_stop(&s);
+    st = cli(&s, out, sizeof out, "status");
+    CHECK(st == 1 && strstr(out, "cannot reach the coordinator at 127.0.0.1:"), "unreachable (%d): %s", st, out);
+    char cmd[1024];
+    snprintf(cmd, sizeof cmd, "%s --data-dir /etc/passwd/x --listen 127.0.0.1:0", util_bin("tessera-coordinator"));
+    st = util_run(cmd, out, sizeof out);
+    CHECK(st == 1 && strstr(out, "/etc/passwd/x: cannot create the data dir: Not a directory"),
+          "unusable data dir (%d): %s", st, out);
+}
