@@ -20,6 +20,7 @@
 #include <unistd.h>
 
 #include "../common/address.h"
+#include "../common/auth.h"
 #include "../common/image.h"
 #include "../common/protocol.h"
 #include "../common/scene_bundle.h"
@@ -36,6 +37,7 @@ typedef struct {
 
 typedef struct {
     const char *coordinator;
+    const char *token_file;
     int json;
     int wait;
     const char *out;
@@ -53,6 +55,16 @@ static int cli_fail(const char *fmt, ...) {
     fputc('\n', stderr);
     va_end(ap);
     return 1;
+}
+
+static double num(const cJSON *o, const char *k) {
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, k);
+    return cJSON_IsNumber(v) ? v->valuedouble : 0;
+}
+
+static const char *str(const cJSON *o, const char *k) {
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, k);
+    return cJSON_IsString(v) ? v->valuestring : "";
 }
 
 static int send_all(cli *c, const uint8_t *p, size_t len) {
@@ -124,11 +136,16 @@ static cJSON *read_answer(cli *c, const char *want) {
     return NULL;
 }
 
-/* Connect and say hello as a client. Returns 0 or 1 (printed). */
-static int cli_open(cli *c, const char *coordinator) {
-    const char *addr = coordinator ? coordinator : getenv("TESSERA_COORDINATOR");
+/* Connect, answer the challenge and say hello as a client. Returns 0 or 1
+ * (printed). */
+static int cli_open(cli *c, const cli_args *args) {
+    auth_key key = {0};
+    char err[256];
+    const char *token = args->token_file ? args->token_file : getenv("TESSERA_TOKEN_FILE");
+    if (token && *token && auth_key_load(token, &key, err, sizeof err)) return cli_fail("%s", err);
+    const char *addr = args->coordinator ? args->coordinator : getenv("TESSERA_COORDINATOR");
     if (!addr || !*addr) addr = DEFAULT_COORDINATOR;
-    char host[256], port_s[16], err[256];
+    char host[256], port_s[16];
     int port;
     if (address_parse(addr, host, sizeof host, &port, err, sizeof err)) return cli_fail("--coordinator %s", err);
     snprintf(c->where, sizeof c->where, "%s", addr);
@@ -148,6 +165,11 @@ static int cli_open(cli *c, const char *coordinator) {
     }
     freeaddrinfo(res);
     if (c->fd < 0) return cli_fail("cannot reach the coordinator at %s: %s", addr, strerror(saved));
+    cJSON *ch = read_answer(c, "challenge");
+    if (!ch) return 1;
+    char nonce[AUTH_HEX], proof[AUTH_HEX], theirs[200];
+    snprintf(theirs, sizeof theirs, "%s", str(ch, "nonce"));
+    cJSON_Delete(ch);
     cJSON *h = cJSON_CreateObject();
     cJSON_AddStringToObject(h, "type", "hello");
     cJSON_AddStringToObject(h, "role", "client");
@@ -155,10 +177,18 @@ static int cli_open(cli *c, const char *coordinator) {
     cJSON_AddStringToObject(h, "build", protocol_build_id());
     cJSON_AddStringToObject(h, "name", "tessera-cli");
     cJSON_AddNumberToObject(h, "threads", 1);
+    if (key.enabled) {
+        auth_proof(&key, theirs, "client:tessera-cli", proof);
+        auth_nonce(nonce);
+        cJSON_AddStringToObject(h, "proof", proof);
+        cJSON_AddStringToObject(h, "nonce", nonce);
+    }
     if (send_json(c, h)) return 1;
     cJSON *w = read_answer(c, "welcome");
+    int ok = w && (!key.enabled || auth_check(&key, nonce, "coordinator", str(w, "proof")));
+    if (w && !ok) cli_fail("the coordinator at %s could not prove it knows the token", c->where);
     cJSON_Delete(w);
-    return w ? 0 : 1;
+    return ok ? 0 : 1;
 }
 
 static void cli_close(cli *c) {
@@ -174,15 +204,6 @@ static cJSON *request(cli *c, const char *type, long job, const char *want) {
     return send_json(c, m) ? NULL : read_answer(c, want);
 }
 
-static double num(const cJSON *o, const char *k) {
-    const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, k);
-    return cJSON_IsNumber(v) ? v->valuedouble : 0;
-}
-
-static const char *str(const cJSON *o, const char *k) {
-    const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, k);
-    return cJSON_IsString(v) ? v->valuestring : "";
-}
 
 static void print_json(const cJSON *m) {
     char *t = cJSON_Print(m);
@@ -278,7 +299,7 @@ static int do_submit(const cli_args *a, const char *scene_path) {
     if (!bytes) return cli_fail("%s: the scene and its meshes are too large to send", scene_path);
     scene_bundle_hash(bytes, len, hash);
     cli c;
-    if (cli_open(&c, a->coordinator)) {
+    if (cli_open(&c, a)) {
         free(bytes);
         return 1;
     }
@@ -343,7 +364,7 @@ static int do_submit(const cli_args *a, const char *scene_path) {
 
 static int do_status(const cli_args *a, long job) {
     cli c;
-    if (cli_open(&c, a->coordinator)) return 1;
+    if (cli_open(&c, a)) return 1;
     cJSON *st = request(&c, "status", job, "status");
     cli_close(&c);
     if (!st) return 1;
@@ -368,7 +389,7 @@ static int do_status(const cli_args *a, long job) {
 
 static int do_workers(const cli_args *a) {
     cli c;
-    if (cli_open(&c, a->coordinator)) return 1;
+    if (cli_open(&c, a)) return 1;
     cJSON *ws = request(&c, "workers", -1, "workers");
     cli_close(&c);
     if (!ws) return 1;
@@ -391,7 +412,7 @@ static int do_workers(const cli_args *a) {
 
 static int do_cancel(const cli_args *a, long job) {
     cli c;
-    if (cli_open(&c, a->coordinator)) return 1;
+    if (cli_open(&c, a)) return 1;
     cJSON *r = request(&c, "cancel", job, "cancelled");
     cli_close(&c);
     if (!r) return 1;
@@ -404,7 +425,7 @@ static int do_cancel(const cli_args *a, long job) {
 static int do_fetch(const cli_args *a, long job) {
     if (!a->out) return cli_fail("fetch: -o OUT is required"), 2;
     cli c;
-    if (cli_open(&c, a->coordinator)) return 1;
+    if (cli_open(&c, a)) return 1;
     image_write_options wo = a->wo;
     int rc = fetch_to(&c, job, a->out, &wo);
     cli_close(&c);
@@ -425,7 +446,8 @@ static void usage(FILE *f) {
             "       tessera fetch JOB -o OUT [--tonemap NAME] [--exposure S]\n"
             "\n"
             "Talk to a running tessera-coordinator. Every command takes --coordinator HOST:PORT\n"
-            "(default: $TESSERA_COORDINATOR, else " DEFAULT_COORDINATOR ") and --json for scripts.\n"
+            "(default: $TESSERA_COORDINATOR, else " DEFAULT_COORDINATOR "), --token-file F (default:\n"
+            "$TESSERA_TOKEN_FILE) and --json for scripts.\n"
             "submit uploads the scene and its meshes and prints the job id; with --wait it shows\n"
             "progress and writes the image to OUT on this machine (format from the extension).\n");
 }
@@ -442,7 +464,7 @@ static long parse_num(const char *what, const char *s, long lo, long hi) {
 }
 
 enum { C_COORD = 300, C_JSON, C_WAIT, C_SPP, C_WIDTH, C_HEIGHT, C_DEPTH, C_SEED, C_PRIORITY, C_TONEMAP, C_EXPOSURE,
-       C_TILE };
+       C_TILE, C_TOKEN };
 
 int client_main(int argc, char **argv) {
     static const struct option opts[] = {
@@ -452,7 +474,7 @@ int client_main(int argc, char **argv) {
         {"max-depth", required_argument, 0, C_DEPTH}, {"seed", required_argument, 0, C_SEED},
         {"priority", required_argument, 0, C_PRIORITY}, {"tonemap", required_argument, 0, C_TONEMAP},
         {"exposure", required_argument, 0, C_EXPOSURE}, {"output", required_argument, 0, 'o'},
-        {"tile-size", required_argument, 0, C_TILE}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
+        {"tile-size", required_argument, 0, C_TILE}, {"token-file", required_argument, 0, C_TOKEN}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
     const char *cmd = argv[0];
     cli_args a = {.ov = {-1, -1, -1, -1, 0, 0}, .wo = {.tonemap = {.kind = TONEMAP_REINHARD}}};
     int c;
@@ -478,6 +500,7 @@ int client_main(int argc, char **argv) {
             }
             break;
         case C_EXPOSURE: a.wo.tonemap.exposure_stops = (float)parse_num("--exposure", optarg, -64, 64); break;
+        case C_TOKEN: a.token_file = optarg; break;
         case C_TILE: a.tile_size = (int)parse_num("--tile-size", optarg, 1, 4096); break;
         case 'o': a.out = optarg; break;
         case 'h': usage(stdout); return 0;

@@ -87,6 +87,7 @@ struct peer {
     uint32_t *jobs;
     int job_count;
     peer_record rec;
+    char nonce[AUTH_HEX]; /* the challenge this connection must answer */
     char label[200]; /* "worker NAME (ADDR)" */
     peer *next;
 };
@@ -460,6 +461,14 @@ static void peer_hand_over(peer *p, const cJSON *hello) {
     f->opt.on_client(f->opt.client_ctx, c, hello, addr);
 }
 
+void farm_add_proof(const farm *f, const cJSON *hello, cJSON *welcome) {
+    const cJSON *nonce = cJSON_GetObjectItemCaseSensitive(hello, "nonce");
+    if (!f->opt.auth.enabled || !cJSON_IsString(nonce)) return;
+    char proof[AUTH_HEX];
+    auth_proof(&f->opt.auth, nonce->valuestring, "coordinator", proof);
+    cJSON_AddStringToObject(welcome, "proof", proof);
+}
+
 static int on_hello(peer *p, const cJSON *m) {
     farm *f = p->f;
     const cJSON *proto = cJSON_GetObjectItemCaseSensitive(m, "protocol");
@@ -472,7 +481,25 @@ static int on_hello(peer *p, const cJSON *m) {
     snprintf(p->rec.name, sizeof p->rec.name, "%s", name->valuestring);
     snprintf(p->label, sizeof p->label, "worker %s (%s)", p->rec.name, p->rec.addr);
     const cJSON *role = cJSON_GetObjectItemCaseSensitive(m, "role");
-    if (cJSON_IsString(role) && strcmp(role->valuestring, "client") == 0) {
+    int is_client = cJSON_IsString(role) && strcmp(role->valuestring, "client") == 0;
+    if (f->opt.auth.enabled) {
+        char who[128];
+        snprintf(who, sizeof who, "%s:%s", is_client ? "client" : "worker", name->valuestring);
+        const cJSON *proof = cJSON_GetObjectItemCaseSensitive(m, "proof");
+        if (!auth_check(&f->opt.auth, p->nonce, who, cJSON_IsString(proof) ? proof->valuestring : NULL)) {
+            /* Says nothing else: an outsider learns no version, job or worker. */
+            farm_log(f, "peer %s (calling itself %s %.60s): authentication failed (%s token); refused", p->rec.addr,
+                     is_client ? "client" : "worker", name->valuestring, cJSON_IsString(proof) ? "wrong" : "no");
+            cJSON *r = cJSON_CreateObject();
+            cJSON_AddStringToObject(r, "type", "refused");
+            cJSON_AddStringToObject(r, "reason", "authentication failed");
+            peer_send_json(p, r);
+            p->rec.name[0] = '\0';
+            conn_close(p->c, "authentication failed", 1);
+            return 1;
+        }
+    }
+    if (is_client) {
         if (!f->opt.on_client) return peer_violation(p, "this coordinator takes no clients (it renders one scene)");
         if (proto->valuedouble != PROTOCOL_VERSION)
             return peer_violation(p, "version mismatch: client speaks protocol %g; coordinator speaks protocol %d",
@@ -504,6 +531,7 @@ static int on_hello(peer *p, const cJSON *m) {
     cJSON_AddStringToObject(w, "build", protocol_build_id());
     cJSON_AddNumberToObject(w, "heartbeat_ms", f->opt.heartbeat_s * 1e3);
     cJSON_AddNumberToObject(w, "timeout_ms", f->opt.timeout_s * 1e3);
+    farm_add_proof(f, m, w);
     peer_send_json(p, w);
     if (f->opt.verbose) farm_log(f, "%s joined with %d threads", p->label, p->rec.threads);
     return 0;
@@ -668,6 +696,11 @@ static void on_connection(uv_stream_t *server, int status) {
     snprintf(p->label, sizeof p->label, "peer %s", p->rec.addr);
     p->next = f->peers;
     f->peers = p;
+    auth_nonce(p->nonce);
+    cJSON *ch = cJSON_CreateObject();
+    cJSON_AddStringToObject(ch, "type", "challenge");
+    cJSON_AddStringToObject(ch, "nonce", p->nonce);
+    peer_send_json(p, ch);
 }
 
 /* ---- the clock: heartbeats, stalls, leases --------------------------------------- */

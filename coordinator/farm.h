@@ -16,6 +16,7 @@
 #include <stdio.h>
 #include <uv.h>
 
+#include "../common/auth.h"
 #include "../common/protocol.h"
 
 struct conn;
@@ -38,6 +39,7 @@ typedef struct {
      * NULL: clients are refused. */
     void (*on_client)(void *ctx, struct conn *c, const cJSON *hello, const char *addr);
     void *client_ctx;
+    auth_key auth; /* enabled: every peer must prove it knows the token */
 } farm_options;
 
 /* Fill o with the defaults (heartbeat 1 s, timeout 5 s, drop 30 s, lease
@@ -113,6 +115,10 @@ int farm_list_workers(const farm *f, farm_worker_info *out, int max);
 
 /* The current figures of the job with this id (0 if known). */
 int farm_job_report(const farm *f, uint32_t job, farm_report *r);
+
+/* Add to welcome the coordinator's proof for the nonce the peer sent in
+ * hello (when a token is configured and the peer asked). Can't fail. */
+void farm_add_proof(const farm *f, const cJSON *hello, cJSON *welcome);
 
 /* Print one line per worker, current and departed: name, address,
  * threads, tiles, bytes. Can't fail. */

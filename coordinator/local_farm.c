@@ -120,7 +120,12 @@ static int spawn_worker(local_run *r, int slot) {
     char threads[16], name[32];
     snprintf(threads, sizeof threads, "%d", r->o->threads_per_worker);
     snprintf(name, sizeof name, "local-%d", slot);
-    char *args[] = {r->exe, "--connect", r->connect, "--threads", threads, "--name", name, "--once", "--quiet", NULL};
+    char *args[] = {r->exe, "--connect", r->connect, "--threads", threads, "--name", name, "--once", "--quiet",
+                    NULL, NULL, NULL};
+    if (r->o->token_file) {
+        args[9] = "--token-file";
+        args[10] = (char *)r->o->token_file;
+    }
     uv_stdio_container_t stdio[3] = {{.flags = UV_IGNORE}, {.flags = UV_IGNORE},
                                      {.flags = UV_INHERIT_FD, .data.fd = STDERR_FILENO}};
     uv_process_options_t po = {.exit_cb = on_worker_exit, .file = r->exe, .args = args,

@@ -19,6 +19,7 @@ typedef struct {
     int listening;          /* farm.host/port were given: say where, wait for remote workers */
     int progress;           /* show a progress bar on stderr */
     int verbose;            /* per-worker table and farm figures at the end */
+    const char *token_file; /* handed to the local workers, or NULL */
 } local_farm_options;
 
 typedef struct {

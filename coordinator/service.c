@@ -671,7 +671,6 @@ static void client_on_close(conn *c, const char *reason) {
 static const conn_callbacks client_cbs = {client_on_frame, client_on_close};
 
 static void on_client(void *ctx, conn *c, const cJSON *hello, const char *addr) {
-    (void)hello;
     service *s = ctx;
     client *cl = calloc(1, sizeof *cl);
     if (!cl) {
@@ -688,6 +687,7 @@ static void on_client(void *ctx, conn *c, const cJSON *hello, const char *addr) 
     cJSON_AddNumberToObject(w, "protocol", PROTOCOL_VERSION);
     cJSON_AddStringToObject(w, "build", protocol_build_id());
     cJSON_AddNumberToObject(w, "max_upload", (double)s->o.max_upload);
+    farm_add_proof(s->f, hello, w);
     client_send_json(cl, w);
 }
 

@@ -31,7 +31,7 @@ typedef struct {
     const char *out_path;
     scene_overrides ov;
     int threads, threads_given, workers, tile_size, verbose, progress, jpeg_quality, png16;
-    const char *listen;
+    const char *listen, *token_file;
     char listen_host[256];
     farm_options farm;
     codec_exr_options exr;
@@ -63,6 +63,7 @@ static void usage_render(FILE *f) {
             "      --heartbeat S      farm heartbeat interval in seconds (default 1)\n"
             "      --worker-timeout S a silent worker's tiles go to others after S s (default 5)\n"
             "      --lease S          longest a worker may hold one tile (default 300)\n"
+            "      --token-file F     workers must prove they know this secret (local ones get it)\n"
             "      --tile-size N      tile side in pixels (default 32)\n"
             "      --passes N         render each tile's samples in N sequential passes\n"
             "                         (the image is bit-identical for every N)\n"
@@ -113,7 +114,7 @@ static void parse_tonemap(const char *s, tonemap_kind *out) {
 }
 
 enum { OPT_SPP = 256, OPT_WIDTH, OPT_HEIGHT, OPT_DEPTH, OPT_SEED, OPT_THREADS, OPT_WORKERS, OPT_TILE,
-       OPT_PASSES, OPT_TONEMAP, OPT_EXPOSURE, OPT_WHITE, OPT_QUALITY, OPT_EXR_COMPRESSION, OPT_EXR_HALF, OPT_EXR_ALPHA, OPT_PNG16, OPT_NO_NEE, OPT_NO_MIS, OPT_NO_PROGRESS, OPT_LISTEN, OPT_HEARTBEAT, OPT_WORKER_TIMEOUT, OPT_LEASE };
+       OPT_PASSES, OPT_TONEMAP, OPT_EXPOSURE, OPT_WHITE, OPT_QUALITY, OPT_EXR_COMPRESSION, OPT_EXR_HALF, OPT_EXR_ALPHA, OPT_PNG16, OPT_NO_NEE, OPT_NO_MIS, OPT_NO_PROGRESS, OPT_LISTEN, OPT_HEARTBEAT, OPT_WORKER_TIMEOUT, OPT_LEASE, OPT_TOKEN };
 
 static void parse_render_args(int argc, char **argv, render_args *a) {
     static const struct option opts[] = {
@@ -130,6 +131,7 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         {"no-progress", no_argument, 0, OPT_NO_PROGRESS}, {"verbose", no_argument, 0, 'v'},
         {"listen", required_argument, 0, OPT_LISTEN}, {"heartbeat", required_argument, 0, OPT_HEARTBEAT},
         {"worker-timeout", required_argument, 0, OPT_WORKER_TIMEOUT}, {"lease", required_argument, 0, OPT_LEASE},
+        {"token-file", required_argument, 0, OPT_TOKEN},
         {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
     memset(a, 0, sizeof *a);
     a->ov.width = a->ov.height = a->ov.spp = a->ov.max_depth = -1;
@@ -158,6 +160,7 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
             a->threads_given = 1;
             break;
         case OPT_LISTEN: a->listen = optarg; break;
+        case OPT_TOKEN: a->token_file = optarg; break;
         case OPT_HEARTBEAT: a->farm.heartbeat_s = parse_double("--heartbeat", optarg, 0.01, 3600); break;
         case OPT_WORKER_TIMEOUT: a->farm.timeout_s = parse_double("--worker-timeout", optarg, 0.05, 86400); break;
         case OPT_LEASE: a->farm.lease_s = parse_double("--lease", optarg, 0.1, 1e7); break;
@@ -208,6 +211,11 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         a->farm.host = a->listen_host;
     }
     if (a->workers < 0) a->workers = a->listen ? 0 : (int)sysconf(_SC_NPROCESSORS_ONLN);
+    char terr[300];
+    if (a->token_file && auth_key_load(a->token_file, &a->farm.auth, terr, sizeof terr)) {
+        fprintf(stderr, "tessera: --token-file %s\n", terr);
+        exit(2);
+    }
     if (!(a->farm.heartbeat_s < a->farm.timeout_s)) {
         fprintf(stderr, "tessera: --worker-timeout (%g s) must be longer than --heartbeat (%g s)\n",
                 a->farm.timeout_s, a->farm.heartbeat_s);
@@ -294,6 +302,7 @@ static int render_on_farm(render_args *a, const scene *s, const scene_bundle *b,
     scene_bundle_hash(bytes, len, job.scene_hash);
     local_farm_options lo = {.workers = a->workers, .threads_per_worker = a->threads_given ? a->threads : 1,
                              .tile_size = a->tile_size, .farm = a->farm, .listening = a->listen != NULL,
+                             .token_file = a->token_file,
                              .progress = a->progress && isatty(STDERR_FILENO), .verbose = a->verbose};
     lo.farm.verbose = a->verbose;
     local_farm_report rep;
@@ -434,11 +443,12 @@ static void usage_coordinator(FILE *f) {
             "      --max-upload MIB     largest scene plus meshes a client may send (default 256)\n"
             "      --max-jobs N         queued and running jobs at once (default 100)\n"
             "      --keep-hours H       delete finished jobs after H hours (default 24)\n"
+            "      --token-file F       workers and clients must prove they know this secret\n"
             "      --heartbeat S, --worker-timeout S, --lease S   as for tessera render\n"
             "  -v, --verbose            log every worker event\n");
 }
 
-enum { S_LISTEN = 400, S_DATA, S_TILE, S_UPLOAD, S_JOBS, S_KEEP, S_HB, S_TIMEOUT, S_LEASE };
+enum { S_LISTEN = 400, S_DATA, S_TILE, S_UPLOAD, S_JOBS, S_KEEP, S_HB, S_TIMEOUT, S_LEASE, S_TOKEN };
 
 /* `tessera-coordinator`: the long-running service (service.c). */
 static int cmd_coordinator(int argc, char **argv) {
@@ -448,10 +458,10 @@ static int cmd_coordinator(int argc, char **argv) {
         {"max-jobs", required_argument, 0, S_JOBS}, {"keep-hours", required_argument, 0, S_KEEP},
         {"heartbeat", required_argument, 0, S_HB}, {"worker-timeout", required_argument, 0, S_TIMEOUT},
         {"lease", required_argument, 0, S_LEASE}, {"verbose", no_argument, 0, 'v'},
-        {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
+        {"token-file", required_argument, 0, S_TOKEN}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
     service_options o = {.tile_size = 32, .max_upload = (size_t)256 << 20, .max_jobs = 100, .keep_s = 86400};
     farm_options_default(&o.farm);
-    const char *listen = "127.0.0.1:7000";
+    const char *listen = "127.0.0.1:7000", *token = NULL;
     char host[256], err[300];
     int c;
     optind = 1;
@@ -466,6 +476,7 @@ static int cmd_coordinator(int argc, char **argv) {
         case S_HB: o.farm.heartbeat_s = parse_double("--heartbeat", optarg, 0.01, 3600); break;
         case S_TIMEOUT: o.farm.timeout_s = parse_double("--worker-timeout", optarg, 0.05, 86400); break;
         case S_LEASE: o.farm.lease_s = parse_double("--lease", optarg, 0.1, 1e7); break;
+        case S_TOKEN: token = optarg; break;
         case 'v': o.farm.verbose = 1; break;
         case 'h': usage_coordinator(stdout); return 0;
         default: usage_coordinator(stderr); return 2;
@@ -481,6 +492,10 @@ static int cmd_coordinator(int argc, char **argv) {
         return 2;
     }
     o.farm.host = host;
+    if (token && auth_key_load(token, &o.farm.auth, err, sizeof err)) {
+        fprintf(stderr, "tessera-coordinator: --token-file %s\n", err);
+        return 2;
+    }
     if (!(o.farm.heartbeat_s < o.farm.timeout_s)) {
         fprintf(stderr, "tessera-coordinator: --worker-timeout must be longer than --heartbeat\n");
         return 2;

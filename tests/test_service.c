@@ -20,6 +20,7 @@
 
 typedef struct {
     char dir[256], log[256], addr[64];
+    const char *token; /* --token-file for the coordinator, or NULL */
     int port;
     pid_t pid;
 } service;
@@ -38,20 +39,24 @@ static void service_start(service *s, const char *name) {
     char coord[4096];
     snprintf(coord, sizeof coord, "%s", util_bin("tessera-coordinator"));
     const char *argv[] = {coord, "--listen", s->addr, "--data-dir", s->dir, "--heartbeat", "0.2",
-                          "--worker-timeout", "2", NULL};
+                          "--worker-timeout", "2", s->token ? "--token-file" : NULL, s->token, NULL};
     int before = util_file_count(s->log, "listening on");
     s->pid = util_spawn(argv, s->log);
     for (int i = 0; i < 1000 && util_file_count(s->log, "listening on") == before; i++) util_sleep(0.01);
 }
 
-static pid_t worker_start(const service *s, const char *name, const char *throttle_ms) {
+static pid_t worker_start_token(const service *s, const char *name, const char *throttle_ms, const char *token) {
     char path[4096], log[256], lname[64];
     snprintf(path, sizeof path, "%s", util_bin("tessera-worker"));
     snprintf(lname, sizeof lname, "%s.log", name);
     snprintf(log, sizeof log, "%s", util_temp_path(lname));
     const char *argv[] = {path, "--connect", s->addr, "--threads", "1", "--name", name, "--retry-max", "1",
-                          "--throttle-ms", throttle_ms, NULL};
+                          "--throttle-ms", throttle_ms, token ? "--token-file" : NULL, token, NULL};
     return util_spawn(argv, log);
+}
+
+static pid_t worker_start(const service *s, const char *name, const char *throttle_ms) {
+    return worker_start_token(s, name, throttle_ms, NULL);
 }
 
 /* Run `tessera ARGS` against the service; output in out. */
@@ -237,4 +242,49 @@ TEST(service_survives_bad_clients_and_reports_errors) {
     st = util_run(cmd, out, sizeof out);
     CHECK(st == 1 && strstr(out, "/etc/passwd/x: cannot create the data dir: Not a directory"),
           "unusable data dir (%d): %s", st, out);
+}
+
+TEST(service_token_required_of_workers_and_clients) {
+    char good[256], bad[256], out[8192], img[256];
+    snprintf(good, sizeof good, "%s", util_write_temp("token", "correct horse battery staple\n"));
+    snprintf(bad, sizeof bad, "%s", util_write_temp("token-wrong", "incorrect horse\n"));
+    service s = {0};
+    s.token = good;
+    service_start(&s, "svc-auth");
+    /* A worker with the wrong token is refused and exits 1; one with none too. */
+    pid_t wrong = worker_start_token(&s, "intruder", "0", bad);
+    CHECK(util_wait(wrong, LONG, NULL) == 1, "a worker with the wrong token was not refused");
+    pid_t none = worker_start_token(&s, "anonymous", "0", NULL);
+    CHECK(util_wait(none, LONG, NULL) == 1, "a worker without a token was not refused");
+    CHECK(util_file_count(s.log, "calling itself worker intruder): authentication failed (wrong token)") &&
+              util_file_count(s.log, "calling itself worker anonymous): authentication failed (no token)"),
+          "refusals not logged; log %s", s.log);
+    CHECK(util_file_count(util_temp_path("intruder.log"), "refused this worker: authentication failed") &&
+              !util_file_count(util_temp_path("intruder.log"), "protocol 1"),
+          "the refused worker should learn nothing but the refusal");
+    /* Clients: no token or the wrong one are refused; the right one works. */
+    int st = cli(&s, out, sizeof out, "status");
+    CHECK(st == 1 && strstr(out, "authentication failed"), "client without a token (%d): %s", st, out);
+    st = cli(&s, out, sizeof out, "status --token-file %s", bad);
+    CHECK(st == 1 && strstr(out, "authentication failed"), "client with a wrong token (%d): %s", st, out);
+    pid_t w = worker_start_token(&s, "member", "0", good);
+    snprintf(img, sizeof img, "%s", util_temp_path("svc-auth.pfm"));
+    char cmd[4096];
+    snprintf(cmd, sizeof cmd, "TESSERA_TOKEN_FILE=%s TESSERA_COORDINATOR=%s %s submit " SCENE " --wait -o %s", good,
+             s.addr, harness_tessera(), img);
+    st = util_run(cmd, out, sizeof out);
+    CHECK(st == 0 && util_same_file(img, reference()), "authenticated submit failed (%d): %s", st, out);
+    /* A worker holding the token checks the coordinator too: an impostor
+     * without it is not trusted. */
+    service fake = {0};
+    service_start(&fake, "svc-impostor"); /* no token */
+    pid_t careful = worker_start_token(&fake, "careful", "0", good);
+    char clog[256];
+    snprintf(clog, sizeof clog, "%s", util_temp_path("careful.log"));
+    CHECK(util_wait_for_text(clog, "could not prove it knows the token", LONG) == 0,
+          "the worker trusted a coordinator without the token; log %s", clog);
+    worker_stop(careful);
+    worker_stop(w);
+    service_stop(&fake);
+    service_stop(&s);
 }

@@ -28,6 +28,8 @@ static void usage(FILE *f) {
             "      --retry-max S        longest wait between connection attempts (default 5)\n"
             "      --once               exit when the connection ends (local farms)\n"
             "      --throttle-ms MS     sleep after each tile: simulates a slow machine (tests)\n"
+            "      --token-file F       prove this shared secret to the coordinator (default:\n"
+            "                           $TESSERA_TOKEN_FILE; none: no authentication)\n"
             "  -v, --verbose            log jobs and totals\n"
             "  -q, --quiet              log errors only\n"
             "      --version            print the version and build id\n"
@@ -48,7 +50,7 @@ static long parse_long(const char *opt, const char *s, long lo, long hi) {
     return v;
 }
 
-enum { OPT_PREFETCH = 256, OPT_ONCE, OPT_THROTTLE, OPT_RETRY, OPT_VERSION };
+enum { OPT_PREFETCH = 256, OPT_ONCE, OPT_THROTTLE, OPT_RETRY, OPT_VERSION, OPT_TOKEN };
 
 int main(int argc, char **argv) {
     static const struct option opts[] = {
@@ -56,10 +58,10 @@ int main(int argc, char **argv) {
         {"name", required_argument, 0, 'n'}, {"prefetch", required_argument, 0, OPT_PREFETCH},
         {"retry-max", required_argument, 0, OPT_RETRY}, {"once", no_argument, 0, OPT_ONCE},
         {"throttle-ms", required_argument, 0, OPT_THROTTLE}, {"verbose", no_argument, 0, 'v'},
-        {"quiet", no_argument, 0, 'q'}, {"version", no_argument, 0, OPT_VERSION}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
+        {"quiet", no_argument, 0, 'q'}, {"token-file", required_argument, 0, OPT_TOKEN}, {"version", no_argument, 0, OPT_VERSION}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
     signal(SIGPIPE, SIG_IGN); /* a vanished coordinator is an error to handle, not a reason to die */
     worker_config cfg = {.threads = (int)sysconf(_SC_NPROCESSORS_ONLN), .prefetch = 1, .retry_max_s = 5};
-    const char *connect = NULL;
+    const char *connect = NULL, *token = getenv("TESSERA_TOKEN_FILE");
     char host[256], name[128], err[256] = "";
     int c;
     while ((c = getopt_long(argc, argv, "c:t:n:vqh", opts, NULL)) != -1) {
@@ -73,6 +75,7 @@ int main(int argc, char **argv) {
         case OPT_THROTTLE: cfg.throttle_ms = (int)parse_long("--throttle-ms", optarg, 0, 600000); break;
         case 'v': cfg.verbose = 1; break;
         case 'q': cfg.quiet = 1; break;
+        case OPT_TOKEN: token = optarg; break;
         case OPT_VERSION: printf("tessera-worker %s (protocol %d)\n", protocol_build_id(), PROTOCOL_VERSION); return 0;
         case 'h': usage(stdout); return 0;
         default: usage(stderr); return 2;
@@ -88,6 +91,10 @@ int main(int argc, char **argv) {
         return 2;
     }
     cfg.host = host;
+    if (token && *token && auth_key_load(token, &cfg.auth, err, sizeof err)) {
+        fprintf(stderr, "tessera-worker: %s\n", err);
+        return 2;
+    }
     if (!cfg.name) {
         char hn[64] = "worker";
         gethostname(hn, sizeof hn - 1);

@@ -46,6 +46,7 @@ typedef struct {
     double next_attempt;  /* loop time (s) of the next connection attempt */
     double last_heard, last_sent, last_tick;
     double heartbeat_s, timeout_s;
+    char nonce[AUTH_HEX]; /* ours, for the coordinator to prove itself */
     cached_bundle bundles[WORKER_MAX_BUNDLES];
     int stopping, exit_code;
     unsigned long tiles_sent;
@@ -138,6 +139,8 @@ static void on_wake(uv_async_t *a) {
     if (w->welcomed && !w->stopping) send_ready(w, freed);
 }
 
+static void send_hello(worker *w, const char *challenge);
+
 /* ---- messages from the coordinator ----------------------------------------- */
 
 /* Close the connection over a protocol error; returns 1 for on_frame. */
@@ -148,6 +151,10 @@ static int protocol_error(worker *w, conn *c, const char *reason) {
 }
 
 static int on_welcome(worker *w, conn *c, const cJSON *m) {
+    const cJSON *proof = cJSON_GetObjectItemCaseSensitive(m, "proof");
+    if (w->cfg.auth.enabled &&
+        !auth_check(&w->cfg.auth, w->nonce, "coordinator", cJSON_IsString(proof) ? proof->valuestring : NULL))
+        return protocol_error(w, c, "the coordinator could not prove it knows the token");
     const cJSON *hb = cJSON_GetObjectItemCaseSensitive(m, "heartbeat_ms");
     const cJSON *to = cJSON_GetObjectItemCaseSensitive(m, "timeout_ms");
     if (!cJSON_IsNumber(hb) || !cJSON_IsNumber(to) || !(hb->valuedouble >= 10) || !(to->valuedouble > hb->valuedouble))
@@ -213,7 +220,11 @@ static int on_json(worker *w, conn *c, const uint8_t *body, size_t len) {
     if (!m) return protocol_error(w, c, err);
     int rc = 0;
     uint32_t job, tile;
-    if (strcmp(type, "welcome") == 0) {
+    if (strcmp(type, "challenge") == 0 && !w->welcomed) {
+        const cJSON *n = cJSON_GetObjectItemCaseSensitive(m, "nonce");
+        if (cJSON_IsString(n) && strlen(n->valuestring) < 200) send_hello(w, n->valuestring);
+        else rc = protocol_error(w, c, "challenge without a nonce");
+    } else if (strcmp(type, "welcome") == 0) {
         rc = on_welcome(w, c, m);
     } else if (strcmp(type, "refused") == 0) {
         const cJSON *r = cJSON_GetObjectItemCaseSensitive(m, "reason");
@@ -305,13 +316,23 @@ static void on_conn_close(conn *c, const char *reason) {
 
 static const conn_callbacks worker_conn_cb = {on_frame, on_conn_close};
 
-static void send_hello(worker *w) {
+/* Answer the coordinator's challenge: hello, with a proof of the token
+ * and a nonce of ours when a token is configured. */
+static void send_hello(worker *w, const char *challenge) {
     cJSON *m = cJSON_CreateObject();
     cJSON_AddStringToObject(m, "type", "hello");
     cJSON_AddNumberToObject(m, "protocol", PROTOCOL_VERSION);
     cJSON_AddStringToObject(m, "build", protocol_build_id());
     cJSON_AddStringToObject(m, "name", w->cfg.name);
     cJSON_AddNumberToObject(m, "threads", w->cfg.threads);
+    if (w->cfg.auth.enabled) {
+        char who[128], proof[AUTH_HEX];
+        snprintf(who, sizeof who, "worker:%s", w->cfg.name);
+        auth_proof(&w->cfg.auth, challenge, who, proof);
+        auth_nonce(w->nonce);
+        cJSON_AddStringToObject(m, "proof", proof);
+        cJSON_AddStringToObject(m, "nonce", w->nonce);
+    }
     size_t len;
     uint8_t *f = wire_frame_json(m, &len);
     cJSON_Delete(m);
@@ -328,8 +349,7 @@ static void on_connected(uv_connect_t *req, int status) {
     }
     uv_tcp_nodelay(conn_tcp(w->c), 1); /* small control messages must not wait for Nagle */
     w->connected = 1;
-    w->last_heard = now_s(w);
-    send_hello(w);
+    w->last_heard = now_s(w); /* the coordinator speaks first: a challenge */
 }
 
 static void on_resolved(uv_getaddrinfo_t *req, int status, struct addrinfo *res) {

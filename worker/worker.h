@@ -4,6 +4,8 @@
 #ifndef TESSERA_WORKER_H
 #define TESSERA_WORKER_H
 
+#include "../common/auth.h"
+
 typedef struct {
     const char *host; /* coordinator name or address */
     int port;
@@ -15,6 +17,7 @@ typedef struct {
     double retry_max_s; /* longest wait between connection attempts */
     int verbose;
     int quiet;          /* errors only (local farms) */
+    auth_key auth;      /* enabled: prove the token, and make the coordinator prove it */
 } worker_config;
 
 /* Run until SIGTERM/SIGINT, a refused handshake, or (with once) the end of
