@@ -416,7 +416,7 @@ static void load_jobs(service *s) {
         names[n++] = strdup(e->d_name);
     }
     closedir(d);
-    qsort(names, n, sizeof *names, cmp_job_files);
+    if (n) qsort(names, n, sizeof *names, cmp_job_files);
     for (size_t i = 0; i < n; i++) {
         if (names[i]) load_job(s, names[i]);
         free(names[i]);

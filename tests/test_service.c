@@ -75,7 +75,8 @@ static void service_stop(service *s) {
     kill(s->pid, SIGTERM);
     int st = util_wait(s->pid, LONG, NULL);
     CHECK(st == 0, "coordinator exited with %d on SIGTERM; log %s", st, s->log);
-    CHECK(!util_file_count(s->log, "Sanitizer"), "sanitizer report in %s", s->log);
+    CHECK(!util_file_count(s->log, "Sanitizer") && !util_file_count(s->log, "runtime error"),
+          "sanitizer report in %s", s->log);
 }
 
 static void worker_stop(pid_t pid) {
