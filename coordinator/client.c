@@ -33,6 +33,7 @@
 typedef struct {
     int fd;
     char where[300];
+    double max_upload; /* from welcome: the largest scene bundle accepted */
 } cli;
 
 typedef struct {
@@ -186,6 +187,7 @@ static int cli_open(cli *c, const cli_args *args) {
     if (send_json(c, h)) return 1;
     cJSON *w = read_answer(c, "welcome");
     int ok = w && (!key.enabled || auth_check(&key, nonce, "coordinator", str(w, "proof")));
+    c->max_upload = num(w, "max_upload");
     if (w && !ok) cli_fail("the coordinator at %s could not prove it knows the token", c->where);
     cJSON_Delete(w);
     return ok ? 0 : 1;
@@ -302,6 +304,12 @@ static int do_submit(const cli_args *a, const char *scene_path) {
     if (cli_open(&c, a)) {
         free(bytes);
         return 1;
+    }
+    if (c.max_upload > 0 && (double)len > c.max_upload) {
+        free(bytes);
+        cli_close(&c);
+        return cli_fail("%s: the scene and its meshes are %.1f MiB; the coordinator accepts at most %.1f MiB "
+                        "(its --max-upload)", scene_path, (double)len / 1048576.0, c.max_upload / 1048576.0);
     }
     size_t flen;
     uint8_t *frame = wire_frame_new(WIRE_KIND_SCENE, len, &flen);
@@ -439,11 +447,11 @@ static void usage(FILE *f) {
     fprintf(f,
             "usage: tessera submit SCENE.json [--spp N] [--width W --height H] [--max-depth N] [--seed N]\n"
             "                      [--tile-size N] [--priority P] [--wait] [-o OUT] [--tonemap NAME]\n"
-            "                      [--exposure S]\n"
+            "                      [--exposure S] [--quality Q] [--png16]\n"
             "       tessera status [JOB]\n"
             "       tessera workers\n"
             "       tessera cancel JOB\n"
-            "       tessera fetch JOB -o OUT [--tonemap NAME] [--exposure S]\n"
+            "       tessera fetch JOB -o OUT [--tonemap NAME] [--exposure S] [--quality Q] [--png16]\n"
             "\n"
             "Talk to a running tessera-coordinator. Every command takes --coordinator HOST:PORT\n"
             "(default: $TESSERA_COORDINATOR, else " DEFAULT_COORDINATOR "), --token-file F (default:\n"
@@ -464,7 +472,7 @@ static long parse_num(const char *what, const char *s, long lo, long hi) {
 }
 
 enum { C_COORD = 300, C_JSON, C_WAIT, C_SPP, C_WIDTH, C_HEIGHT, C_DEPTH, C_SEED, C_PRIORITY, C_TONEMAP, C_EXPOSURE,
-       C_TILE, C_TOKEN };
+       C_TILE, C_TOKEN, C_QUALITY, C_PNG16 };
 
 int client_main(int argc, char **argv) {
     static const struct option opts[] = {
@@ -474,7 +482,8 @@ int client_main(int argc, char **argv) {
         {"max-depth", required_argument, 0, C_DEPTH}, {"seed", required_argument, 0, C_SEED},
         {"priority", required_argument, 0, C_PRIORITY}, {"tonemap", required_argument, 0, C_TONEMAP},
         {"exposure", required_argument, 0, C_EXPOSURE}, {"output", required_argument, 0, 'o'},
-        {"tile-size", required_argument, 0, C_TILE}, {"token-file", required_argument, 0, C_TOKEN}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
+        {"tile-size", required_argument, 0, C_TILE}, {"token-file", required_argument, 0, C_TOKEN},
+        {"quality", required_argument, 0, C_QUALITY}, {"png16", no_argument, 0, C_PNG16}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
     const char *cmd = argv[0];
     cli_args a = {.ov = {-1, -1, -1, -1, 0, 0}, .wo = {.tonemap = {.kind = TONEMAP_REINHARD}}};
     int c;
@@ -501,6 +510,8 @@ int client_main(int argc, char **argv) {
             break;
         case C_EXPOSURE: a.wo.tonemap.exposure_stops = (float)parse_num("--exposure", optarg, -64, 64); break;
         case C_TOKEN: a.token_file = optarg; break;
+        case C_QUALITY: a.wo.jpeg_quality = (int)parse_num("--quality", optarg, 1, 100); break;
+        case C_PNG16: a.wo.png16 = 1; break;
         case C_TILE: a.tile_size = (int)parse_num("--tile-size", optarg, 1, 4096); break;
         case 'o': a.out = optarg; break;
         case 'h': usage(stdout); return 0;

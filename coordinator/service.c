@@ -19,6 +19,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <inttypes.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -195,13 +196,22 @@ static int on_tile_done(void *ctx, uint32_t tile, const tile_rect *r, char *err,
                12 * w);
     for (size_t i = 0; px && i < n; i++) wire_put_f32(rec + 12 + 4 * i, px[i]);
     if (px) wire_put_u32(rec + 12 + 4 * n, record_check(tile, px, n));
-    ssize_t wr = px ? write(j->tiles_fd, rec, len) : -1;
-    int rc = (wr == (ssize_t)len && fdatasync(j->tiles_fd) == 0) ? 0 : -1;
+    size_t written = 0;
+    int e = px ? 0 : ENOMEM;
+    while (!e && written < len) { /* a short write (disk full, file limit) is followed by the error */
+        ssize_t wr = write(j->tiles_fd, rec + written, len - written);
+        if (wr > 0) written += (size_t)wr;
+        else e = wr < 0 ? errno : EIO;
+    }
+    if (!e && fdatasync(j->tiles_fd) != 0) e = errno;
+    int rc = e ? -1 : 0;
     if (rc) {
         char path[4096];
         job_path(j->svc, j->desc.id, "tiles", path, sizeof path);
-        snprintf(err, err_len, "%.400s: cannot journal tile %u: %s", path, tile, px ? strerror(errno) : "out of memory");
-        if (wr > 0 && ftruncate(j->tiles_fd, lseek(j->tiles_fd, 0, SEEK_CUR) - wr) != 0) { /* drop a torn record */
+        snprintf(err, err_len, "%.400s: cannot journal tile %u: %s", path, tile, strerror(e));
+        off_t end = lseek(j->tiles_fd, 0, SEEK_CUR);
+        if (written > 0 && end >= (off_t)written && ftruncate(j->tiles_fd, end - (off_t)written) != 0) {
+            /* a torn record left behind is cut off at the next start */
         }
     }
     free(px);
@@ -753,6 +763,7 @@ int service_run(const service_options *o) {
         free(s);
         return 1;
     }
+    signal(SIGXFSZ, SIG_IGN); /* a file-size limit is a write error to report, not a reason to die */
     uv_loop_init(&s->loop);
     s->o.farm.on_client = on_client;
     s->o.farm.client_ctx = s;

@@ -4,7 +4,9 @@
  * for byte with a single-process render. */
 #include <arpa/inet.h>
 #include <netinet/in.h>
+#include <fcntl.h>
 #include <signal.h>
+#include <sys/resource.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -287,5 +289,56 @@ TEST(service_token_required_of_workers_and_clients) {
     worker_stop(careful);
     worker_stop(w);
     service_stop(&fake);
+    service_stop(&s);
+}
+
+TEST(service_limits_and_a_full_disk_are_reported) {
+    service s = {0};
+    s.port = util_free_port();
+    snprintf(s.dir, sizeof s.dir, "%s", util_temp_path("svc-full"));
+    snprintf(s.log, sizeof s.log, "%s", util_temp_path("svc-full.log"));
+    snprintf(s.addr, sizeof s.addr, "127.0.0.1:%d", s.port);
+    /* A coordinator whose files may not grow past 20 KB: the tile journal
+     * fills up part way through a job, as on a full disk. */
+    char coord[4096];
+    snprintf(coord, sizeof coord, "%s", util_bin("tessera-coordinator"));
+    fflush(NULL);
+    s.pid = fork();
+    if (s.pid == 0) {
+        struct rlimit rl = {20000, 20000};
+        setrlimit(RLIMIT_FSIZE, &rl);
+        int fd = open(s.log, O_WRONLY | O_CREAT | O_APPEND, 0644);
+        dup2(fd, 1);
+        dup2(fd, 2);
+        execl(coord, coord, "--listen", s.addr, "--data-dir", s.dir, "--max-upload", "1", "--max-jobs", "1",
+              (char *)NULL);
+        _exit(127);
+    }
+    CHECK(util_wait_for_text(s.log, "listening on", LONG) == 0, "no coordinator; log %s", s.log);
+    char out[8192];
+    /* A scene whose mesh is over the 1 MiB upload limit. */
+    static char obj[1600000];
+    size_t n = 0;
+    while (n < sizeof obj - 64) n += (size_t)snprintf(obj + n, sizeof obj - n, "v %zu 0 0\n", n);
+    util_write_temp("huge.obj", obj);
+    const char *big = util_write_temp(
+        "huge.json", "{\"camera\": {\"type\": \"perspective\", \"position\": [0, 0, -3], \"look_at\": [0, 0, 0], \"fov\": 40},"
+                     " \"materials\": {\"w\": {\"type\": \"diffuse\", \"albedo\": [0.5, 0.5, 0.5]}},"
+                     " \"shapes\": [{\"type\": \"mesh\", \"file\": \"huge.obj\", \"material\": \"w\"}]}");
+    int st = cli(&s, out, sizeof out, "submit %s", big);
+    CHECK(st == 1 && strstr(out, "huge.json: the scene and its meshes are 1.5 MiB; the coordinator accepts at most 1.0 MiB"),
+          "upload limit (%d): %s", st, out);
+    st = cli(&s, out, sizeof out, "submit " SCENE " --tile-size 8");
+    CHECK(st == 0 && job_id(out) == 1, "submit (%d): %s", st, out);
+    st = cli(&s, out, sizeof out, "submit " SCENE);
+    CHECK(st == 1 && strstr(out, "the queue is full (1 jobs)"), "job limit (%d): %s", st, out);
+    pid_t w = worker_start(&s, "w", "0");
+    CHECK(util_wait_for_text(s.log, "job 1 failed", LONG) == 0, "the full journal went unnoticed; log %s", s.log);
+    st = cli(&s, out, sizeof out, "status 1");
+    CHECK(st == 0 && strstr(out, "failed") && strstr(out, "1.tiles: cannot journal tile") && strstr(out, "File too large"),
+          "status after a full disk (%d): %s", st, out);
+    st = cli(&s, out, sizeof out, "fetch 1 -o %s", util_temp_path("never.png"));
+    CHECK(st == 1 && strstr(out, "job 1 is failed"), "fetch of a failed job (%d): %s", st, out);
+    worker_stop(w);
     service_stop(&s);
 }
