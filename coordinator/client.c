@@ -7,6 +7,8 @@
 #define _GNU_SOURCE
 #include "client.h"
 
+#include "cli_util.h"
+
 #include <errno.h>
 #include <getopt.h>
 #include <netdb.h>
@@ -248,17 +250,6 @@ static int fetch_to(cli *c, long job, const char *out, image_write_options *wo) 
     return 0;
 }
 
-static void show_progress(const cJSON *j, int workers) {
-    int done = (int)num(j, "tiles_done"), total = (int)num(j, "tiles_total"), width = 30;
-    int filled = total ? done * width / total : 0;
-    char bar[64];
-    for (int i = 0; i < width; i++) bar[i] = i < filled ? '#' : '.';
-    bar[width] = '\0';
-    fprintf(stderr, "\r[%s] %d/%d tiles  %.2f Msamples/s  %d workers  ETA %.0fs   ", bar, done, total,
-            num(j, "samples_per_s") / 1e6, workers, num(j, "eta_s"));
-    fflush(stderr);
-}
-
 /* Poll until the job ends; returns its final status object (caller frees)
  * or NULL (printed). */
 static cJSON *wait_job(cli *c, long job) {
@@ -271,7 +262,9 @@ static cJSON *wait_job(cli *c, long job) {
             cJSON_Delete(st);
             return cli_fail("job %ld vanished from the coordinator", job), NULL;
         }
-        if (tty) show_progress(j, (int)num(st, "workers"));
+        if (tty)
+            cli_progress((int)num(j, "tiles_done"), (int)num(j, "tiles_total"), num(j, "samples_per_s"),
+                         (int)num(st, "workers"), num(j, "eta_s"), 0);
         if (strcmp(str(j, "state"), "running") != 0) {
             if (tty) fputc('\n', stderr);
             cJSON *copy = cJSON_Duplicate(j, 1);
@@ -282,13 +275,6 @@ static cJSON *wait_job(cli *c, long job) {
         struct timespec ts = {0, 250000000};
         nanosleep(&ts, NULL);
     }
-}
-
-static void default_output(const char *scene, char *out, size_t n) {
-    const char *base = strrchr(scene, '/');
-    base = base ? base + 1 : scene;
-    const char *dot = strrchr(base, '.');
-    snprintf(out, n, "%.*s.png", dot ? (int)(dot - base) : (int)strlen(base), base);
 }
 
 static int do_submit(const cli_args *a, const char *scene_path) {
@@ -356,7 +342,7 @@ static int do_submit(const cli_args *a, const char *scene_path) {
         rc = cli_fail("job %ld %s%s%s", job, str(fin, "state"), str(fin, "error")[0] ? ": " : "", str(fin, "error"));
     const char *out = a->out;
     if (!out) {
-        default_output(scene_path, out_default, sizeof out_default);
+        cli_default_output(scene_path, out_default, sizeof out_default);
         out = out_default;
     }
     image_write_options wo = a->wo;

@@ -8,6 +8,8 @@
 #define _GNU_SOURCE
 #include "local_farm.h"
 
+#include "cli_util.h"
+
 #include <limits.h>
 #include <signal.h>
 #include <stdio.h>
@@ -145,14 +147,7 @@ static void show_progress(local_run *r, const farm_report *rep, int final) {
     double el = mono_now(r);
     double rate = el > 0 ? (double)rep->stats.samples / el : 0;
     double eta = rate > 0 ? (double)(r->total_samples - rep->stats.samples) / rate : 0;
-    int width = 30, filled = rep->tiles_total ? rep->tiles_done * width / rep->tiles_total : width;
-    char bar[64];
-    for (int i = 0; i < width; i++) bar[i] = i < filled ? '#' : '.';
-    bar[width] = '\0';
-    fprintf(stderr, "\r[%s] %d/%d tiles  %.2f Msamples/s  %d workers  ETA %.0fs   ", bar, rep->tiles_done,
-            rep->tiles_total, rate / 1e6, rep->workers, eta);
-    if (final) fputc('\n', stderr);
-    fflush(stderr);
+    cli_progress(rep->tiles_done, rep->tiles_total, rate, rep->workers, eta, final);
 }
 
 /* Kill what remains after the grace period. */

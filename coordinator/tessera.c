@@ -22,6 +22,7 @@
 #include "../common/render.h"
 #include "../common/scene.h"
 #include "../common/version.h"
+#include "cli_util.h"
 #include "client.h"
 #include "local_farm.h"
 #include "service.h"
@@ -236,27 +237,13 @@ typedef struct {
     uint64_t total_samples;
 } progress_state;
 
-/* A one-line bar on stderr: tiles, samples/s, ETA. */
+/* The threaded renderer's progress: tiles, samples/s, ETA. */
 static void show_progress(void *ctx, int done, int total, const trace_stats *so_far) {
     progress_state *p = ctx;
     double el = now_seconds() - p->start;
     double rate = el > 0 ? (double)so_far->samples / el : 0;
     double eta = rate > 0 ? (double)(p->total_samples - so_far->samples) / rate : 0;
-    int width = 30, filled = total ? done * width / total : width;
-    char bar[64];
-    for (int i = 0; i < width; i++) bar[i] = i < filled ? '#' : '.';
-    bar[width] = '\0';
-    fprintf(stderr, "\r[%s] %d/%d tiles  %.2f Msamples/s  ETA %.0fs   ", bar, done, total, rate / 1e6, eta);
-    if (done == total) fputc('\n', stderr);
-    fflush(stderr);
-}
-
-static void default_output(const char *scene_path, char *out, size_t n) {
-    const char *base = strrchr(scene_path, '/');
-    base = base ? base + 1 : scene_path;
-    const char *dot = strrchr(base, '.');
-    int len = dot ? (int)(dot - base) : (int)strlen(base);
-    snprintf(out, n, "%.*s.png", len, base);
+    cli_progress(done, total, rate, -1, eta, done == total);
 }
 
 static void print_scene_info(const scene *s) {
@@ -344,7 +331,7 @@ static int cmd_render(int argc, char **argv) {
     char err[1024], out_default[512];
     parse_render_args(argc, argv, &a);
     if (!a.out_path) {
-        default_output(a.scene_path, out_default, sizeof out_default);
+        cli_default_output(a.scene_path, out_default, sizeof out_default);
         a.out_path = out_default;
     }
     scene_bundle b;
