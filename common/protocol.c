@@ -133,6 +133,15 @@ uint8_t *proto_frame_simple(const char *type, size_t *frame_len) {
     return f;
 }
 
+uint8_t *proto_frame_reason(const char *type, const char *reason, size_t *frame_len) {
+    cJSON *m = cJSON_CreateObject();
+    uint8_t *f = m && cJSON_AddStringToObject(m, "type", type) && cJSON_AddStringToObject(m, "reason", reason)
+                     ? wire_frame_json(m, frame_len)
+                     : NULL;
+    cJSON_Delete(m);
+    return f;
+}
+
 uint8_t *proto_tile_frame(const proto_tile *t, const float *rgb, size_t *frame_len) {
     size_t n = (size_t)t->width * t->height * 3;
     uint8_t *f = wire_frame_new(WIRE_KIND_TILE, PROTO_TILE_HEADER_BYTES + 4 * n, frame_len);

@@ -66,6 +66,10 @@ cJSON *proto_parse_json(const uint8_t *body, size_t len, const char **type, char
  * NULL when out of memory. */
 uint8_t *proto_frame_simple(const char *type, size_t *frame_len);
 
+/* A {"type": TYPE, "reason": REASON} message ("error", "refused") as a
+ * frame (caller frees), or NULL when out of memory. */
+uint8_t *proto_frame_reason(const char *type, const char *reason, size_t *frame_len);
+
 /* Encode a tile result as a complete 'T' frame (the caller frees), or NULL
  * when out of memory. rgb holds width * height * 3 floats. */
 uint8_t *proto_tile_frame(const proto_tile *t, const float *rgb, size_t *frame_len);

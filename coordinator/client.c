@@ -22,6 +22,7 @@
 #include <unistd.h>
 
 #include "../common/address.h"
+#include "../common/args.h"
 #include "../common/auth.h"
 #include "../common/image.h"
 #include "../common/protocol.h"
@@ -446,16 +447,7 @@ static void usage(FILE *f) {
             "progress and writes the image to OUT on this machine (format from the extension).\n");
 }
 
-static long parse_num(const char *what, const char *s, long lo, long hi) {
-    char *end;
-    errno = 0;
-    long v = strtol(s, &end, 10);
-    if (errno || end == s || *end || v < lo || v > hi) {
-        fprintf(stderr, "tessera: %s: expected an integer from %ld to %ld, got \"%s\"\n", what, lo, hi, s);
-        exit(2);
-    }
-    return v;
-}
+static long parse_num(const char *what, const char *s, long lo, long hi) { return args_long("tessera", what, s, lo, hi); }
 
 enum { C_COORD = 300, C_JSON, C_WAIT, C_SPP, C_WIDTH, C_HEIGHT, C_DEPTH, C_SEED, C_PRIORITY, C_TONEMAP, C_EXPOSURE,
        C_TILE, C_TOKEN, C_QUALITY, C_PNG16 };

@@ -156,6 +156,16 @@ static void peer_send_ids(peer *p, const char *type, uint32_t job, long tile) {
     peer_send_json(p, m);
 }
 
+/* Send {"type": type, "reason": reason} and close once it is written.
+ * Returns 1 (for on_frame). */
+static int peer_refuse(peer *p, const char *type, const char *reason) {
+    size_t len;
+    uint8_t *frame = proto_frame_reason(type, reason, &len);
+    peer_send(p, frame, len);
+    conn_close(p->c, reason, 1);
+    return 1;
+}
+
 /* Disconnect p over a protocol violation, telling it why. Returns 1 (for
  * on_frame). */
 static int peer_violation(peer *p, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
@@ -166,12 +176,7 @@ static int peer_violation(peer *p, const char *fmt, ...) {
     vsnprintf(reason, sizeof reason, fmt, ap);
     va_end(ap);
     farm_log(p->f, "%s: %s; disconnecting", p->label, reason);
-    cJSON *m = cJSON_CreateObject();
-    cJSON_AddStringToObject(m, "type", "error");
-    cJSON_AddStringToObject(m, "reason", reason);
-    peer_send_json(p, m);
-    conn_close(p->c, reason, 1);
-    return 1;
+    return peer_refuse(p, "error", reason);
 }
 
 /* ---- jobs and the tile queue ------------------------------------------------ */
@@ -490,13 +495,8 @@ static int on_hello(peer *p, const cJSON *m) {
             /* Says nothing else: an outsider learns no version, job or worker. */
             farm_log(f, "peer %s (calling itself %s %.60s): authentication failed (%s token); refused", p->rec.addr,
                      is_client ? "client" : "worker", name->valuestring, cJSON_IsString(proof) ? "wrong" : "no");
-            cJSON *r = cJSON_CreateObject();
-            cJSON_AddStringToObject(r, "type", "refused");
-            cJSON_AddStringToObject(r, "reason", "authentication failed");
-            peer_send_json(p, r);
             p->rec.name[0] = '\0';
-            conn_close(p->c, "authentication failed", 1);
-            return 1;
+            return peer_refuse(p, "refused", "authentication failed");
         }
     }
     if (is_client) {
@@ -514,12 +514,7 @@ static int on_hello(peer *p, const cJSON *m) {
                  "build %s",
                  proto->valuedouble, build->valuestring, PROTOCOL_VERSION, protocol_build_id());
         farm_log(f, "%s refused: %s", p->label, reason);
-        cJSON *r = cJSON_CreateObject();
-        cJSON_AddStringToObject(r, "type", "refused");
-        cJSON_AddStringToObject(r, "reason", reason);
-        peer_send_json(p, r);
-        conn_close(p->c, reason, 1);
-        return 1;
+        return peer_refuse(p, "refused", reason);
     }
     p->rec.threads = (int)threads->valuedouble;
     p->state = PEER_ACTIVE;

@@ -450,10 +450,9 @@ static void client_error(client *cl, const char *fmt, ...) {
     va_start(ap, fmt);
     vsnprintf(reason, sizeof reason, fmt, ap);
     va_end(ap);
-    cJSON *m = cJSON_CreateObject();
-    cJSON_AddStringToObject(m, "type", "error");
-    cJSON_AddStringToObject(m, "reason", reason);
-    client_send_json(cl, m);
+    size_t len;
+    uint8_t *f = proto_frame_reason("error", reason, &len);
+    if (f) conn_send(cl->c, f, len);
 }
 
 /* Read an optional integer field within [lo, hi]; -1 when absent. */

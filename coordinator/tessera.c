@@ -17,6 +17,7 @@
 #include <unistd.h>
 
 #include "../common/address.h"
+#include "../common/args.h"
 #include "../common/bvh.h"
 #include "../common/image.h"
 #include "../common/render.h"
@@ -85,26 +86,10 @@ static void usage_render(FILE *f) {
             "  -h, --help             this text\n");
 }
 
-/* Parse an integer option within [lo, hi]; exits with status 2 otherwise. */
-static long parse_int(const char *opt, const char *s, long lo, long hi) {
-    char *end;
-    errno = 0;
-    long v = strtol(s, &end, 10);
-    if (errno || end == s || *end || v < lo || v > hi) {
-        fprintf(stderr, "tessera: %s: expected an integer from %ld to %ld, got \"%s\"\n", opt, lo, hi, s);
-        exit(2);
-    }
-    return v;
-}
+static long parse_int(const char *opt, const char *s, long lo, long hi) { return args_long("tessera", opt, s, lo, hi); }
 
 static double parse_double(const char *opt, const char *s, double lo, double hi) {
-    char *end;
-    double v = strtod(s, &end);
-    if (end == s || *end || !(v >= lo && v <= hi)) {
-        fprintf(stderr, "tessera: %s: expected a number from %g to %g, got \"%s\"\n", opt, lo, hi, s);
-        exit(2);
-    }
-    return v;
+    return args_double("tessera", opt, s, lo, hi);
 }
 
 /* Parse a --tonemap operator name; exits with status 2 if unknown. */

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include "../common/address.h"
+#include "../common/args.h"
 #include "../common/protocol.h"
 #include "worker.h"
 
@@ -40,14 +41,7 @@ static void usage(FILE *f) {
 }
 
 static long parse_long(const char *opt, const char *s, long lo, long hi) {
-    char *end;
-    errno = 0;
-    long v = strtol(s, &end, 10);
-    if (errno || end == s || *end || v < lo || v > hi) {
-        fprintf(stderr, "tessera-worker: %s: expected an integer from %ld to %ld, got \"%s\"\n", opt, lo, hi, s);
-        exit(2);
-    }
-    return v;
+    return args_long("tessera-worker", opt, s, lo, hi);
 }
 
 enum { OPT_PREFETCH = 256, OPT_ONCE, OPT_THROTTLE, OPT_RETRY, OPT_VERSION, OPT_TOKEN };
