@@ -83,10 +83,10 @@ static void on_read(uv_stream_t *s, ssize_t n, const uv_buf_t *buf) {
     char reason[256];
     if (n < 0) {
         size_t pending = wire_decoder_pending(&c->dec);
-        c->malformed = n == UV_EOF && pending;
+        c->malformed = pending > 0; /* EOF or reset: either way the frame is cut short */
         if (c->malformed)
-            snprintf(reason, sizeof reason, "connection closed in the middle of a frame (%zu bytes received)",
-                     pending);
+            snprintf(reason, sizeof reason, "connection %s in the middle of a frame (%zu bytes received)",
+                     n == UV_EOF ? "closed" : uv_strerror((int)n), pending);
         else
             snprintf(reason, sizeof reason, "%s", n == UV_EOF ? "connection closed by peer" : uv_strerror((int)n));
         conn_close(c, reason, 0);

@@ -387,6 +387,8 @@ TEST(farm_bad_peers_are_dropped_and_the_render_goes_on) {
     send_hello(fd, "truncated", PROTOCOL_VERSION);
     uint8_t part[14] = {100, 0, 0, 0, 'J', '{'};
     send_all(fd, part, sizeof part);
+    shutdown(fd, SHUT_WR); /* a clean end of stream inside the frame */
+    CHECK(closed_by_peer(fd), "truncated frame not noticed");
     close(fd);
     /* A tile for a job it was never given. */
     fd = dial(port);

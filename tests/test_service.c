@@ -226,6 +226,10 @@ TEST(service_survives_bad_clients_and_reports_errors) {
     uint8_t up[5] = {0, 0, 16, 0, 'S'}; /* a 1 MiB scene upload... */
     send(fd, up, 5, MSG_NOSIGNAL);
     send(fd, "partial", 7, MSG_NOSIGNAL); /* ...cut short */
+    shutdown(fd, SHUT_WR);
+    char drain[4096];
+    while (recv(fd, drain, sizeof drain, 0) > 0) {
+    }
     close(fd);
     util_sleep(0.2);
     int st = cli(&s, out, sizeof out, "status");
