@@ -5,12 +5,15 @@
 #   make test       build and run every test (ends with "N passed, N failed")
 #   make test-asan  the tests under AddressSanitizer + UndefinedBehaviorSanitizer
 #   make test-tsan  the threaded tests under ThreadSanitizer
+#   make fuzz       libFuzzer targets, FUZZ_SECONDS each (default 20)
 #   make bench      speed figures (printed, not asserted)
 #   make reference  regenerate tests/data/cornell-ref-64.pfm.gz (slow)
 
 # Debian packages the build needs; `make deps` installs what is missing.
-DEB_PACKAGES := gcc make pkg-config libcjson-dev libuv1-dev libjpeg-dev libopenexr-dev libpng-dev libsodium-dev openexr openimageio-tools
+DEB_PACKAGES := gcc make pkg-config libcjson-dev libuv1-dev libjpeg-dev libopenexr-dev libpng-dev libsodium-dev \
+                openexr openimageio-tools clang libclang-rt-14-dev
 
+SHELL := /bin/bash
 CC ?= cc
 VARIANT ?= release
 BUILD := build/$(VARIANT)
@@ -48,11 +51,11 @@ WORKER_OBJ := $(patsubst %.c,$(BUILD)/%.o,$(wildcard worker/*.c))
 GIT_ID := $(shell git rev-parse --short=12 HEAD 2>/dev/null || echo nogit)$(shell git status --porcelain --untracked-files=no 2>/dev/null | grep -q . && echo -dirty)
 TEST_BIN := $(BUILD)/bin/run-tests
 
-.PHONY: all deps run test test-asan test-tsan bench reference clean FORCE
+.PHONY: all deps run test test-asan test-tsan bench reference fuzz clean FORCE
 all: $(TESSERA) $(WORKER)
 
-$(BUILD)/build_id.h: FORCE
-	@mkdir -p $(BUILD)
+build/%/build_id.h: FORCE
+	@mkdir -p $(dir $@)
 	@echo '#define TESSERA_BUILD_ID "$(GIT_ID)"' > $@.new
 	@cmp -s $@.new $@ && rm -f $@.new || mv $@.new $@
 $(BUILD)/common/protocol.o: $(BUILD)/build_id.h
@@ -121,4 +124,35 @@ reference: $(TESSERA)
 clean:
 	rm -rf build out
 
+# libFuzzer targets (clang), under ASan + UBSan: `make fuzz FUZZ_SECONDS=N`
+# runs each for N seconds from the seeds in tests/fuzz/corpus/TARGET; new
+# inputs and any crash go to build/fuzz/ (a crash fails the target).
+FUZZ_TARGETS := scene obj frames image
+FUZZ_SECONDS ?= 20
+FUZZ_BUILD := build/fuzz
+FUZZ_CFLAGS := $(CFLAGS_COMMON) -O1 -fno-omit-frame-pointer -fsanitize=fuzzer-no-link,address,undefined \
+               -fno-sanitize-recover=all -I$(FUZZ_BUILD)
+FUZZ_COMMON_OBJ := $(COMMON_SRC:%.c=$(FUZZ_BUILD)/%.o)
+FUZZ_BINS := $(addprefix $(FUZZ_BUILD)/fuzz_,$(FUZZ_TARGETS))
+
+.PRECIOUS: $(FUZZ_BUILD)/%.o
+$(FUZZ_BUILD)/common/protocol.o: $(FUZZ_BUILD)/build_id.h
+$(FUZZ_BUILD)/%.o: %.c | $(DEPS_STAMP)
+	@mkdir -p $(dir $@)
+	clang $(FUZZ_CFLAGS) -c $< -o $@
+
+$(FUZZ_BUILD)/fuzz_%: tests/fuzz/fuzz_%.c $(FUZZ_COMMON_OBJ)
+	clang $(FUZZ_CFLAGS) -fsanitize=fuzzer -o $@ $^ $(LDLIBS)
+
+fuzz: $(FUZZ_BINS)
+	@for t in $(FUZZ_TARGETS); do \
+	  mkdir -p $(FUZZ_BUILD)/corpus-$$t; \
+	  echo "fuzz_$$t: $(FUZZ_SECONDS) s"; \
+	  $(FUZZ_BUILD)/fuzz_$$t -max_total_time=$(FUZZ_SECONDS) -max_len=65536 -timeout=10 -rss_limit_mb=2048 \
+	    -print_final_stats=1 -artifact_prefix=$(FUZZ_BUILD)/crash-$$t- \
+	    $(FUZZ_BUILD)/corpus-$$t tests/fuzz/corpus/$$t 2>&1 | grep -E "^Done [0-9]+ runs|^stat::peak_rss_mb|ERROR|SUMMARY|Test unit written" ; \
+	  [ "$${PIPESTATUS[0]}" -eq 0 ] || { echo "fuzz_$$t found a failure: see $(FUZZ_BUILD)/crash-$$t-*"; exit 1; }; \
+	done; echo "fuzz: $(words $(FUZZ_TARGETS)) targets, no failures"
+
+-include $(FUZZ_COMMON_OBJ:.o=.d)
 -include $(COMMON_OBJ:.o=.d) $(TEST_OBJ:.o=.d) $(COORD_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(BUILD)/bench/loadgen.d
