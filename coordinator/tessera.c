@@ -20,6 +20,7 @@
 #include "../common/args.h"
 #include "../common/bvh.h"
 #include "../common/image.h"
+#include "../common/image_compare.h"
 #include "../common/render.h"
 #include "../common/scene.h"
 #include "../common/version.h"
@@ -399,6 +400,30 @@ static int cmd_tonemap(int argc, char **argv) {
     return 0;
 }
 
+/* `tessera compare IMAGE REFERENCE`: error measures for benchmarks. */
+static int cmd_compare(int argc, char **argv) {
+    if (argc != 3) {
+        fprintf(stderr, "usage: tessera compare IMAGE REFERENCE   (.pfm, .exr or .ppm)\n"
+                        "prints rmse, relmse = mean (x-ref)^2/(ref^2+0.01), max |x-ref|\n");
+        return 2;
+    }
+    image a = {0}, r = {0};
+    image_error e;
+    char err[1024];
+    int rc = image_read(argv[1], &a, err, sizeof err) || image_read(argv[2], &r, err, sizeof err);
+    if (rc) fprintf(stderr, "tessera: %s\n", err);
+    if (!rc && image_compare(&a, &r, &e)) {
+        fprintf(stderr, "tessera: %s is %dx%d but %s is %dx%d\n", argv[1], a.width, a.height, argv[2], r.width,
+                r.height);
+        rc = 1;
+    }
+    if (!rc)
+        printf("rmse %.6g relmse %.6g max %.6g nonfinite %ld\n", e.rmse, e.relmse, e.max_abs, e.nonfinite);
+    if (a.rgb) image_free(&a);
+    if (r.rgb) image_free(&r);
+    return rc ? 1 : 0;
+}
+
 static void usage_coordinator(FILE *f) {
     fprintf(f,
             "usage: tessera-coordinator --data-dir DIR [--listen HOST:PORT] [options]\n"
@@ -484,6 +509,7 @@ static void usage(FILE *f) {
             "commands:\n"
             "  render SCENE.json -o OUT   render a scene to an image (see tessera render --help)\n"
             "  tonemap IN.exr -o OUT      tone map a saved HDR image again (see tessera tonemap --help)\n"
+            "  compare IMAGE REFERENCE    rmse and relative MSE of an HDR image against another\n"
             "  coordinator --data-dir D   run the render service (also installed as tessera-coordinator)\n"
             "  submit SCENE.json [--wait] send a job to the service; status, workers, cancel JOB,\n"
             "                             fetch JOB -o OUT talk to it too (see tessera submit --help)\n"
@@ -501,6 +527,7 @@ int main(int argc, char **argv) {
     if (strcmp(argv[1], "render") == 0) return cmd_render(argc - 1, argv + 1);
     if (strcmp(argv[1], "tonemap") == 0) return cmd_tonemap(argc - 1, argv + 1);
     if (strcmp(argv[1], "coordinator") == 0) return cmd_coordinator(argc - 1, argv + 1);
+    if (strcmp(argv[1], "compare") == 0) return cmd_compare(argc - 1, argv + 1);
     static const char *const client_cmds[] = {"submit", "status", "workers", "cancel", "fetch"};
     for (int i = 0; i < 5; i++)
         if (strcmp(argv[1], client_cmds[i]) == 0) return client_main(argc - 1, argv + 1);

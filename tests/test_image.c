@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include "../common/image.h"
+#include "../common/image_compare.h"
 #include "harness.h"
 #include "util.h"
 
@@ -323,4 +324,30 @@ TEST(image_png16) {
         CHECK(0, "%s", err);
     }
     image_free(&a);
+}
+
+/* The benchmark's error measures on images with known answers. */
+TEST(image_compare_measures) {
+    image a, r;
+    image_error e;
+    image_alloc(&a, 2, 1);
+    image_alloc(&r, 2, 1);
+    for (int i = 0; i < 6; i++) r.rgb[i] = 1.0f;
+    CHECK(image_compare(&a, &a, &e) == 0 && e.rmse == 0 && e.relmse == 0 && e.max_abs == 0, "self-compare not 0");
+    for (int i = 0; i < 6; i++) a.rgb[i] = 1.5f; /* off by 0.5 everywhere */
+    CHECK(image_compare(&a, &r, &e) == 0 && fabs(e.rmse - 0.5) < 1e-12 && fabs(e.relmse - 0.25 / 1.01) < 1e-12 &&
+              fabs(e.max_abs - 0.5) < 1e-12,
+          "rmse %g relmse %g max %g", e.rmse, e.relmse, e.max_abs);
+    a.rgb[0] = NAN;
+    CHECK(image_compare(&a, &r, &e) == 0 && e.nonfinite == 1 && fabs(e.rmse - 0.5) < 1e-12, "NaN not set apart");
+    image b;
+    image_alloc(&b, 1, 2);
+    CHECK(image_compare(&b, &r, &e) == -1, "sizes differ but compared");
+    image_free(&a);
+    image_free(&r);
+    image_free(&b);
+    char cmd[1024], out[4096];
+    snprintf(cmd, sizeof cmd, "%s render tests/scenes/cornell-small.json --workers 0 --spp 4 -o /tmp/tessera-cmp.pfm "
+             ">/dev/null && %s compare /tmp/tessera-cmp.pfm /tmp/tessera-cmp.pfm", harness_tessera(), harness_tessera());
+    CHECK(util_run(cmd, out, sizeof out) == 0 && strstr(out, "rmse 0 relmse 0 max 0 nonfinite 0"), "cli: %s", out);
 }
