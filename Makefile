@@ -6,6 +6,7 @@
 #   make test-asan  the tests under AddressSanitizer + UndefinedBehaviorSanitizer
 #   make test-tsan  the threaded tests under ThreadSanitizer
 #   make fuzz       libFuzzer targets, FUZZ_SECONDS each (default 20)
+#   make stress     the numerical stress tests alone
 #   make bench      speed figures (printed, not asserted)
 #   make reference  regenerate tests/data/cornell-ref-64.pfm.gz (slow)
 
@@ -51,7 +52,7 @@ WORKER_OBJ := $(patsubst %.c,$(BUILD)/%.o,$(wildcard worker/*.c))
 GIT_ID := $(shell git rev-parse --short=12 HEAD 2>/dev/null || echo nogit)$(shell git status --porcelain --untracked-files=no 2>/dev/null | grep -q . && echo -dirty)
 TEST_BIN := $(BUILD)/bin/run-tests
 
-.PHONY: all deps run test test-asan test-tsan bench reference fuzz clean FORCE
+.PHONY: all deps run test test-asan test-tsan stress bench reference fuzz clean FORCE
 all: $(TESSERA) $(WORKER)
 
 build/%/build_id.h: FORCE
@@ -105,6 +106,10 @@ test: $(TESSERA) $(WORKER) $(TEST_BIN)
 
 test-asan:
 	$(MAKE) VARIANT=asan test
+
+# Numerical stress alone (also part of make test and test-asan).
+stress: $(TESSERA) $(WORKER) $(TEST_BIN)
+	TESSERA_BIN=$(TESSERA) $(TEST_BIN) --filter stress
 
 # ThreadSanitizer on the tests that run several render threads.
 test-tsan:
