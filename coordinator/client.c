@@ -357,11 +357,18 @@ static int do_submit(const cli_args *a, const char *scene_path) {
     return rc;
 }
 
-static int do_status(const cli_args *a, long job) {
+/* One request on a connection of its own: the answer of type want, or
+ * NULL (printed). */
+static cJSON *ask(const cli_args *a, const char *type, long job, const char *want) {
     cli c;
-    if (cli_open(&c, a)) return 1;
-    cJSON *st = request(&c, "status", job, "status");
+    if (cli_open(&c, a)) return NULL;
+    cJSON *r = request(&c, type, job, want);
     cli_close(&c);
+    return r;
+}
+
+static int do_status(const cli_args *a, long job) {
+    cJSON *st = ask(a, "status", job, "status");
     if (!st) return 1;
     if (a->json) {
         print_json(st);
@@ -383,10 +390,7 @@ static int do_status(const cli_args *a, long job) {
 }
 
 static int do_workers(const cli_args *a) {
-    cli c;
-    if (cli_open(&c, a)) return 1;
-    cJSON *ws = request(&c, "workers", -1, "workers");
-    cli_close(&c);
+    cJSON *ws = ask(a, "workers", -1, "workers");
     if (!ws) return 1;
     if (a->json) {
         print_json(ws);
@@ -406,10 +410,7 @@ static int do_workers(const cli_args *a) {
 }
 
 static int do_cancel(const cli_args *a, long job) {
-    cli c;
-    if (cli_open(&c, a)) return 1;
-    cJSON *r = request(&c, "cancel", job, "cancelled");
-    cli_close(&c);
+    cJSON *r = ask(a, "cancel", job, "cancelled");
     if (!r) return 1;
     if (a->json) printf("{\"job\": %ld, \"state\": \"cancelled\"}\n", job);
     else printf("job %ld cancelled\n", job);
