@@ -15,6 +15,18 @@
 #include "offset.h"
 #include "warp.h"
 
+/* Where each random decision of a bounce lives, relative to the bounce's
+ * first dimension. Numbers that are used together sit in one pair of
+ * dimensions (an even offset and the next), which the Sobol sampler
+ * stratifies jointly. */
+enum {
+    DIM_LIGHT_POINT = 0, /* and 1: the point on the light */
+    DIM_BSDF_DIR = 2,    /* and 3: the BSDF's direction */
+    DIM_LIGHT_PICK = 4,  /* which light; 5: which BSDF lobe */
+    DIM_ROULETTE = 6     /* Russian roulette; 7 is spare */
+};
+
+
 /* Geometry at a hit: precise position and unit geometric normal (front face
  * for triangles by winding order, outward for spheres). */
 typedef struct {
@@ -54,9 +66,12 @@ static ray spawn(vec3 p, vec3 ng, uint32_t prim, vec3 d) {
  * weight. wo and the frame are in world / local space as the caller has
  * them. */
 static vec3 direct_light(const scene *s, const integrator_options *opt, const material *m, const surface *sf,
-                         uint32_t prim, const frame *fr, vec3 wo_local, const float u[3], trace_stats *st) {
+                         uint32_t prim, const frame *fr, vec3 wo_local, float u_pick, const sampler_stream *rng,
+                         uint32_t dim, trace_stats *st) {
     light_sample ls;
-    if (!lights_sample(s, sf->p, u[0], u[1], u[2], &ls)) return vec3_splat(0.0f);
+    float u1, u2;
+    sampler_get_2d(rng, dim + DIM_LIGHT_POINT, &u1, &u2);
+    if (!lights_sample(s, sf->p, u_pick, u1, u2, &ls)) return vec3_splat(0.0f);
     vec3 wi_local = frame_to_local(fr, ls.wi);
     vec3 f = bsdf_eval(m, wo_local, wi_local);
     if (vec3_is_zero(f)) return vec3_splat(0.0f);
@@ -87,7 +102,7 @@ static vec3 hit_emission(const scene *s, const integrator_options *opt, const su
     return vec3_scale(Le, mis_power(prev_pdf, light_pdf));
 }
 
-vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ray *camera_ray, rng_stream *rng,
+vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ray *camera_ray, const sampler_stream *rng,
                          trace_stats *st) {
     vec3 L = vec3_splat(0.0f), beta = vec3_splat(1.0f), prev_p = camera_ray->o;
     float prev_pdf = 0.0f; /* the camera ray counts as a delta event */
@@ -106,24 +121,28 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
         const material *m = &s->materials[sf.info->material];
         if (depth >= s->settings.max_depth || m->kind == MATERIAL_NONE) break;
 
-        float u[INTEGRATOR_DIMS_PER_BOUNCE];
-        for (int k = 0; k < INTEGRATOR_DIMS_PER_BOUNCE; k++) u[k] = rng_next(rng);
+        uint32_t dim = INTEGRATOR_CAMERA_DIMS + (uint32_t)depth * INTEGRATOR_DIMS_PER_BOUNCE;
         vec3 wo = vec3_neg(r.d);
         /* Opaque materials reflect on whichever side the ray arrived. */
         vec3 n = (m->kind != MATERIAL_GLASS && vec3_dot(sf.ng, wo) < 0.0f) ? vec3_neg(sf.ng) : sf.ng;
         frame fr = frame_from_normal(n);
         vec3 wo_local = frame_to_local(&fr, wo);
+        /* Only the numbers a vertex uses are computed. */
+        float u_pick, u_lobe, u1, u2;
+        sampler_get_2d(rng, dim + DIM_LIGHT_PICK, &u_pick, &u_lobe);
         if (bsdf_is_smooth(m) && !opt->no_nee)
-            L = vec3_add(L, vec3_mul(beta, direct_light(s, opt, m, &sf, h.prim, &fr, wo_local, u, st)));
+            L = vec3_add(L,
+                         vec3_mul(beta, direct_light(s, opt, m, &sf, h.prim, &fr, wo_local, u_pick, rng, dim, st)));
 
         bsdf_sample bs;
-        if (!bsdf_sample_wi(m, wo_local, u[3], u[4], u[5], &bs)) break;
+        sampler_get_2d(rng, dim + DIM_BSDF_DIR, &u1, &u2);
+        if (!bsdf_sample_wi(m, wo_local, u_lobe, u1, u2, &bs)) break;
         beta = vec3_mul(beta, bs.weight);
         prev_pdf = bs.pdf;
         prev_p = sf.p;
         if (depth >= 3) { /* Russian roulette */
             float survive = min_f(1.0f, vec3_max_comp(beta));
-            if (!(u[6] < survive)) break;
+            if (!(sampler_get_1d(rng, dim + DIM_ROULETTE) < survive)) break;
             beta = vec3_scale(beta, 1.0f / survive);
         }
         r = spawn(sf.p, sf.ng, h.prim, vec3_normalize(frame_to_world(&fr, bs.wi)));

@@ -10,7 +10,7 @@
 #include <stdint.h>
 
 #include "intersect.h"
-#include "rng.h"
+#include "sampler.h"
 #include "scene.h"
 
 /* Counters one thread accumulates; plain struct, summed by the caller. */
@@ -25,17 +25,19 @@ typedef struct {
 typedef struct {
     int no_nee; /* no light sampling: emitters found only by BSDF sampling */
     int no_mis; /* light sampling only for direct light (no BSDF-hit weighting) */
+    sampler_kind sampler; /* SAMPLER_SOBOL (the default, 0) or SAMPLER_RANDOM */
 } integrator_options;
 
 /* Random-number dimensions used by one camera sample: two for the pixel
  * jitter, then INTEGRATOR_DIMS_PER_BOUNCE for every bounce, at fixed offsets
  * (so that dimension k always means the same decision). */
-#define INTEGRATOR_DIMS_PER_BOUNCE 7
+#define INTEGRATOR_CAMERA_DIMS 2
+#define INTEGRATOR_DIMS_PER_BOUNCE 8
 
 /* Radiance along r (a camera ray) in the scene s. The random numbers come
  * from rng (dimension 2 onwards). Never returns NaN or Inf: such a sample is
  * counted in stats->bad_samples and returned as black. Can't fail. */
-vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ray *r, rng_stream *rng,
+vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ray *r, const sampler_stream *rng,
                          trace_stats *stats);
 
 #endif

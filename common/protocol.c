@@ -23,7 +23,8 @@ cJSON *proto_job_json(const proto_job *j) {
         !cJSON_AddNumberToObject(m, "height", j->height) || !cJSON_AddNumberToObject(m, "spp", j->spp) ||
         !cJSON_AddNumberToObject(m, "max_depth", j->max_depth) || !cJSON_AddStringToObject(m, "seed", seed) ||
         !cJSON_AddBoolToObject(m, "nee", !j->integrator.no_nee) ||
-        !cJSON_AddBoolToObject(m, "mis", !j->integrator.no_mis)) {
+        !cJSON_AddBoolToObject(m, "mis", !j->integrator.no_mis) ||
+        !cJSON_AddStringToObject(m, "sampler", sampler_name(j->integrator.sampler))) {
         cJSON_Delete(m);
         return NULL;
     }
@@ -47,10 +48,10 @@ cJSON *proto_assign_json(const proto_assign *a) {
 
 int proto_job_parse(const cJSON *msg, const char *peer, proto_job *out, char *err, size_t err_len) {
     static const char *const keys[] = {"type", "job", "scene", "width", "height", "spp",
-                                       "max_depth", "seed", "nee", "mis", NULL};
+                                       "max_depth", "seed", "nee", "mis", "sampler", NULL};
     json_ctx c = {peer, err, err_len};
     long long id, w, h, spp, depth;
-    const char *hash, *seed;
+    const char *hash, *seed, *sampler; /* sampler: NULL (sobol) in jobs journaled before samplers */
     int nee, mis;
     memset(out, 0, sizeof *out);
     if (jf_check_object(&c, msg, "job", keys) || jf_int(&c, msg, "job", "job", 1, 0, 0, UINT32_MAX, &id) ||
@@ -59,8 +60,10 @@ int proto_job_parse(const cJSON *msg, const char *peer, proto_job *out, char *er
         jf_int(&c, msg, "job", "spp", 1, 0, 1, 1 << 24, &spp) ||
         jf_int(&c, msg, "job", "max_depth", 1, 0, 1, 1024, &depth) ||
         jf_string(&c, msg, "job", "seed", 1, &seed) || jf_bool(&c, msg, "job", "nee", 1, &nee) ||
-        jf_bool(&c, msg, "job", "mis", 1, &mis))
+        jf_bool(&c, msg, "job", "mis", 1, &mis) || jf_string(&c, msg, "job", "sampler", 0, &sampler))
         return -1;
+    if (sampler && sampler_parse(sampler, &out->integrator.sampler) != 0)
+        return jf_fail(&c, "job", "sampler", "expected \"sobol\" or \"random\", got \"%s\"", sampler);
     if (strlen(hash) != SCENE_BUNDLE_HASH_HEX - 1 || strspn(hash, "0123456789abcdef") != strlen(hash))
         return jf_fail(&c, "job", "scene", "expected a 64-digit hex hash");
     char *end;

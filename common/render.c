@@ -22,8 +22,9 @@ void render_tile(const scene *s, const integrator_options *opt, const tile_rect 
             double *sum = accum + 3 * ((size_t)(y - tile->y0) * (size_t)tw + (size_t)(x - tile->x0));
             uint64_t pixel = (uint64_t)y * (uint64_t)rs->width + (uint64_t)x;
             for (uint32_t i = first; i < first + count; i++) {
-                rng_stream rng = rng_stream_start(rs->seed, pixel, i);
-                float u = rng_next(&rng), v = rng_next(&rng);
+                sampler_stream rng = sampler_start(opt->sampler, rs->seed, pixel, i);
+                float u, v;
+                sampler_get_2d(&rng, 0, &u, &v);
                 ray r = {s->cam.position, camera_direction(&s->cam, rs->width, rs->height, x, y, u, v), PRIM_NONE};
                 vec3 L = integrator_radiance(s, opt, &r, &rng, stats);
                 sum[0] += L.x;

@@ -137,6 +137,7 @@ static int save_job(sjob *j, char *err, size_t err_len) {
     cJSON_AddStringToObject(m, "seed", seed);
     cJSON_AddBoolToObject(m, "nee", !j->desc.integrator.no_nee);
     cJSON_AddBoolToObject(m, "mis", !j->desc.integrator.no_mis);
+    cJSON_AddStringToObject(m, "sampler", sampler_name(j->desc.integrator.sampler));
     cJSON_AddNumberToObject(m, "priority", j->priority);
     cJSON_AddNumberToObject(m, "tile_size", j->tile_size);
     cJSON_AddStringToObject(m, "state", state_names[j->state]);
@@ -479,6 +480,10 @@ static void on_submit(client *cl, const cJSON *m) {
         opt_int(m, "spp", 1, 1 << 24, &spp) || opt_int(m, "max_depth", 1, 1024, &depth) ||
         opt_int(m, "priority", -1000000, 1000000, &pri) || opt_int(m, "tile_size", 1, s->o.farm.max_tile_side, &tile))
         return client_error(cl, "submit: width, height, spp, max_depth, priority or tile_size out of range");
+    const cJSON *sname = cJSON_GetObjectItemCaseSensitive(m, "sampler");
+    sampler_kind sampler = SAMPLER_SOBOL;
+    if (sname && (!cJSON_IsString(sname) || sampler_parse(sname->valuestring, &sampler) != 0))
+        return client_error(cl, "submit: sampler must be \"sobol\" or \"random\"");
     if (running_jobs(s) >= s->o.max_jobs)
         return client_error(cl, "the queue is full (%d jobs); try again later", s->o.max_jobs);
     scene_bundle b;
@@ -501,6 +506,7 @@ static void on_submit(client *cl, const cJSON *m) {
                           .spp = sc->settings.spp, .max_depth = sc->settings.max_depth, .seed = sc->settings.seed};
     j->desc.integrator.no_nee = cJSON_IsFalse(cJSON_GetObjectItemCaseSensitive(m, "nee"));
     j->desc.integrator.no_mis = cJSON_IsFalse(cJSON_GetObjectItemCaseSensitive(m, "mis"));
+    j->desc.integrator.sampler = sampler;
     memcpy(j->desc.scene_hash, hash, sizeof hash);
     snprintf(j->name, sizeof j->name, "%s", cJSON_IsString(name) ? name->valuestring : "scene");
     scene_free(sc);

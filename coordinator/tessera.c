@@ -82,6 +82,7 @@ static void usage_render(FILE *f) {
             "      --exr-alpha        add an A channel of 1\n"
             "      --no-nee           no light sampling (for comparisons)\n"
             "      --no-mis           light sampling without MIS (for comparisons)\n"
+            "      --sampler S        sobol (Owen-scrambled, the default) or random\n"
             "      --no-progress      no progress bar even on a terminal\n"
             "  -v, --verbose          print scene and BVH statistics\n"
             "  -h, --help             this text\n");
@@ -101,7 +102,7 @@ static void parse_tonemap(const char *s, tonemap_kind *out) {
 }
 
 enum { OPT_SPP = 256, OPT_WIDTH, OPT_HEIGHT, OPT_DEPTH, OPT_SEED, OPT_THREADS, OPT_WORKERS, OPT_TILE,
-       OPT_PASSES, OPT_TONEMAP, OPT_EXPOSURE, OPT_WHITE, OPT_QUALITY, OPT_EXR_COMPRESSION, OPT_EXR_HALF, OPT_EXR_ALPHA, OPT_PNG16, OPT_NO_NEE, OPT_NO_MIS, OPT_NO_PROGRESS, OPT_LISTEN, OPT_HEARTBEAT, OPT_WORKER_TIMEOUT, OPT_LEASE, OPT_TOKEN };
+       OPT_PASSES, OPT_TONEMAP, OPT_EXPOSURE, OPT_WHITE, OPT_QUALITY, OPT_EXR_COMPRESSION, OPT_EXR_HALF, OPT_EXR_ALPHA, OPT_PNG16, OPT_NO_NEE, OPT_NO_MIS, OPT_SAMPLER, OPT_NO_PROGRESS, OPT_LISTEN, OPT_HEARTBEAT, OPT_WORKER_TIMEOUT, OPT_LEASE, OPT_TOKEN };
 
 static void parse_render_args(int argc, char **argv, render_args *a) {
     static const struct option opts[] = {
@@ -115,6 +116,7 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         {"exr-compression", required_argument, 0, OPT_EXR_COMPRESSION},
         {"png16", no_argument, 0, OPT_PNG16}, {"exr-half", no_argument, 0, OPT_EXR_HALF}, {"exr-alpha", no_argument, 0, OPT_EXR_ALPHA},
         {"no-nee", no_argument, 0, OPT_NO_NEE}, {"no-mis", no_argument, 0, OPT_NO_MIS},
+        {"sampler", required_argument, 0, OPT_SAMPLER},
         {"no-progress", no_argument, 0, OPT_NO_PROGRESS}, {"verbose", no_argument, 0, 'v'},
         {"listen", required_argument, 0, OPT_LISTEN}, {"heartbeat", required_argument, 0, OPT_HEARTBEAT},
         {"worker-timeout", required_argument, 0, OPT_WORKER_TIMEOUT}, {"lease", required_argument, 0, OPT_LEASE},
@@ -177,6 +179,12 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         case OPT_EXR_ALPHA: a->exr.alpha = 1; break;
         case OPT_NO_NEE: a->ro.integrator.no_nee = 1; break;
         case OPT_NO_MIS: a->ro.integrator.no_mis = 1; break;
+        case OPT_SAMPLER:
+            if (sampler_parse(optarg, &a->ro.integrator.sampler) != 0) {
+                fprintf(stderr, "tessera: --sampler: expected sobol or random, got \"%s\"\n", optarg);
+                exit(2);
+            }
+            break;
         case OPT_NO_PROGRESS: a->progress = 0; break;
         case 'v': a->verbose = 1; break;
         case 'h': usage_render(stdout); exit(0);
