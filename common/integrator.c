@@ -10,7 +10,7 @@
 #include "integrator.h"
 
 #include "bsdf.h"
-#include "bvh.h"
+#include "accel.h"
 #include "lights.h"
 #include "offset.h"
 #include "warp.h"
@@ -85,7 +85,7 @@ static vec3 direct_light(const scene *s, const integrator_options *opt, const ma
     if (!(len > 0.0f)) return vec3_splat(0.0f);
     sh.d = vec3_scale(to, 1.0f / len);
     st->shadow_rays++;
-    if (bvh_occluded(s->bvh, s, &sh, len)) return vec3_splat(0.0f);
+    if (accel_occluded(s->accel, s, &sh, len)) return vec3_splat(0.0f);
     float w = (ls.is_delta || opt->no_mis) ? 1.0f : mis_power(ls.pdf, bsdf_pdf(m, wo_local, wi_local));
     return vec3_scale(vec3_mul(f, ls.radiance), fabsf(wi_local.z) * w / ls.pdf);
 }
@@ -110,7 +110,7 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
     for (int depth = 0;; depth++) {
         hit h;
         st->rays++;
-        if (!bvh_intersect(s->bvh, s, &r, INFINITY, &h)) {
+        if (!accel_intersect(s->accel, s, &r, INFINITY, &h)) {
             L = vec3_add(L, vec3_mul(beta, s->background));
             break;
         }

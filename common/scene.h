@@ -44,11 +44,15 @@ typedef struct {
     float tan_half_fov;     /* perspective: tan(vertical fov / 2) */
 } camera;
 
+/* Which ray intersector a scene uses (accel.h). */
+typedef enum { ACCEL_AUTO, ACCEL_BVH, ACCEL_FLAT } accel_kind;
+
 typedef struct {
     int width, height;
     int spp;       /* samples per pixel */
     int max_depth; /* maximum number of path segments after the camera ray */
     uint64_t seed;
+    accel_kind accel; /* render.accel: "auto" (default), "bvh" or "flat" */
 } render_settings;
 
 /* Command-line overrides; a negative value (or has_seed == 0) means "keep
@@ -87,7 +91,21 @@ typedef struct {
     float select_pdf; /* probability that light sampling picks this light */
 } light;
 
-struct bvh;
+struct accel;
+
+/* What a scene uses, recorded at load so that renderers run only those code
+ * paths (bits of scene.features). */
+enum {
+    FEATURE_DIFFUSE = 1u << MATERIAL_DIFFUSE, /* a primitive has this material kind */
+    FEATURE_GLOSSY = 1u << MATERIAL_GLOSSY,
+    FEATURE_MIRROR = 1u << MATERIAL_MIRROR,
+    FEATURE_GLASS = 1u << MATERIAL_GLASS,
+    FEATURE_TRIANGLES = 1u << 8,
+    FEATURE_SPHERES = 1u << 9,
+    FEATURE_AREA_LIGHTS = 1u << 10,  /* emitting triangles or spheres */
+    FEATURE_POINT_LIGHTS = 1u << 11, /* delta lights */
+    FEATURE_BACKGROUND = 1u << 12    /* escaping rays carry radiance */
+};
 
 typedef struct scene {
     char *path; /* as given to scene_load */
@@ -111,7 +129,8 @@ typedef struct scene {
     float *light_cdf; /* light_count + 1 entries, last is 1 */
     uint32_t light_count;
 
-    struct bvh *bvh;
+    struct accel *accel; /* the ray intersector chosen for this scene */
+    uint32_t features;   /* FEATURE_* bits */
 
     /* World = internal * world_scale + world_center. */
     double world_center[3];
@@ -134,6 +153,10 @@ scene *scene_load_bundle(const scene_bundle *b, const scene_overrides *overrides
 
 /* Free a scene and everything it owns; NULL is allowed. */
 void scene_free(scene *s);
+
+/* The names of the FEATURE_* bits set in features, space-separated, into
+ * buf (always NUL-terminated). Can't fail; truncates to len. */
+void scene_feature_names(uint32_t features, char *buf, size_t len);
 
 /* Index of the first primitive id that is a sphere: ids below are triangles. */
 static inline uint32_t scene_sphere_base(const scene *s) { return s->triangle_count; }

@@ -10,7 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "bvh.h"
+#include "accel.h"
 #include "json_field.h"
 #include "obj.h"
 #include "scene_bundle.h"
@@ -86,13 +86,22 @@ static double dlen(const double a[3]) { return sqrt(ddot(a, a)); }
 /* ---- render settings ---------------------------------------------------- */
 
 static int load_render(loader *L, const cJSON *root, const scene_overrides *ov) {
-    static const char *const keys[] = {"width", "height", "spp", "max_depth", "seed", NULL};
+    static const char *const keys[] = {"width", "height", "spp", "max_depth", "seed", "accel", NULL};
+    static const char *const accels[] = {"auto", "bvh", "flat"}; /* in accel_kind order */
     const cJSON *r = cJSON_GetObjectItemCaseSensitive(root, "render");
     cJSON empty = {0};
     empty.type = cJSON_Object;
     if (!r) r = &empty;
     if (jf_check_object(&L->j, r, "render", keys)) return -1;
     long long w, h, spp, depth, seed;
+    const char *accel = "auto";
+    if (jf_string(&L->j, r, "render", "accel", 0, &accel)) return -1;
+    if (!accel) accel = "auto";
+    L->s->settings.accel = ACCEL_AUTO;
+    for (int k = 0; k < 3; k++)
+        if (strcmp(accel, accels[k]) == 0) L->s->settings.accel = (accel_kind)k;
+    if (strcmp(accel, accels[L->s->settings.accel]) != 0)
+        return jf_fail(&L->j, "render", "accel", "expected \"auto\", \"bvh\" or \"flat\", got \"%s\"", accel);
     if (jf_int(&L->j, r, "render", "width", 0, 512, 1, MAX_RESOLUTION, &w) ||
         jf_int(&L->j, r, "render", "height", 0, 512, 1, MAX_RESOLUTION, &h) ||
         jf_int(&L->j, r, "render", "spp", 0, 16, 1, MAX_SPP, &spp) ||
@@ -589,6 +598,38 @@ static int assemble(loader *L) {
     return build_lights(L);
 }
 
+/* Set s->features from what the assembled scene contains. */
+static void record_features(scene *s) {
+    uint32_t f = 0;
+    for (uint32_t i = 0; i < s->triangle_count; i++) f |= 1u << s->materials[s->triangle_info[i].material].kind;
+    for (uint32_t i = 0; i < s->sphere_count; i++) f |= 1u << s->materials[s->sphere_info[i].material].kind;
+    f &= ~(1u << MATERIAL_NONE);
+    if (s->triangle_count) f |= FEATURE_TRIANGLES;
+    if (s->sphere_count) f |= FEATURE_SPHERES;
+    for (uint32_t i = 0; i < s->light_count; i++)
+        f |= s->lights[i].kind == LIGHT_POINT ? FEATURE_POINT_LIGHTS : FEATURE_AREA_LIGHTS;
+    if (!vec3_is_zero(s->background)) f |= FEATURE_BACKGROUND;
+    s->features = f;
+}
+
+void scene_feature_names(uint32_t features, char *buf, size_t len) {
+    static const struct {
+        uint32_t bit;
+        const char *name;
+    } names[] = {{FEATURE_DIFFUSE, "diffuse"},         {FEATURE_GLOSSY, "glossy"},
+                 {FEATURE_MIRROR, "mirror"},           {FEATURE_GLASS, "glass"},
+                 {FEATURE_TRIANGLES, "triangles"},     {FEATURE_SPHERES, "spheres"},
+                 {FEATURE_AREA_LIGHTS, "area-lights"}, {FEATURE_POINT_LIGHTS, "point-lights"},
+                 {FEATURE_BACKGROUND, "background"}};
+    size_t used = 0;
+    if (len) buf[0] = '\0';
+    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) {
+        if (!(features & names[i].bit) || used >= len) continue;
+        int n = snprintf(buf + used, len - used, "%s%s", used ? " " : "", names[i].name);
+        if (n > 0) used += (size_t)n;
+    }
+}
+
 static int load_root(loader *L, const cJSON *root, const scene_overrides *ov) {
     static const char *const keys[] = {"render", "camera", "background", "materials", "shapes", "lights", NULL};
     static const double black[3] = {0, 0, 0};
@@ -600,8 +641,9 @@ static int load_root(loader *L, const cJSON *root, const scene_overrides *ov) {
     L->s->background = to_vec3(bg);
     choose_units(L);
     if (load_camera(L, root) || assemble(L)) return -1;
-    L->s->bvh = bvh_build(L->s);
-    if (!L->s->bvh) return jf_fail(&L->j, "shapes", NULL, "out of memory building the BVH");
+    record_features(L->s);
+    L->s->accel = accel_build(L->s, L->s->settings.accel);
+    if (!L->s->accel) return jf_fail(&L->j, "shapes", NULL, "out of memory building the intersector");
     return 0;
 }
 
@@ -641,7 +683,7 @@ scene *scene_load(const char *path, const scene_overrides *ov, char *err, size_t
 
 void scene_free(scene *s) {
     if (!s) return;
-    bvh_free(s->bvh);
+    accel_free(s->accel);
     free(s->path);
     free(s->materials);
     free(s->triangles);

@@ -18,7 +18,7 @@
 
 #include "../common/address.h"
 #include "../common/args.h"
-#include "../common/bvh.h"
+#include "../common/accel.h"
 #include "../common/image.h"
 #include "../common/image_compare.h"
 #include "../common/render.h"
@@ -242,12 +242,19 @@ static void show_progress(void *ctx, int done, int total, const trace_stats *so_
 
 static void print_scene_info(const scene *s) {
     bvh_stats bs;
-    bvh_get_stats(s->bvh, &bs);
+    char features[256];
+    scene_feature_names(s->features, features, sizeof features);
     fprintf(stderr, "scene %s: %u triangles, %u spheres, %u lights, %u materials, %zu degenerate triangles skipped\n",
             s->path, s->triangle_count, s->sphere_count, s->light_count, s->material_count - 1,
             s->degenerate_triangles);
-    fprintf(stderr, "bvh: %zu nodes, %zu leaves, depth %zu, %.1f KiB, built in %.3f ms\n", bs.node_count,
-            bs.leaf_count, bs.max_depth, (double)bs.memory_bytes / 1024.0, bs.build_seconds * 1e3);
+    fprintf(stderr, "features: %s\n", features);
+    if (accel_get_bvh_stats(s->accel, &bs) == 0)
+        fprintf(stderr, "intersector: bvh, %zu nodes, %zu leaves, depth %zu, %.1f KiB, built in %.3f ms\n",
+                bs.node_count, bs.leaf_count, bs.max_depth, (double)bs.memory_bytes / 1024.0,
+                bs.build_seconds * 1e3);
+    else
+        fprintf(stderr, "intersector: flat (every triangle, %d at a time; no tree for %u triangles)\n", ACCEL_FLAT_LANES,
+                s->triangle_count);
     fprintf(stderr, "render: %dx%d, %d spp, max depth %d, seed %llu\n", s->settings.width, s->settings.height,
             s->settings.spp, s->settings.max_depth, (unsigned long long)s->settings.seed);
 }

@@ -1,0 +1,50 @@
+/* accel.h - the scene's ray intersector, chosen to fit the scene.
+ *
+ * Two structures answer the same two questions (closest hit, any hit):
+ *  - ACCEL_BVH: a bounding volume hierarchy (bvh.h), for scenes with many
+ *    primitives;
+ *  - ACCEL_FLAT: every triangle tested, eight at a time, from arrays laid
+ *    out for SIMD, then every sphere; no tree to walk. On a scene as small as
+ *    the Cornell box this is faster than any tree (see docs/performance.md).
+ * ACCEL_AUTO picks FLAT for small scenes and BVH otherwise. The choice is a
+ * function of the scene alone, never of the machine, so every worker of a
+ * farm takes the same path. The two can differ only in which of two hits at
+ * exactly the same distance wins.
+ *
+ * Built once per scene, then read-only: any number of threads may trace
+ * through it at once. */
+#ifndef TESSERA_ACCEL_H
+#define TESSERA_ACCEL_H
+
+#include "bvh.h"
+#include "intersect.h"
+#include "scene.h"
+
+/* ACCEL_AUTO picks ACCEL_FLAT up to this many triangles and spheres. */
+#define ACCEL_FLAT_MAX_TRIANGLES 64
+#define ACCEL_FLAT_MAX_SPHERES 8
+/* Triangles the flat intersector tests at once. */
+#define ACCEL_FLAT_LANES 4
+
+typedef struct accel accel;
+
+/* Build the intersector of kind `kind` (ACCEL_AUTO to let the scene decide)
+ * over s's triangles and spheres. Returns NULL only when out of memory. */
+accel *accel_build(const scene *s, accel_kind kind);
+
+/* Free an intersector; NULL is allowed. */
+void accel_free(accel *a);
+
+/* The kind that was built: ACCEL_BVH or ACCEL_FLAT, never ACCEL_AUTO. */
+accel_kind accel_get_kind(const accel *a);
+
+/* The BVH's statistics; returns 0, or -1 (leaving *out alone) for FLAT. */
+int accel_get_bvh_stats(const accel *a, bvh_stats *out);
+
+/* Closest hit with 0 < t < tmax. Returns 1 and fills *h, or 0 for a miss. */
+int accel_intersect(const accel *a, const scene *s, const ray *r, float tmax, hit *h);
+
+/* Any hit with 0 < t < tmax (shadow rays). Returns 1 if occluded. */
+int accel_occluded(const accel *a, const scene *s, const ray *r, float tmax);
+
+#endif
