@@ -62,7 +62,7 @@ static void on_assign(sim *s, const cJSON *m) {
     lat[lat_n++] = t - s->ready_at;
     int w = tile_width(&a.rect), h = tile_height(&a.rect);
     float *rgb = calloc((size_t)w * (size_t)h * 3, sizeof(float));
-    proto_tile pt = {a.job, a.tile, (uint32_t)w, (uint32_t)h, {(uint64_t)w * (uint64_t)h * a.count, 0, 0, 0}};
+    proto_tile pt = {a.job, a.tile, (uint32_t)w, (uint32_t)h, {(uint64_t)w * (uint64_t)h * a.count, 0, 0, 0}, 3};
     size_t len;
     uint8_t *f = proto_tile_frame(&pt, rgb, &len);
     free(rgb);

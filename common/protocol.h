@@ -12,6 +12,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "adaptive.h"
 #include "integrator.h"
 #include "render.h"
 #include "scene_bundle.h"
@@ -30,6 +31,8 @@ typedef struct {
     int width, height, spp, max_depth;
     uint64_t seed; /* sent as a decimal string: JSON numbers are doubles */
     integrator_options integrator;
+    int adaptive; /* a round of adaptive sampling: assignments carry a pixel
+                   * mask, results are ADAPTIVE_CHANNELS sums per pixel */
 } proto_job;
 
 /* One tile of a job to render, with its sample range. */
@@ -37,13 +40,19 @@ typedef struct {
     uint32_t job, tile;
     tile_rect rect;
     uint32_t first, count;
+    uint8_t *mask; /* adaptive jobs: one byte per pixel of rect (1 = render it);
+                    * sent as "mask", hex digits holding 4 pixels each, bit k
+                    * of digit i being pixel 4i + k. NULL otherwise.
+                    * proto_assign_parse allocates it; free with free(). */
 } proto_assign;
 
-/* A rendered tile's fixed header; pixels follow as width * height * 3
- * little-endian float32 means, row-major, top row first. */
+/* A rendered tile's fixed header; pixels follow as width * height *
+ * channels little-endian float32 values, row-major, top row first: 3
+ * means per pixel, or for adaptive jobs ADAPTIVE_CHANNELS sums. */
 typedef struct {
     uint32_t job, tile, width, height;
     trace_stats stats;
+    uint32_t channels; /* not in the header: told by the frame's length */
 } proto_tile;
 
 #define PROTO_TILE_HEADER_BYTES 48
@@ -71,11 +80,11 @@ uint8_t *proto_frame_simple(const char *type, size_t *frame_len);
 uint8_t *proto_frame_reason(const char *type, const char *reason, size_t *frame_len);
 
 /* Encode a tile result as a complete 'T' frame (the caller frees), or NULL
- * when out of memory. rgb holds width * height * 3 floats. */
+ * when out of memory. rgb holds width * height * t->channels floats. */
 uint8_t *proto_tile_frame(const proto_tile *t, const float *rgb, size_t *frame_len);
 
 /* Decode a 'T' body's header and check that its length matches the size it
- * claims. Returns 0 (the pixels then start at body +
+ * claims with 3 or ADAPTIVE_CHANNELS floats per pixel (set in channels). Returns 0 (the pixels then start at body +
  * PROTO_TILE_HEADER_BYTES), or -1 with the reason in err. */
 int proto_tile_parse(const uint8_t *body, size_t len, proto_tile *out, char *err, size_t err_len);
 

@@ -11,28 +11,61 @@
 #include <string.h>
 #include <time.h>
 
+#include "adaptive.h"
 #include "camera.h"
+
+/* Radiance of sample i of pixel (x, y): the camera ray through the sample's
+ * jittered position, traced. */
+static inline vec3 render_sample(const scene *s, const integrator_options *opt, int x, int y, uint32_t i,
+                                 trace_stats *stats) {
+    const render_settings *rs = &s->settings;
+    uint64_t pixel = (uint64_t)y * (uint64_t)rs->width + (uint64_t)x;
+    sampler_stream rng = sampler_start(opt->sampler, rs->seed, pixel, i);
+    float u, v;
+    sampler_get_2d(&rng, 0, &u, &v);
+    ray r = {s->cam.position, camera_direction(&s->cam, rs->width, rs->height, x, y, u, v), PRIM_NONE};
+    return integrator_radiance(s, opt, &r, &rng, stats);
+}
 
 void render_tile(const scene *s, const integrator_options *opt, const tile_rect *tile, uint32_t first,
                  uint32_t count, double *accum, trace_stats *stats) {
-    const render_settings *rs = &s->settings;
     int tw = tile_width(tile);
     for (int y = tile->y0; y < tile->y1; y++) {
         for (int x = tile->x0; x < tile->x1; x++) {
             double *sum = accum + 3 * ((size_t)(y - tile->y0) * (size_t)tw + (size_t)(x - tile->x0));
-            uint64_t pixel = (uint64_t)y * (uint64_t)rs->width + (uint64_t)x;
             for (uint32_t i = first; i < first + count; i++) {
-                sampler_stream rng = sampler_start(opt->sampler, rs->seed, pixel, i);
-                float u, v;
-                sampler_get_2d(&rng, 0, &u, &v);
-                ray r = {s->cam.position, camera_direction(&s->cam, rs->width, rs->height, x, y, u, v), PRIM_NONE};
-                vec3 L = integrator_radiance(s, opt, &r, &rng, stats);
+                vec3 L = render_sample(s, opt, x, y, i, stats);
                 sum[0] += L.x;
                 sum[1] += L.y;
                 sum[2] += L.z;
             }
         }
     }
+}
+
+int render_tile_sums(const scene *s, const integrator_options *opt, const tile_rect *tile, uint32_t first,
+                     uint32_t count, const uint8_t *mask, float *out, trace_stats *stats, const atomic_int *cancel) {
+    int tw = tile_width(tile);
+    for (int y = tile->y0; y < tile->y1; y++) {
+        if (cancel && atomic_load_explicit(cancel, memory_order_relaxed)) return -1;
+        for (int x = tile->x0; x < tile->x1; x++) {
+            size_t k = (size_t)(y - tile->y0) * (size_t)tw + (size_t)(x - tile->x0);
+            double sum[ADAPTIVE_CHANNELS] = {0};
+            for (uint32_t i = first; mask[k] && i < first + count; i++) {
+                vec3 L = render_sample(s, opt, x, y, i, stats);
+                sum[0] += L.x;
+                sum[1] += L.y;
+                sum[2] += L.z;
+                if (i & 1u) {
+                    sum[3] += L.x;
+                    sum[4] += L.y;
+                    sum[5] += L.z;
+                }
+            }
+            for (int c = 0; c < ADAPTIVE_CHANNELS; c++) out[ADAPTIVE_CHANNELS * k + (size_t)c] = (float)sum[c];
+        }
+    }
+    return 0;
 }
 
 int render_split_tiles(int width, int height, int tile_size, tile_rect *out, int max) {
@@ -47,12 +80,17 @@ int render_split_tiles(int width, int height, int tile_size, tile_rect *out, int
     return n;
 }
 
+/* One pass of the thread pool over a list of tiles: the whole frame's
+ * means, or one adaptive round's sums. */
 typedef struct {
     const scene *s;
     const render_options *opt;
     const tile_rect *tiles;
     int tile_count;
-    float *rgb;
+    float *rgb;           /* means: 3 floats per pixel of the frame */
+    float *sums;          /* adaptive round: ADAPTIVE_CHANNELS floats per pixel, or NULL */
+    const uint8_t *mask;  /* adaptive round: pixels taking part */
+    uint32_t first, count; /* adaptive round: its sample range */
     atomic_int next_tile;
     atomic_int tiles_done;
     atomic_ullong samples_done;
@@ -62,8 +100,9 @@ typedef struct {
     frame_job *job;
     pthread_t thread;
     trace_stats stats;
-    double *accum; /* one row's sums, reused */
-    float *means;  /* one tile's means, reused */
+    double *accum;   /* one row's sums, reused */
+    float *scratch;  /* one tile's means or sums, reused */
+    uint8_t *mask;   /* one tile's mask, reused */
 } frame_worker;
 
 int render_tile_means(const scene *s, const integrator_options *opt, const tile_rect *tile, int spp, int passes,
@@ -84,17 +123,33 @@ int render_tile_means(const scene *s, const integrator_options *opt, const tile_
     return 0;
 }
 
-/* Render one tile of the frame and copy its means into the frame. */
-static void frame_render_tile(frame_worker *w, const tile_rect *t) {
-    const scene *s = w->job->s;
-    int spp = s->settings.spp, tw = tile_width(t);
-    render_tile_means(s, &w->job->opt->integrator, t, spp, w->job->opt->passes, w->accum, w->means, &w->stats,
-                      NULL);
+/* Copy a tile's rows of `channels` floats per pixel into the frame. */
+static void frame_put(const frame_job *job, const tile_rect *t, const float *src, int channels, float *dst) {
+    size_t tw = (size_t)tile_width(t), fw = (size_t)job->s->settings.width, ch = (size_t)channels;
     for (int y = t->y0; y < t->y1; y++)
-        memcpy(w->job->rgb + 3 * ((size_t)y * (size_t)s->settings.width + (size_t)t->x0),
-               w->means + 3 * (size_t)(y - t->y0) * (size_t)tw, 3 * sizeof(float) * (size_t)tw);
-    size_t n = (size_t)tw * (size_t)tile_height(t);
-    atomic_fetch_add(&w->job->samples_done, (unsigned long long)n * (unsigned long long)spp);
+        memcpy(dst + ch * ((size_t)y * fw + (size_t)t->x0), src + ch * (size_t)(y - t->y0) * tw,
+               ch * sizeof(float) * tw);
+}
+
+/* Render one tile of the frame (all samples, or the round's) into it. */
+static void frame_render_tile(frame_worker *w, const tile_rect *t) {
+    frame_job *job = w->job;
+    const scene *s = job->s;
+    size_t n = (size_t)tile_width(t) * (size_t)tile_height(t), active = n;
+    if (job->sums) {
+        size_t fw = (size_t)s->settings.width, k = 0;
+        active = 0;
+        for (int y = t->y0; y < t->y1; y++)
+            for (int x = t->x0; x < t->x1; x++, k++) active += w->mask[k] = job->mask[(size_t)y * fw + (size_t)x];
+        render_tile_sums(s, &job->opt->integrator, t, job->first, job->count, w->mask, w->scratch, &w->stats, NULL);
+        frame_put(job, t, w->scratch, ADAPTIVE_CHANNELS, job->sums);
+    } else {
+        render_tile_means(s, &job->opt->integrator, t, s->settings.spp, job->opt->passes, w->accum, w->scratch,
+                          &w->stats, NULL);
+        frame_put(job, t, w->scratch, 3, job->rgb);
+    }
+    uint64_t per_pixel = job->sums ? job->count : (uint64_t)s->settings.spp;
+    atomic_fetch_add(&job->samples_done, (unsigned long long)(active * per_pixel));
 }
 
 static void *frame_thread(void *arg) {
@@ -121,50 +176,104 @@ static void sum_stats(trace_stats *a, const trace_stats *b) {
     a->bad_samples += b->bad_samples;
 }
 
-int render_frame(const scene *s, const render_options *opt, float *rgb, trace_stats *stats) {
-    const render_settings *rs = &s->settings;
+/* Run job's tiles on opt->threads threads; their counters are added to
+ * stats. progress_done / progress_total: where this pass sits in the whole
+ * render, for the progress callback. Returns 0, or -1 if the threads or
+ * their memory could not be had. */
+static int frame_run(frame_job *job, int tile_size, trace_stats *stats, int progress_base, int progress_total,
+                     uint64_t samples_base) {
+    const render_options *opt = job->opt;
     int threads = opt->threads > 0 ? opt->threads : 1;
-    int ts = opt->tile_size > 0 ? opt->tile_size : 32;
-    frame_job job = {.s = s, .opt = opt, .rgb = rgb};
-    job.tile_count = render_split_tiles(rs->width, rs->height, ts, NULL, 0);
-    tile_rect *tiles = calloc((size_t)job.tile_count, sizeof *tiles);
     frame_worker *workers = calloc((size_t)threads, sizeof *workers);
-    int started = 0, rc = 0;
-    if (!tiles || !workers) rc = -1;
-    if (rc == 0) render_split_tiles(rs->width, rs->height, ts, tiles, job.tile_count);
-    job.tiles = tiles;
-    atomic_init(&job.next_tile, 0);
-    atomic_init(&job.tiles_done, 0);
-    atomic_init(&job.samples_done, 0);
+    int started = 0, rc = workers ? 0 : -1;
+    size_t px = (size_t)tile_size * (size_t)tile_size;
+    atomic_init(&job->next_tile, 0);
+    atomic_init(&job->tiles_done, 0);
+    atomic_init(&job->samples_done, 0);
     for (int i = 0; i < threads && rc == 0; i++) {
-        workers[i].job = &job;
-        workers[i].accum = malloc(3 * sizeof(double) * (size_t)ts);
-        workers[i].means = malloc(3 * sizeof(float) * (size_t)ts * (size_t)ts);
-        if (!workers[i].accum || !workers[i].means ||
+        workers[i].job = job;
+        workers[i].accum = malloc(3 * sizeof(double) * (size_t)tile_size);
+        workers[i].scratch = malloc(ADAPTIVE_CHANNELS * sizeof(float) * px);
+        workers[i].mask = malloc(px);
+        if (!workers[i].accum || !workers[i].scratch || !workers[i].mask ||
             pthread_create(&workers[i].thread, NULL, frame_thread, &workers[i]) != 0) {
             free(workers[i].accum);
-            free(workers[i].means);
-            atomic_store(&job.next_tile, job.tile_count); /* stop the others */
+            free(workers[i].scratch);
+            free(workers[i].mask);
+            atomic_store(&job->next_tile, job->tile_count); /* stop the others */
             rc = -1;
             break;
         }
         started++;
     }
-    while (rc == 0 && opt->progress && atomic_load(&job.tiles_done) < job.tile_count) {
+    while (rc == 0 && opt->progress && atomic_load(&job->tiles_done) < job->tile_count) {
         trace_stats so_far = {0};
-        so_far.samples = atomic_load(&job.samples_done);
-        opt->progress(opt->progress_ctx, atomic_load(&job.tiles_done), job.tile_count, &so_far);
+        so_far.samples = samples_base + atomic_load(&job->samples_done);
+        opt->progress(opt->progress_ctx, progress_base + atomic_load(&job->tiles_done), progress_total, &so_far);
         sleep_ms(100);
     }
-    memset(stats, 0, sizeof *stats);
     for (int i = 0; i < started; i++) {
         pthread_join(workers[i].thread, NULL);
         sum_stats(stats, &workers[i].stats);
         free(workers[i].accum);
-        free(workers[i].means);
+        free(workers[i].scratch);
+        free(workers[i].mask);
     }
-    if (rc == 0 && opt->progress) opt->progress(opt->progress_ctx, job.tile_count, job.tile_count, stats);
-    free(tiles);
     free(workers);
+    return rc;
+}
+
+/* Adaptive sampling (adaptive.h): rounds over the tiles that still have
+ * active pixels, until none is left. */
+static int render_frame_adaptive(const scene *s, const render_options *opt, const tile_rect *tiles, int tile_count,
+                                 int tile_size, float *rgb, trace_stats *stats) {
+    const render_settings *rs = &s->settings;
+    size_t px = (size_t)rs->width * (size_t)rs->height;
+    adaptive *ad = adaptive_new(rs->width, rs->height, rs->spp, opt->min_spp, opt->noise_threshold);
+    uint8_t *mask = malloc(px);
+    float *sums = calloc(px * ADAPTIVE_CHANNELS, sizeof(float));
+    tile_rect *round_tiles = malloc((size_t)tile_count * sizeof *round_tiles);
+    int rc = ad && mask && sums && round_tiles ? 0 : -1;
+    uint32_t first, count;
+    while (rc == 0 && adaptive_next_round(ad, &first, &count, mask) > 0) {
+        frame_job job = {.s = s, .opt = opt, .tiles = round_tiles, .sums = sums, .mask = mask,
+                         .first = first, .count = count};
+        for (int t = 0; t < tile_count; t++)
+            if (render_tile_has_active(&tiles[t], rs->width, mask)) round_tiles[job.tile_count++] = tiles[t];
+        rc = frame_run(&job, tile_size, stats, 0, job.tile_count, adaptive_total_samples(ad));
+        if (rc == 0) adaptive_add_round(ad, sums);
+    }
+    if (rc == 0) adaptive_result(ad, rgb, opt->samples);
+    adaptive_free(ad);
+    free(mask);
+    free(sums);
+    free(round_tiles);
+    return rc;
+}
+
+int render_tile_has_active(const tile_rect *t, int width, const uint8_t *mask) {
+    for (int y = t->y0; y < t->y1; y++)
+        for (int x = t->x0; x < t->x1; x++)
+            if (mask[(size_t)y * (size_t)width + (size_t)x]) return 1;
+    return 0;
+}
+
+int render_frame(const scene *s, const render_options *opt, float *rgb, trace_stats *stats) {
+    const render_settings *rs = &s->settings;
+    int ts = opt->tile_size > 0 ? opt->tile_size : 32;
+    int tile_count = render_split_tiles(rs->width, rs->height, ts, NULL, 0);
+    tile_rect *tiles = calloc((size_t)tile_count, sizeof *tiles);
+    memset(stats, 0, sizeof *stats);
+    if (!tiles) return -1;
+    render_split_tiles(rs->width, rs->height, ts, tiles, tile_count);
+    int rc;
+    if (opt->noise_threshold > 0) {
+        rc = render_frame_adaptive(s, opt, tiles, tile_count, ts, rgb, stats);
+    } else {
+        frame_job job = {.s = s, .opt = opt, .tiles = tiles, .tile_count = tile_count, .rgb = rgb};
+        rc = frame_run(&job, ts, stats, 0, tile_count, 0);
+    }
+    if (rc == 0 && opt->progress) opt->progress(opt->progress_ctx, tile_count, tile_count, stats);
+    free(tiles);
     return rc;
 }

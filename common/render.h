@@ -39,6 +39,20 @@ void render_tile(const scene *s, const integrator_options *opt, const tile_rect 
 int render_tile_means(const scene *s, const integrator_options *opt, const tile_rect *tile, int spp, int passes,
                       double *accum, float *rgb, trace_stats *stats, const atomic_int *cancel);
 
+/* One adaptive round (adaptive.h) of a tile: for each pixel whose byte in
+ * mask (tile-local, row-major) is set, the sums of samples [first, first +
+ * count), ADAPTIVE_CHANNELS floats per pixel into out (tile-local): r, g, b
+ * over all of them, then over the odd sample indices; zeros elsewhere.
+ * Each pixel is summed in double in sample order and rounded once, so the
+ * floats do not depend on tiling. Returns 0; or -1 if cancel is not NULL
+ * and was set (checked between rows), leaving out partial. */
+int render_tile_sums(const scene *s, const integrator_options *opt, const tile_rect *tile, uint32_t first,
+                     uint32_t count, const uint8_t *mask, float *out, trace_stats *stats, const atomic_int *cancel);
+
+/* Whether any pixel of t is set in mask (one byte per pixel of an image
+ * `width` wide). Can't fail. */
+int render_tile_has_active(const tile_rect *t, int width, const uint8_t *mask);
+
 /* Split a width x height image into tile_size squares (clipped at the
  * edges), row by row. Returns the number of tiles; writes at most max of
  * them to out (out may be NULL to count). */
@@ -55,10 +69,14 @@ typedef struct {
     integrator_options integrator;
     render_progress_cb progress;
     void *progress_ctx;
+    double noise_threshold; /* > 0: adaptive sampling (adaptive.h) to this relative error */
+    int min_spp;            /* adaptive: samples every pixel takes first */
+    float *samples;         /* adaptive: per-pixel sample counts out (width * height), or NULL */
 } render_options;
 
-/* Render s->settings.spp samples of every pixel with a pool of threads and
- * write the mean radiance, 3 floats per pixel, row 0 at the top, into rgb
+/* Render s->settings.spp samples of every pixel (with noise_threshold > 0,
+ * between min_spp and spp, adaptively) with a pool of threads and write the
+ * mean radiance, 3 floats per pixel, row 0 at the top, into rgb
  * (width * height * 3 floats, the caller's). Returns 0, or -1 if the threads
  * or their memory could not be had (then rgb is unspecified). */
 int render_frame(const scene *s, const render_options *opt, float *rgb, trace_stats *stats);

@@ -50,7 +50,10 @@ struct job {
     double *first_start; /* when the tile's oldest live lease began */
     uint32_t *queue;     /* ring of tile_count entries */
     int q_head, q_len;
-    float *rgb;
+    float *rgb;            /* channels floats per pixel */
+    int channels;          /* 3 (means), or ADAPTIVE_CHANNELS (an adaptive round's sums) */
+    const uint8_t *mask;   /* adaptive: the frame's pixels to render */
+    uint32_t first, count; /* the sample range every assignment carries */
     farm_job_cb cb;
     farm_tile_cb on_tile;
     void *ctx;
@@ -325,9 +328,25 @@ static int job_pick_backup(const farm *f, job *j, peer *p, uint32_t *out) {
     return found;
 }
 
+/* The part of the job's mask under tile t, row-major (the caller frees), or
+ * NULL when out of memory. */
+static uint8_t *job_tile_mask(const job *j, uint32_t t) {
+    const tile_rect *r = &j->rects[t];
+    uint8_t *m = malloc((size_t)tile_width(r) * (size_t)tile_height(r)), *out = m;
+    for (int y = r->y0; m && y < r->y1; y++, out += tile_width(r))
+        memcpy(out, j->mask + (size_t)y * (size_t)j->desc.width + (size_t)r->x0, (size_t)tile_width(r));
+    return m;
+}
+
 static int peer_assign(peer *p, job *j, uint32_t t, int backup) {
+    proto_assign a = {j->desc.id, t, j->rects[t], j->first, j->count, NULL};
     lease *l = calloc(1, sizeof *l);
-    if (!l) return -1;
+    if (!l || (j->mask && !(a.mask = job_tile_mask(j, t)))) {
+        farm_log(p->f, "out of memory assigning tile %u of job %u; it stays queued", t, j->desc.id);
+        free(l);
+        job_enqueue(j, t);
+        return -1;
+    }
     double now = farm_now(p->f);
     *l = (lease){j, t, now, 1, p->leases};
     p->leases = l;
@@ -335,8 +354,8 @@ static int peer_assign(peer *p, job *j, uint32_t t, int backup) {
     if (backup) j->rep.backups++;
     p->credits--;
     peer_tell_job(p, j);
-    proto_assign a = {j->desc.id, t, j->rects[t], 0, (uint32_t)j->desc.spp};
     peer_send_json(p, proto_assign_json(&a));
+    free(a.mask);
     return 0;
 }
 
@@ -372,11 +391,11 @@ static long tile_first_bad(const uint8_t *px, size_t floats) {
 
 static void job_stitch(job *j, const proto_tile *h, const uint8_t *px) {
     const tile_rect *r = &j->rects[h->tile];
-    int w = tile_width(r);
+    size_t w = (size_t)tile_width(r), ch = (size_t)j->channels;
     for (int y = r->y0; y < r->y1; y++) {
-        float *row = j->rgb + 3 * ((size_t)y * (size_t)j->desc.width + (size_t)r->x0);
-        const uint8_t *src = px + 12 * (size_t)(y - r->y0) * (size_t)w;
-        for (int i = 0; i < 3 * w; i++) row[i] = wire_get_f32(src + 4 * i);
+        float *row = j->rgb + ch * ((size_t)y * (size_t)j->desc.width + (size_t)r->x0);
+        const uint8_t *src = px + 4 * ch * (size_t)(y - r->y0) * w;
+        for (size_t i = 0; i < ch * w; i++) row[i] = wire_get_f32(src + 4 * i);
     }
 }
 
@@ -407,8 +426,11 @@ static int on_tile(peer *p, const uint8_t *body, size_t len) {
     if (h.width != (uint32_t)tile_width(r) || h.height != (uint32_t)tile_height(r))
         return peer_violation(p, "sent tile %u of job %u as %ux%u pixels; it is %dx%d", h.tile, h.job, h.width,
                               h.height, tile_width(r), tile_height(r));
+    if (h.channels != (uint32_t)j->channels)
+        return peer_violation(p, "sent tile %u of job %u with %u values per pixel; the job needs %d", h.tile, h.job,
+                              h.channels, j->channels);
     const uint8_t *px = body + PROTO_TILE_HEADER_BYTES;
-    long bad = tile_first_bad(px, (size_t)h.width * h.height * 3);
+    long bad = tile_first_bad(px, (size_t)h.width * h.height * h.channels);
     if (bad >= 0)
         return peer_violation(p, "sent tile %u of job %u with a NaN, infinite or negative value (float %ld)",
                               h.tile, h.job, bad);
@@ -805,6 +827,10 @@ int farm_submit(farm *f, const proto_job *desc, const uint8_t *bundle, size_t bu
     j->priority = o->priority;
     j->on_tile = o->on_tile;
     j->rgb = rgb;
+    j->channels = desc->adaptive ? ADAPTIVE_CHANNELS : 3;
+    j->mask = desc->adaptive ? o->mask : NULL;
+    j->first = desc->adaptive ? o->first : 0;
+    j->count = desc->adaptive ? o->count : (uint32_t)desc->spp;
     j->cb = cb;
     j->ctx = ctx;
     j->tile_count = render_split_tiles(desc->width, desc->height, o->tile_size, NULL, 0);

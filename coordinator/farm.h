@@ -81,6 +81,11 @@ typedef struct {
     int priority;          /* higher first; equal priorities in submission order */
     const uint8_t *done;   /* tiles already in rgb (resumed jobs), one byte each, or NULL */
     farm_tile_cb on_tile;  /* may be NULL */
+    /* Adaptive rounds (desc->adaptive): the pixels to render (one byte per
+     * pixel of the frame, the caller's, kept until the job ends) and the
+     * sample range; rgb then receives ADAPTIVE_CHANNELS sums per pixel. */
+    const uint8_t *mask;
+    uint32_t first, count;
 } farm_job_options;
 
 /* Render job desc over the farm: bundle (serialised scene bundle, copied)

@@ -10,6 +10,8 @@
 
 #include "cli_util.h"
 
+#include "../common/adaptive.h"
+
 #include <limits.h>
 #include <signal.h>
 #include <stdio.h>
@@ -49,6 +51,19 @@ struct local_run {
     farm_report last;
     uint64_t total_samples;
     double start, last_shown;
+    /* Adaptive sampling: one farm job per round, the next submitted from a
+     * timer once the farm has finished calling back about the last. */
+    const proto_job *job;
+    const uint8_t *bundle;
+    size_t bundle_len;
+    float *rgb;
+    adaptive *ad;
+    float *sums;
+    uint8_t *mask, *done;
+    uint32_t round_id;
+    trace_stats round_stats; /* of the rounds before the current one */
+    int round_tiles;
+    uv_timer_t round_timer;
 };
 
 static double mono_now(const local_run *r) { return (double)uv_hrtime() / 1e9 - r->start; }
@@ -178,6 +193,7 @@ static void render_stop(local_run *r) {
     farm_close(r->f, on_farm_closed, r);
     uv_close((uv_handle_t *)&r->sigint, NULL);
     uv_close((uv_handle_t *)&r->sigterm, NULL);
+    uv_close((uv_handle_t *)&r->round_timer, NULL);
     if (r->failed) uv_walk(&r->loop, term_walk, NULL);
     if (r->alive > 0)
         uv_timer_start(&r->grace, on_grace_timer, EXIT_GRACE_MS, 0);
@@ -185,9 +201,67 @@ static void render_stop(local_run *r) {
         uv_close((uv_handle_t *)&r->grace, NULL);
 }
 
+static void on_job(void *ctx, const farm_report *rep, int done);
+
+static void add_stats(trace_stats *a, const trace_stats *b) {
+    a->samples += b->samples;
+    a->rays += b->rays;
+    a->shadow_rays += b->shadow_rays;
+    a->bad_samples += b->bad_samples;
+}
+
+/* Hand the farm the next adaptive round, or finish the render when there is
+ * none. Returns 0, or -1 when out of memory (then the render has failed). */
+static int submit_round(local_run *r) {
+    uint32_t first, count;
+    const proto_job *job = r->job;
+    if (adaptive_next_round(r->ad, &first, &count, r->mask) == 0) {
+        adaptive_result(r->ad, r->rgb, r->o->samples);
+        render_stop(r);
+        return 0;
+    }
+    int ts = r->o->tile_size, n = render_split_tiles(job->width, job->height, ts, NULL, 0);
+    tile_rect *tiles = malloc((size_t)n * sizeof *tiles);
+    if (tiles) {
+        render_split_tiles(job->width, job->height, ts, tiles, n);
+        for (int t = 0; t < n; t++) r->done[t] = !render_tile_has_active(&tiles[t], job->width, r->mask);
+    }
+    free(tiles);
+    proto_job round = *job;
+    round.id = ++r->round_id;
+    farm_job_options fo = {.tile_size = ts, .done = r->done, .mask = r->mask, .first = first, .count = count};
+    if (!tiles || farm_submit(r->f, &round, r->bundle, r->bundle_len, &fo, r->sums, on_job, r)) {
+        snprintf(r->err, sizeof r->err, "out of memory for adaptive round %u", r->round_id);
+        r->failed = 1;
+        render_stop(r);
+        return -1;
+    }
+    return 0;
+}
+
+static void on_round_timer(uv_timer_t *t) {
+    local_run *r = t->data;
+    if (r->finished) return;
+    farm_forget(r->f, r->round_id);
+    submit_round(r);
+}
+
 static void on_job(void *ctx, const farm_report *rep, int done) {
     local_run *r = ctx;
     r->last = *rep;
+    if (r->ad) { /* figures of the whole render, not just this round */
+        add_stats(&r->last.stats, &r->round_stats);
+        r->last.tiles_done += r->round_tiles;
+        r->last.tiles_total += r->round_tiles;
+    }
+    if (r->ad && done && !rep->failed && !rep->cancelled) {
+        adaptive_add_round(r->ad, r->sums);
+        add_stats(&r->round_stats, &rep->stats);
+        r->round_tiles += rep->tiles_total;
+        uv_timer_start(&r->round_timer, on_round_timer, 0, 0);
+        return;
+    }
+    rep = &r->last;
     double now = mono_now(r);
     if (r->o->progress && (done || now - r->last_shown >= 0.1)) {
         show_progress(r, rep, done);
@@ -249,6 +323,21 @@ int local_farm_render(const local_farm_options *o, const proto_job *job, const u
     }
     r->start = (double)uv_hrtime() / 1e9;
     r->total_samples = (uint64_t)job->width * (uint64_t)job->height * (uint64_t)job->spp;
+    r->job = job;
+    r->bundle = bundle;
+    r->bundle_len = bundle_len;
+    r->rgb = rgb;
+    uv_timer_init(&r->loop, &r->round_timer);
+    r->round_timer.data = r;
+    int adaptive_ok = 1;
+    if (o->noise_threshold > 0) {
+        size_t px = (size_t)job->width * (size_t)job->height;
+        r->ad = adaptive_new(job->width, job->height, job->spp, o->min_spp, o->noise_threshold);
+        r->sums = calloc(px * ADAPTIVE_CHANNELS, sizeof(float));
+        r->mask = malloc(px);
+        r->done = malloc((size_t)render_split_tiles(job->width, job->height, o->tile_size, NULL, 0));
+        adaptive_ok = r->ad && r->sums && r->mask && r->done;
+    }
     uv_signal_init(&r->loop, &r->sigint);
     uv_signal_init(&r->loop, &r->sigterm);
     r->sigint.data = r->sigterm.data = r;
@@ -261,6 +350,13 @@ int local_farm_render(const local_farm_options *o, const proto_job *job, const u
         snprintf(r->err, sizeof r->err, "could not start any local worker");
         r->failed = 1;
         render_stop(r);
+    } else if (!adaptive_ok) {
+        snprintf(r->err, sizeof r->err, "out of memory for adaptive sampling");
+        r->failed = 1;
+        render_stop(r);
+    } else if (r->ad) {
+        r->round_id = job->id - 1;
+        submit_round(r);
     } else if (farm_submit(r->f, job, bundle, bundle_len, &(farm_job_options){.tile_size = o->tile_size}, rgb,
                            on_job, r)) {
         snprintf(r->err, sizeof r->err, "out of memory for the job");
@@ -282,6 +378,10 @@ int local_farm_render(const local_farm_options *o, const proto_job *job, const u
     rep->backups = r->last.backups;
     int failed = r->failed;
     if (failed) snprintf(err, err_len, "%s", r->err);
+    adaptive_free(r->ad);
+    free(r->sums);
+    free(r->mask);
+    free(r->done);
     free(r->slots);
     free(r);
     return failed ? -1 : 0;

@@ -20,6 +20,9 @@ typedef struct {
     int progress;           /* show a progress bar on stderr */
     int verbose;            /* per-worker table and farm figures at the end */
     const char *token_file; /* handed to the local workers, or NULL */
+    double noise_threshold; /* > 0: adaptive sampling in rounds (adaptive.h) */
+    int min_spp;            /* adaptive: samples every pixel takes first */
+    float *samples;         /* adaptive: per-pixel sample counts out, or NULL */
 } local_farm_options;
 
 typedef struct {

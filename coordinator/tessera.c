@@ -34,6 +34,7 @@ typedef struct {
     const char *out_path;
     scene_overrides ov;
     int threads, threads_given, workers, tile_size, verbose, progress, jpeg_quality, png16;
+    int aov_samples; /* --aov samples: also write the per-pixel sample counts */
     const char *listen, *token_file;
     char listen_host[256];
     farm_options farm;
@@ -83,6 +84,10 @@ static void usage_render(FILE *f) {
             "      --no-nee           no light sampling (for comparisons)\n"
             "      --no-mis           light sampling without MIS (for comparisons)\n"
             "      --sampler S        sobol (Owen-scrambled, the default) or random\n"
+            "      --noise-threshold E  adaptive sampling: pixels stop once their estimated\n"
+            "                         relative error (and their neighbours') is below E\n"
+            "      --min-spp N        adaptive: samples every pixel takes first (default 16)\n"
+            "      --aov samples      also write the per-pixel sample counts to OUT-stem.samples.pfm\n"
             "      --no-progress      no progress bar even on a terminal\n"
             "  -v, --verbose          print scene and BVH statistics\n"
             "  -h, --help             this text\n");
@@ -102,7 +107,7 @@ static void parse_tonemap(const char *s, tonemap_kind *out) {
 }
 
 enum { OPT_SPP = 256, OPT_WIDTH, OPT_HEIGHT, OPT_DEPTH, OPT_SEED, OPT_THREADS, OPT_WORKERS, OPT_TILE,
-       OPT_PASSES, OPT_TONEMAP, OPT_EXPOSURE, OPT_WHITE, OPT_QUALITY, OPT_EXR_COMPRESSION, OPT_EXR_HALF, OPT_EXR_ALPHA, OPT_PNG16, OPT_NO_NEE, OPT_NO_MIS, OPT_SAMPLER, OPT_NO_PROGRESS, OPT_LISTEN, OPT_HEARTBEAT, OPT_WORKER_TIMEOUT, OPT_LEASE, OPT_TOKEN };
+       OPT_PASSES, OPT_TONEMAP, OPT_EXPOSURE, OPT_WHITE, OPT_QUALITY, OPT_EXR_COMPRESSION, OPT_EXR_HALF, OPT_EXR_ALPHA, OPT_PNG16, OPT_NO_NEE, OPT_NO_MIS, OPT_SAMPLER, OPT_NOISE_THRESHOLD, OPT_MIN_SPP, OPT_AOV, OPT_NO_PROGRESS, OPT_LISTEN, OPT_HEARTBEAT, OPT_WORKER_TIMEOUT, OPT_LEASE, OPT_TOKEN };
 
 static void parse_render_args(int argc, char **argv, render_args *a) {
     static const struct option opts[] = {
@@ -117,6 +122,8 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         {"png16", no_argument, 0, OPT_PNG16}, {"exr-half", no_argument, 0, OPT_EXR_HALF}, {"exr-alpha", no_argument, 0, OPT_EXR_ALPHA},
         {"no-nee", no_argument, 0, OPT_NO_NEE}, {"no-mis", no_argument, 0, OPT_NO_MIS},
         {"sampler", required_argument, 0, OPT_SAMPLER},
+        {"noise-threshold", required_argument, 0, OPT_NOISE_THRESHOLD},
+        {"min-spp", required_argument, 0, OPT_MIN_SPP}, {"aov", required_argument, 0, OPT_AOV},
         {"no-progress", no_argument, 0, OPT_NO_PROGRESS}, {"verbose", no_argument, 0, 'v'},
         {"listen", required_argument, 0, OPT_LISTEN}, {"heartbeat", required_argument, 0, OPT_HEARTBEAT},
         {"worker-timeout", required_argument, 0, OPT_WORKER_TIMEOUT}, {"lease", required_argument, 0, OPT_LEASE},
@@ -129,6 +136,7 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
     farm_options_default(&a->farm);
     a->tile_size = 32;
     a->ro.passes = 1;
+    a->ro.min_spp = 16;
     a->progress = 1;
     a->tm.kind = TONEMAP_REINHARD;
     int c;
@@ -179,6 +187,17 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         case OPT_EXR_ALPHA: a->exr.alpha = 1; break;
         case OPT_NO_NEE: a->ro.integrator.no_nee = 1; break;
         case OPT_NO_MIS: a->ro.integrator.no_mis = 1; break;
+        case OPT_NOISE_THRESHOLD:
+            a->ro.noise_threshold = parse_double("--noise-threshold", optarg, 1e-6, 1e6);
+            break;
+        case OPT_MIN_SPP: a->ro.min_spp = (int)parse_int("--min-spp", optarg, 2, 1 << 24); break;
+        case OPT_AOV:
+            if (strcmp(optarg, "samples") != 0) {
+                fprintf(stderr, "tessera: --aov: the one output on offer is \"samples\", not \"%s\"\n", optarg);
+                exit(2);
+            }
+            a->aov_samples = 1;
+            break;
         case OPT_SAMPLER:
             if (sampler_parse(optarg, &a->ro.integrator.sampler) != 0) {
                 fprintf(stderr, "tessera: --sampler: expected sobol or random, got \"%s\"\n", optarg);
@@ -286,12 +305,14 @@ static int render_on_farm(render_args *a, const scene *s, const scene_bundle *b,
     }
     proto_job job = {.id = 1, .width = s->settings.width, .height = s->settings.height, .spp = s->settings.spp,
                      .max_depth = s->settings.max_depth, .seed = s->settings.seed,
-                     .integrator = a->ro.integrator};
+                     .integrator = a->ro.integrator, .adaptive = a->ro.noise_threshold > 0};
     scene_bundle_hash(bytes, len, job.scene_hash);
     local_farm_options lo = {.workers = a->workers, .threads_per_worker = a->threads_given ? a->threads : 1,
                              .tile_size = a->tile_size, .farm = a->farm, .listening = a->listen != NULL,
                              .token_file = a->token_file,
-                             .progress = a->progress && isatty(STDERR_FILENO), .verbose = a->verbose};
+                             .progress = a->progress && isatty(STDERR_FILENO), .verbose = a->verbose,
+                             .noise_threshold = a->ro.noise_threshold, .min_spp = a->ro.min_spp,
+                             .samples = a->ro.samples};
     lo.farm.verbose = a->verbose;
     local_farm_report rep;
     char err[700];
@@ -327,6 +348,28 @@ static int save_image(const render_args *a, const scene *s, const image *img) {
     return -1;
 }
 
+/* Write the per-pixel sample counts next to the image, as OUT-stem.samples.pfm
+ * (counts in all three channels). Returns 0 or -1 (printed); the path goes
+ * to path. */
+static int save_samples_aov(const render_args *a, const scene *s, const float *samples, char *path, size_t len) {
+    const char *dot = strrchr(a->out_path, '.'), *slash = strrchr(a->out_path, '/');
+    int stem = dot && (!slash || dot > slash) ? (int)(dot - a->out_path) : (int)strlen(a->out_path);
+    snprintf(path, len, "%.*s.samples.pfm", stem, a->out_path);
+    image img;
+    char err[1024];
+    if (image_alloc(&img, s->settings.width, s->settings.height)) {
+        fprintf(stderr, "tessera: out of memory for the samples image\n");
+        return -1;
+    }
+    for (size_t i = 0; i < (size_t)s->settings.width * (size_t)s->settings.height; i++)
+        img.rgb[3 * i] = img.rgb[3 * i + 1] = img.rgb[3 * i + 2] = samples[i];
+    image_write_options wo = {.tonemap = {.kind = TONEMAP_CLAMP}}; /* PFM: not tone mapped */
+    int rc = image_write(path, &img, &wo, err, sizeof err);
+    if (rc) fprintf(stderr, "tessera: %s\n", err);
+    image_free(&img);
+    return rc ? -1 : 0;
+}
+
 static int cmd_render(int argc, char **argv) {
     render_args a;
     char err[1024], out_default[512];
@@ -351,15 +394,34 @@ static int cmd_render(int argc, char **argv) {
     int rc = image_alloc(&img, s->settings.width, s->settings.height);
     if (rc) fprintf(stderr, "tessera: out of memory for a %dx%d image\n", s->settings.width, s->settings.height);
     trace_stats st = {0};
+    float *samples = NULL;
+    if (rc == 0 && a.ro.noise_threshold > 0) {
+        samples = calloc((size_t)s->settings.width * (size_t)s->settings.height, sizeof *samples);
+        if (!samples) rc = -1;
+        a.ro.samples = samples;
+    } else if (a.aov_samples) {
+        fprintf(stderr, "tessera: --aov samples needs --noise-threshold (without it every pixel takes %d)\n",
+                s->settings.spp);
+        rc = -1;
+    }
     double t0 = now_seconds();
     int farm_mode = a.listen || a.workers > 0;
     if (rc == 0) rc = farm_mode ? render_on_farm(&a, s, &b, &img, &st) : render_in_process(&a, s, &img, &st);
     double secs = now_seconds() - t0;
     if (rc == 0) rc = save_image(&a, s, &img);
+    char aov_path[600] = "";
+    if (rc == 0 && a.aov_samples) rc = save_samples_aov(&a, s, samples, aov_path, sizeof aov_path);
     if (rc == 0)
-        printf("rendered %s: %.2f s, %.3f Msamples/s, %.2f Mrays/s, %llu NaN/Inf samples, image: %s\n",
+        printf("rendered %s: %.2f s, %.3f Msamples/s, %.2f Mrays/s, %llu NaN/Inf samples, image: %s%s%s\n",
                a.scene_path, secs, (double)st.samples / secs / 1e6,
-               (double)(st.rays + st.shadow_rays) / secs / 1e6, (unsigned long long)st.bad_samples, a.out_path);
+               (double)(st.rays + st.shadow_rays) / secs / 1e6, (unsigned long long)st.bad_samples, a.out_path,
+               aov_path[0] ? ", samples: " : "", aov_path);
+    if (rc == 0 && samples)
+        printf("adaptive: %.1f samples per pixel on average (%d to %d), threshold %g\n",
+               (double)st.samples / ((double)s->settings.width * s->settings.height),
+               a.ro.min_spp < s->settings.spp ? a.ro.min_spp : s->settings.spp, s->settings.spp,
+               a.ro.noise_threshold);
+    free(samples);
     if (img.rgb) image_free(&img);
     scene_free(s);
     scene_bundle_free(&b);

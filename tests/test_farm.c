@@ -344,7 +344,7 @@ static int fake_get_tile(int fd, const char *name, proto_assign *a) {
 static void send_tile(int fd, uint32_t job, uint32_t tile, int w, int h, float value) {
     float *rgb = calloc((size_t)w * (size_t)h * 3, sizeof(float));
     rgb[0] = value;
-    proto_tile t = {job, tile, (uint32_t)w, (uint32_t)h, {0, 0, 0, 0}};
+    proto_tile t = {job, tile, (uint32_t)w, (uint32_t)h, {0, 0, 0, 0}, 3};
     size_t len;
     uint8_t *f = proto_tile_frame(&t, rgb, &len);
     send_all(fd, f, len);

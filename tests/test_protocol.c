@@ -140,7 +140,7 @@ TEST(scene_bundle_round_trip_and_hash) {
 TEST(tile_frame_round_trip) {
     float rgb[2 * 3 * 3];
     for (int i = 0; i < 18; i++) rgb[i] = (float)i * 0.25f + 1e-30f;
-    proto_tile t = {7, 42, 2, 3, {11, 22, 33, 44}}, u;
+    proto_tile t = {7, 42, 2, 3, {11, 22, 33, 44}, 3}, u;
     size_t len;
     uint8_t *f = proto_tile_frame(&t, rgb, &len);
     char err[256];
@@ -175,13 +175,54 @@ TEST(job_and_assign_messages) {
     CHECK(proto_job_parse(m, "coordinator", &k, err, sizeof err) == -1 && strstr(err, "coordinator: job.seed"),
           "negative seed: %s", err);
     cJSON_Delete(m);
-    proto_assign a = {3, 9, {8, 16, 16, 24}, 0, 64}, b;
+    proto_assign a = {3, 9, {8, 16, 16, 24}, 0, 64, NULL}, b;
     m = proto_assign_json(&a);
-    CHECK(proto_assign_parse(m, "w", &b, err, sizeof err) == 0 && b.rect.x1 == 16 && b.rect.y0 == 16 && b.count == 64,
+    CHECK(proto_assign_parse(m, "w", &b, err, sizeof err) == 0 && b.rect.x1 == 16 && b.rect.y0 == 16 &&
+              b.count == 64 && b.mask == NULL,
           "assign round trip: %s", err);
     cJSON_ReplaceItemInObject(m, "rect", cJSON_Parse("[8, 16, 8, 24]"));
     CHECK(proto_assign_parse(m, "w", &b, err, sizeof err) == -1 && strstr(err, "assign.rect: empty"), "%s", err);
     cJSON_Delete(m);
+}
+
+/* Adaptive rounds: the job says so, the assignment carries the pixel mask
+ * (4 pixels per hex digit), and a tile of sums has 6 floats per pixel. */
+TEST(adaptive_messages) {
+    proto_job j = {.id = 5, .width = 64, .height = 64, .spp = 256, .max_depth = 8, .adaptive = 1};
+    memset(j.scene_hash, 'b', 64);
+    j.scene_hash[64] = '\0';
+    cJSON *m = proto_job_json(&j);
+    proto_job k;
+    char err[256];
+    CHECK(proto_job_parse(m, "c", &k, err, sizeof err) == 0 && k.adaptive == 1, "adaptive flag lost: %s", err);
+    cJSON_Delete(m);
+    uint8_t mask[5 * 3];
+    for (int i = 0; i < 15; i++) mask[i] = (uint8_t)((i * 7) % 3 == 0);
+    proto_assign a = {5, 2, {10, 20, 15, 23}, 32, 32, mask}, b;
+    m = proto_assign_json(&a);
+    const cJSON *hex = cJSON_GetObjectItemCaseSensitive(m, "mask");
+    CHECK(cJSON_IsString(hex) && strlen(hex->valuestring) == 4, "15 pixels should take 4 hex digits");
+    CHECK(proto_assign_parse(m, "w", &b, err, sizeof err) == 0 && b.mask && memcmp(b.mask, mask, 15) == 0 &&
+              b.first == 32,
+          "mask round trip: %s", err);
+    free(b.mask);
+    cJSON_ReplaceItemInObject(m, "mask", cJSON_CreateString("fff"));
+    CHECK(proto_assign_parse(m, "w", &b, err, sizeof err) == -1 && strstr(err, "assign.mask: expected 4 hex digits"),
+          "short mask: %s", err);
+    cJSON_ReplaceItemInObject(m, "mask", cJSON_CreateString("ffgf"));
+    CHECK(proto_assign_parse(m, "w", &b, err, sizeof err) == -1 && strstr(err, "hex"), "bad digit: %s", err);
+    cJSON_Delete(m);
+    float sums[2 * 2 * ADAPTIVE_CHANNELS];
+    for (int i = 0; i < 24; i++) sums[i] = (float)i;
+    proto_tile t = {5, 2, 2, 2, {1, 2, 3, 4}, ADAPTIVE_CHANNELS}, u;
+    size_t len;
+    uint8_t *f = proto_tile_frame(&t, sums, &len);
+    CHECK(f && proto_tile_parse(f + WIRE_HEADER_BYTES, len - WIRE_HEADER_BYTES, &u, err, sizeof err) == 0 &&
+              u.channels == ADAPTIVE_CHANNELS,
+          "sums tile: %s", err);
+    CHECK(proto_tile_parse(f + WIRE_HEADER_BYTES, len - WIRE_HEADER_BYTES - 4, &u, err, sizeof err) == -1,
+          "a tile 4 bytes short was accepted");
+    free(f);
 }
 
 TEST(address_parsing) {

@@ -95,21 +95,30 @@ static void task_render(pool *p, pool_task *t) {
         snprintf(t->error, sizeof t->error, "%s", j->load_error);
         return;
     }
-    if (a->rect.x1 > j->desc.width || a->rect.y1 > j->desc.height || a->first != 0 ||
-        a->count != (uint32_t)j->desc.spp) {
+    /* A plain job renders all its samples; an adaptive round, the range and
+     * pixels it is given, within the job's samples. */
+    int adaptive = j->desc.adaptive;
+    if (a->rect.x1 > j->desc.width || a->rect.y1 > j->desc.height ||
+        (!adaptive && (a->first != 0 || a->count != (uint32_t)j->desc.spp)) ||
+        (adaptive && (!a->mask || (uint64_t)a->first + a->count > (uint64_t)j->desc.spp))) {
         t->status = TASK_FAILED;
-        snprintf(t->error, sizeof t->error, "tile %u: rectangle or sample range outside job %u", a->tile, a->job);
+        snprintf(t->error, sizeof t->error, "tile %u: rectangle, sample range or mask do not fit job %u", a->tile,
+                 a->job);
         return;
     }
     int w = tile_width(&a->rect), h = tile_height(&a->rect);
+    int channels = adaptive ? ADAPTIVE_CHANNELS : 3;
     double *accum = malloc(3 * sizeof(double) * (size_t)w);
-    float *rgb = malloc(3 * sizeof(float) * (size_t)w * (size_t)h);
-    proto_tile hdr = {a->job, a->tile, (uint32_t)w, (uint32_t)h, {0, 0, 0, 0}};
+    float *rgb = malloc((size_t)channels * sizeof(float) * (size_t)w * (size_t)h);
+    proto_tile hdr = {a->job, a->tile, (uint32_t)w, (uint32_t)h, {0, 0, 0, 0}, (uint32_t)channels};
     t->status = TASK_FAILED;
     snprintf(t->error, sizeof t->error, "out of memory for tile %u", a->tile);
     if (accum && rgb) {
-        if (render_tile_means(j->s, &j->desc.integrator, &a->rect, j->desc.spp, 1, accum, rgb, &hdr.stats,
-                              &t->cancel) != 0) {
+        int rc = adaptive ? render_tile_sums(j->s, &j->desc.integrator, &a->rect, a->first, a->count, a->mask, rgb,
+                                             &hdr.stats, &t->cancel)
+                          : render_tile_means(j->s, &j->desc.integrator, &a->rect, j->desc.spp, 1, accum, rgb,
+                                              &hdr.stats, &t->cancel);
+        if (rc != 0) {
             t->status = TASK_CANCELLED;
         } else if ((t->frame = proto_tile_frame(&hdr, rgb, &t->frame_len)) != NULL) {
             t->status = TASK_DONE;
@@ -344,5 +353,6 @@ void pool_task_free(pool *p, pool_task *t) {
     job_unref(t->job);
     pthread_mutex_unlock(&p->lock);
     free(t->frame);
+    free(t->assign.mask);
     free(t);
 }

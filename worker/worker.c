@@ -195,10 +195,14 @@ static int on_assign(worker *w, conn *c, const cJSON *m) {
     if (proto_assign_parse(m, "coordinator", &a, err, sizeof err)) return protocol_error(w, c, err);
     pool_job *j = pool_job_find(w->pool, a.job);
     if (!j) {
+        free(a.mask);
         snprintf(err, sizeof err, "assign: tile %u of unknown job %u", a.tile, a.job);
         return protocol_error(w, c, err);
     }
-    if (pool_push(w->pool, j, &a, w->generation)) return protocol_error(w, c, "out of memory for a tile");
+    if (pool_push(w->pool, j, &a, w->generation)) { /* the task owns a.mask once pushed */
+        free(a.mask);
+        return protocol_error(w, c, "out of memory for a tile");
+    }
     w->held++;
     return 0;
 }
