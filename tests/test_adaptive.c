@@ -1,0 +1,167 @@
+/* test_adaptive.c - adaptive sampling: the round schedule, the stopping
+ * rule and its neighbourhood, and, end to end, the same bytes for any
+ * threads, tiles and workers, with fewer samples where the image is easy. */
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../common/adaptive.h"
+#include "../common/fileio.h"
+#include "../common/image.h"
+#include "harness.h"
+#include "util.h"
+
+/* Feed one round of synthetic sums: pixel i has per-sample values whose even
+ * and odd halves differ by noise[i] (relative), around the value 1. */
+static void feed_round(adaptive *a, int w, int h, uint32_t first, uint32_t count, const uint8_t *mask,
+                       const float *noise) {
+    float *sums = calloc((size_t)w * h * ADAPTIVE_CHANNELS, sizeof(float));
+    for (int i = 0; i < w * h; i++) {
+        if (!mask[i]) continue;
+        for (uint32_t k = first; k < first + count; k++) {
+            float v = 1.0f + ((k & 1u) ? noise[i] : -noise[i]);
+            for (int c = 0; c < 3; c++) {
+                sums[ADAPTIVE_CHANNELS * i + c] += v;
+                if (k & 1u) sums[ADAPTIVE_CHANNELS * i + 3 + c] += v;
+            }
+        }
+    }
+    adaptive_add_round(a, sums);
+    free(sums);
+}
+
+/* Rounds double the count from min_spp to spp; a noiseless image stops
+ * after the first round; a noisy one runs to spp. */
+TEST(adaptive_rounds_and_stopping) {
+    const int w = 4, h = 3;
+    float quiet[12] = {0}, loud[12];
+    for (int i = 0; i < 12; i++) loud[i] = 0.5f;
+    for (int pass = 0; pass < 2; pass++) {
+        adaptive *a = adaptive_new(w, h, 100, 8, 0.01);
+        uint8_t mask[12];
+        uint32_t first, count, expect_first = 0, expect_count = 8;
+        int rounds = 0;
+        while (adaptive_next_round(a, &first, &count, mask) > 0) {
+            CHECK(first == expect_first && count == expect_count, "round %d: [%u, +%u), expected [%u, +%u)", rounds,
+                  first, count, expect_first, expect_count);
+            feed_round(a, w, h, first, count, mask, pass ? loud : quiet);
+            expect_first = first + count;
+            expect_count = (expect_first * 2 < 100 ? expect_first * 2 : 100) - expect_first;
+            rounds++;
+        }
+        float rgb[36], samples[12];
+        adaptive_result(a, rgb, samples);
+        if (pass == 0) CHECK(rounds == 1 && samples[5] == 8, "noiseless: %d rounds, %g samples", rounds, samples[5]);
+        if (pass == 1)
+            CHECK(rounds == 5 && samples[5] == 100 && adaptive_total_samples(a) == 1200,
+                  "noisy: %d rounds (8, 16, 32, 64, 100 expected), %g samples", rounds, samples[5]);
+        CHECK(fabsf(rgb[15] - 1.0f) < 1e-6f, "mean %g, expected 1", rgb[15]);
+        adaptive_free(a);
+    }
+}
+
+/* One noisy pixel keeps itself and its 8 neighbours going, and nobody else. */
+TEST(adaptive_neighbours_of_noisy_pixels_keep_going) {
+    const int w = 7, h = 7;
+    float noise[49] = {0};
+    noise[3 * 7 + 3] = 0.5f;
+    adaptive *a = adaptive_new(w, h, 64, 4, 0.01);
+    uint8_t mask[49];
+    uint32_t first, count;
+    while (adaptive_next_round(a, &first, &count, mask) > 0) feed_round(a, w, h, first, count, mask, noise);
+    float rgb[147], samples[49];
+    adaptive_result(a, rgb, samples);
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            int near = abs(x - 3) <= 1 && abs(y - 3) <= 1;
+            CHECK(samples[y * w + x] == (near ? 64.0f : 4.0f), "pixel (%d,%d) took %g samples", x, y,
+                  samples[y * w + x]);
+        }
+    adaptive_free(a);
+}
+
+/* Render the Cornell box adaptively with a command line; returns the output
+ * path. */
+static const char *render_adaptive(const char *name, const char *args) {
+    static char path[8][256];
+    static int next;
+    char *p = path[next++ % 8], cmd[1024], out[8192];
+    snprintf(p, 256, "%s", util_temp_path(name));
+    snprintf(cmd, sizeof cmd,
+             "%s render scenes/cornell-box.json --width 48 --height 40 --spp 128 --noise-threshold 0.05 "
+             "--min-spp 8 --aov samples --no-progress %s -o %s",
+             harness_tessera(), args, p);
+    int st = util_run(cmd, out, sizeof out);
+    CHECK(st == 0 && strstr(out, "adaptive:"), "%s failed (%d): %s", cmd, st, out);
+    CHECK(!strstr(out, "Sanitizer") && !strstr(out, "runtime error"), "sanitizer report: %s", out);
+    return p;
+}
+
+static char *samples_path(const char *image) {
+    static char p[300];
+    snprintf(p, sizeof p, "%.*s.samples.pfm", (int)(strrchr(image, '.') - image), image);
+    return p;
+}
+
+/* The same bytes, image and sample counts, whatever the threads, tiles or
+ * workers; some pixels stop early, some run to the end. */
+TEST(adaptive_same_bytes_any_threads_tiles_workers) {
+    const char *ref = render_adaptive("ad-ref.pfm", "--workers 0 --threads 1 --tile-size 32");
+    char ref_samples[300];
+    snprintf(ref_samples, sizeof ref_samples, "%s", samples_path(ref));
+    const char *runs[][2] = {{"ad-a.pfm", "--workers 0 --threads 3 --tile-size 7"},
+                             {"ad-b.pfm", "--workers 2 --tile-size 13"},
+                             {"ad-c.pfm", "--workers 3 --threads 2 --tile-size 5"}};
+    for (size_t i = 0; i < 3; i++) {
+        const char *img = render_adaptive(runs[i][0], runs[i][1]);
+        CHECK(util_same_file(img, ref), "%s: image differs from the single-thread one", runs[i][1]);
+        CHECK(util_same_file(samples_path(img), ref_samples), "%s: sample counts differ", runs[i][1]);
+    }
+    image counts;
+    char err[512];
+    CHECK(image_read(ref_samples, &counts, err, sizeof err) == 0, "%s", err);
+    int at_min = 0, at_max = 0, n = counts.width * counts.height;
+    for (int i = 0; i < n; i++) {
+        float c = counts.rgb[3 * i];
+        at_min += c == 8.0f;
+        at_max += c == 128.0f;
+        CHECK(c >= 8.0f && c <= 128.0f, "pixel %d took %g samples", i, c);
+    }
+    CHECK(at_min > 0 && at_max > 0 && at_min + at_max < n + 1,
+          "expected some pixels to stop at 8 and some to run to 128: %d at min, %d at max of %d", at_min, at_max, n);
+    image_free(&counts);
+}
+
+/* A worker killed in the middle of an adaptive render: its tiles of that
+ * round go back to the queue and the image is still the same bytes. */
+TEST(adaptive_farm_survives_a_killed_worker) {
+    const char *ref = render_adaptive("ad-kill-ref.pfm", "--workers 0");
+    char img[256], log[256], wlog[256], connect[64];
+    snprintf(img, sizeof img, "%s", util_temp_path("ad-kill.pfm"));
+    snprintf(log, sizeof log, "%s", util_temp_path("ad-kill.log"));
+    snprintf(wlog, sizeof wlog, "%s", util_temp_path("ad-kill-w.log"));
+    const char *argv[] = {harness_tessera(), "render", "scenes/cornell-box.json", "--width", "48", "--height", "40",
+                          "--spp", "128", "--noise-threshold", "0.05", "--min-spp", "8", "--no-progress", "-v",
+                          "--tile-size", "8", "--workers", "1", "--listen", "127.0.0.1:0", "-o", img, NULL};
+    pid_t coord = util_spawn(argv, log);
+    CHECK(util_wait_for_text(log, "coordinator listening on 127.0.0.1:", 120) == 0, "no coordinator; log %s", log);
+    int port = -1;
+    FILE *f = fopen(log, "r");
+    char line[512];
+    while (f && fgets(line, sizeof line, f))
+        if (sscanf(line, "tessera: coordinator listening on 127.0.0.1:%d", &port) == 1) break;
+    if (f) fclose(f);
+    snprintf(connect, sizeof connect, "127.0.0.1:%d", port);
+    const char *wargv[] = {util_bin("tessera-worker"), "--connect", connect, "--threads", "1", "--name", "victim",
+                           "--throttle-ms", "30", NULL};
+    pid_t victim = util_spawn(wargv, wlog);
+    CHECK(util_wait_for_text(log, "worker victim (", 120) == 0, "victim never joined; log %s", log);
+    util_sleep(0.6);
+    kill(victim, SIGKILL);
+    util_wait(victim, 120, NULL);
+    CHECK(util_wait(coord, 120, NULL) == 0, "coordinator failed; log %s", log);
+    CHECK(util_file_count(log, "go back to the queue"), "the victim held no tiles when killed; log %s", log);
+    CHECK(util_same_file(img, ref), "image differs after a worker was killed; log %s", log);
+}
