@@ -7,12 +7,15 @@
 #   make test-tsan  the threaded tests under ThreadSanitizer
 #   make fuzz       libFuzzer targets, FUZZ_SECONDS each (default 20)
 #   make stress     the numerical stress tests alone
-#   make bench      speed figures (printed, not asserted)
+#   make bench      speed and time-against-error figures, a few minutes once the
+#                   references exist (printed, not asserted; tables and plots in bench/results/)
+#   make bench-full the long version: ladders to 1024 spp, both benchmark scenes
+#   make bench-reference  the converged references (cached in bench/ref/; ~20 min once)
 #   make reference  regenerate tests/data/cornell-ref-64.pfm.gz (slow)
 
 # Debian packages the build needs; `make deps` installs what is missing.
 DEB_PACKAGES := gcc make pkg-config libcjson-dev libuv1-dev libjpeg-dev libopenexr-dev libpng-dev libsodium-dev \
-                openexr openimageio-tools clang libclang-rt-14-dev
+                openexr openimageio-tools clang libclang-rt-14-dev gnuplot-nox
 
 SHELL := /bin/bash
 CC ?= cc
@@ -52,7 +55,7 @@ WORKER_OBJ := $(patsubst %.c,$(BUILD)/%.o,$(wildcard worker/*.c))
 GIT_ID := $(shell git rev-parse --short=12 HEAD 2>/dev/null || echo nogit)$(shell git status --porcelain --untracked-files=no 2>/dev/null | grep -q . && echo -dirty)
 TEST_BIN := $(BUILD)/bin/run-tests
 
-.PHONY: all deps run test test-asan test-tsan stress bench reference fuzz clean FORCE
+.PHONY: all deps run test test-asan test-tsan stress bench bench-full bench-reference reference fuzz clean FORCE
 all: $(TESSERA) $(WORKER)
 
 build/%/build_id.h: FORCE
@@ -116,10 +119,26 @@ test-tsan:
 	$(MAKE) VARIANT=tsan build/tsan/bin/run-tests build/tsan/bin/tessera build/tsan/bin/tessera-worker
 	TESSERA_BIN=build/tsan/bin/tessera build/tsan/bin/run-tests --filter thread
 
-bench: $(TESSERA) $(WORKER) $(LOADGEN)
+# References: 256x256, cached under bench/ref/ by scene contents.
+BENCH_REF_BOX := 8192
+BENCH_REF_SPHERES := 4096
+bench-reference: $(TESSERA) $(WORKER)
+	bench/reference.sh $(TESSERA) scenes/cornell-box.json 256 $(BENCH_REF_BOX)
+	bench/reference.sh $(TESSERA) scenes/cornell-spheres.json 256 $(BENCH_REF_SPHERES)
+
+bench: $(TESSERA) $(WORKER) $(LOADGEN) bench-reference
 	bench/bench.sh $(TESSERA) scenes/cornell-box.json 16
 	bench/bench.sh $(TESSERA) scenes/cornell-spheres.json 16
 	bench/farm.sh $(BUILD)/bin scenes/cornell-box.json 8 5
+	bench/features.sh $(TESSERA) 5
+	bench/accel.sh $(TESSERA) 3
+	bench/error.sh $(TESSERA) scenes/cornell-box.json $(BENCH_REF_BOX) "4 16 64 256" "0.1 0.05 0.025" 256
+
+bench-full: $(TESSERA) $(WORKER) bench-reference
+	bench/error.sh $(TESSERA) scenes/cornell-box.json $(BENCH_REF_BOX) "4 16 64 256 1024" \
+	  "0.1 0.05 0.025 0.0125 0.00625" 1024
+	bench/error.sh $(TESSERA) scenes/cornell-spheres.json $(BENCH_REF_SPHERES) "4 16 64 256 1024" \
+	  "0.1 0.05 0.025 0.0125" 1024
 
 reference: $(TESSERA)
 	@mkdir -p tests/data

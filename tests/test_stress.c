@@ -8,6 +8,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <cjson/cJSON.h>
+
+#include "../common/fileio.h"
 #include "harness.h"
 #include "util.h"
 
@@ -169,4 +172,87 @@ TEST(stress_furnace_for_energy_conserving_materials) {
     m = sky_furnace("{\"type\": \"glossy\", \"diffuse\": [0.5, 0.5, 0.5], \"specular\": [0.5, 0.5, 0.5], \"exponent\": 20}",
                     1024, &worst);
     CHECK(m <= 1.005 && m > 0.8, "glossy kd + ks = 1: mean %g (must not exceed 1)", m);
+}
+
+/* Multiply every coordinate of the scene tree by scale and add offset:
+ * shape vertices, sphere centres and radii, camera position and target. */
+static void transform_tree(cJSON *node, const char *key, double scale, double offset) {
+    if (cJSON_IsArray(node) && key &&
+        (!strcmp(key, "vertices") || !strcmp(key, "position") || !strcmp(key, "look_at") || !strcmp(key, "center"))) {
+        cJSON *v;
+        cJSON_ArrayForEach(v, node) {
+            if (cJSON_IsArray(v)) transform_tree(v, key, scale, offset);
+            else if (cJSON_IsNumber(v)) cJSON_SetNumberValue(v, v->valuedouble * scale + offset);
+        }
+        return;
+    }
+    if (cJSON_IsNumber(node) && key && !strcmp(key, "radius")) {
+        cJSON_SetNumberValue(node, node->valuedouble * scale);
+        return;
+    }
+    cJSON *child;
+    cJSON_ArrayForEach(child, node) transform_tree(child, child->string ? child->string : key, scale, offset);
+}
+
+/* The Cornell box, scaled and moved, as a scene at 48x48 and `spp` with
+ * `seed`; NULL on failure (reported). */
+static float *render_cornell(double scale, double offset, int spp, int seed) {
+    size_t len;
+    char err[1024];
+    char *text = file_read_all("scenes/cornell-box.json", 1 << 20, &len, err, sizeof err);
+    cJSON *root = text ? cJSON_Parse(text) : NULL;
+    free(text);
+    CHECK(root != NULL, "cannot read the Cornell box: %s", err);
+    if (!root) return NULL;
+    transform_tree(root, NULL, scale, offset);
+    cJSON *r = cJSON_GetObjectItemCaseSensitive(root, "render");
+    cJSON_ReplaceItemInObject(r, "width", cJSON_CreateNumber(48));
+    cJSON_ReplaceItemInObject(r, "height", cJSON_CreateNumber(48));
+    cJSON_ReplaceItemInObject(r, "spp", cJSON_CreateNumber(spp));
+    cJSON_ReplaceItemInObject(r, "seed", cJSON_CreateNumber(seed));
+    char *json = cJSON_PrintUnformatted(root);
+    cJSON_Delete(root);
+    scene *s = util_scene_from_text(json, err, sizeof err);
+    free(json);
+    CHECK(s != NULL, "scale %g offset %g: %s", scale, offset, err);
+    if (!s) return NULL;
+    trace_stats st;
+    float *rgb = util_render(s, 2, 8, 1, &st);
+    CHECK(st.bad_samples == 0, "scale %g offset %g: %llu NaN/Inf samples", scale, offset,
+          (unsigned long long)st.bad_samples);
+    scene_free(s);
+    return rgb;
+}
+
+static double rel_mse(const float *a, const float *b, int n) {
+    double sum = 0;
+    for (int i = 0; i < n; i++) sum += (double)(a[i] - b[i]) * (a[i] - b[i]) / ((double)b[i] * b[i] + 0.01);
+    return sum / n;
+}
+
+/* The Cornell box scaled by 1e-4 and 1e4, and moved 1e5 units away, is the
+ * same picture: against the original (same seed) it differs by far less
+ * than the original differs from itself under another seed, and it has no
+ * black pixel where the original has light (acne, leaks). */
+TEST(stress_scale_invariance_of_the_cornell_box) {
+    const int n = 48 * 48 * 3;
+    float *orig = render_cornell(1, 0, 64, 5), *other = render_cornell(1, 0, 64, 6);
+    if (!orig || !other) return;
+    double noise = rel_mse(other, orig, n);
+    static const double cases[][2] = {{1e-4, 0}, {1e4, 0}, {1, 1e5}, {1e-4, 1e5 * 1e-4}};
+    for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
+        float *img = render_cornell(cases[c][0], cases[c][1], 64, 5);
+        if (!img) continue;
+        double d = rel_mse(img, orig, n);
+        int black = 0;
+        for (int i = 0; i < n; i += 3)
+            black += img[i] + img[i + 1] + img[i + 2] == 0.0f && orig[i] + orig[i + 1] + orig[i + 2] > 0.0f;
+        CHECK(d < 0.01 * noise, "scale %g, offset %g: relMSE %g against the original; another seed differs by %g",
+              cases[c][0], cases[c][1], d, noise);
+        CHECK(black == 0, "scale %g, offset %g: %d pixels black that are lit in the original", cases[c][0],
+              cases[c][1], black);
+        free(img);
+    }
+    free(orig);
+    free(other);
 }

@@ -1,0 +1,89 @@
+#!/usr/bin/env bash
+# error.sh - time against error: renders of a scene at growing sample counts
+# on the local farm, each with its wall time, samples/s, RMSE and relative
+# MSE against a converged reference (bench/reference.sh), for Tessera's
+# default path and with features switched off or on (independent random
+# numbers instead of Sobol, no MIS, no NEE, adaptive sampling).
+#
+# Writes bench/results/error-SCENE.csv, .md and .png (gnuplot, log-log) and
+# prints the table. Printed, not asserted.
+#
+# usage: bench/error.sh TESSERA_BIN SCENE REF_SPP "SPP LADDER" "ADAPTIVE THRESHOLDS" [ADAPTIVE_MAX_SPP]
+set -euo pipefail
+bin=$1 scene=$2 ref_spp=$3 ladder=$4 thresholds=$5 adaptive_max=${6:-1024}
+size=256
+name=$(basename "$scene" .json)
+ref=$(bench/reference.sh "$bin" "$scene" "$size" "$ref_spp")
+ref_noise=$(cat "$ref.noise")
+out=bench/results
+mkdir -p "$out"
+csv=$out/error-$name.csv md=$out/error-$name.md png=$out/error-$name.png
+tmp=$(mktemp -d /tmp/tessera-error-bench.XXXXXX)
+trap 'rm -rf "$tmp"' EXIT
+cores=$(nproc)
+echo "variant,spp,seconds,msamples_per_s,rmse,relmse" > "$csv"
+
+# run VARIANT LABEL_SPP ARGS...: one render, one CSV line.
+run() {
+  local variant=$1 spp=$2; shift 2
+  local line err
+  line=$("$bin" render "$scene" --width $size --height $size --no-progress -o "$tmp/img.pfm" "$@")
+  err=$("$bin" compare "$tmp/img.pfm" "$ref")
+  local secs rate rmse relmse
+  secs=$(awk '{print $3}' <<< "$line")
+  rate=$(awk '{print $5}' <<< "$line")
+  rmse=$(awk '{print $2}' <<< "$err")
+  relmse=$(awk '{print $4}' <<< "$err")
+  echo "$variant,$spp,$secs,$rate,$rmse,$relmse" >> "$csv"
+  printf "%-10s %6s spp %8.2f s %7s Ms/s  rmse %-10s relMSE %s\n" "$variant" "$spp" "$secs" "$rate" "$rmse" "$relmse"
+}
+
+echo "time against error: $name, ${size}x$size, local farm ($cores workers), reference $ref_spp spp"
+echo "(reference noise: relMSE $ref_noise, included in every figure below)"
+for spp in $ladder; do
+  run tessera "$spp" --spp "$spp"
+  run random "$spp" --spp "$spp" --sampler random
+  run no-mis "$spp" --spp "$spp" --no-mis
+  run no-nee "$spp" --spp "$spp" --no-nee
+done
+for t in $thresholds; do
+  run adaptive "$t" --spp "$adaptive_max" --noise-threshold "$t" --min-spp 16
+done
+
+{
+  echo "| variant | spp (adaptive: threshold) | seconds | Msamples/s | RMSE | relMSE |"
+  echo "|---|---|---|---|---|---|"
+  tail -n +2 "$csv" | awk -F, '{printf "| %s | %s | %.2f | %s | %s | %s |\n", $1, $2, $3, $4, $5, $6}'
+  echo
+  echo "$name, ${size}x$size, local farm with $cores workers on $(nproc) cores; reference: $ref_spp spp of"
+  echo "independent samples, its own noise relMSE $ref_noise (included above)."
+  echo "Made by \`make bench\` (bench/error.sh) on $(date -u +%Y-%m-%d)."
+} > "$md"
+
+if command -v gnuplot > /dev/null; then
+  cycles=""
+  [[ $name == cornell-box ]] && cycles=", '-' using 1:2 with linespoints pt 6 lc rgb 'black' title 'Blender Cycles 3.4 (anchors.md)'"
+  {
+    echo "set terminal pngcairo size 900,600 noenhanced"
+    echo "set output '$png'"
+    echo "set logscale xy"
+    echo "set xlabel 'wall time, seconds (2 cores)'"
+    echo "set ylabel 'relative MSE'"
+    echo "set title '$name ${size}x$size: error against time'"
+    echo "set key top right"
+    echo "set grid"
+    echo "set datafile separator ','"
+    echo -n "plot '$csv' using (strcol(1) eq 'tessera' ? \$3 : 1/0):6 with linespoints pt 7 title 'Tessera (Sobol, NEE+MIS)'"
+    echo -n ", '' using (strcol(1) eq 'adaptive' ? \$3 : 1/0):6 with linespoints pt 9 title 'Tessera adaptive'"
+    echo -n ", '' using (strcol(1) eq 'random' ? \$3 : 1/0):6 with linespoints pt 5 title 'independent random numbers'"
+    echo -n ", '' using (strcol(1) eq 'no-mis' ? \$3 : 1/0):6 with linespoints pt 4 title 'no MIS'"
+    echo -n ", '' using (strcol(1) eq 'no-nee' ? \$3 : 1/0):6 with linespoints pt 3 title 'no NEE'"
+    echo "$cycles"
+    [[ -n $cycles ]] && printf "2.98,8.6e-3\n10.8,1.84e-3\n41.1,4.2e-4\n153,1.07e-4\ne\n"
+    true
+  } > "$tmp/plot.gp"
+  gnuplot "$tmp/plot.gp" && echo "plot: $png"
+else
+  echo "gnuplot not installed: no plot (make deps installs gnuplot-nox)"
+fi
+echo "table: $md, data: $csv"
