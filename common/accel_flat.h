@@ -1,0 +1,126 @@
+/* accel_flat.h - the flat intersector's kernel, written once for any vector
+ * width: accel.c includes it for 4 lanes (SSE, any x86-64) and 8 (AVX2,
+ * chosen at run time where the CPU has it). Every lane performs exactly the
+ * IEEE operations of the scalar triangle_intersect() (intersect.h) in the
+ * same order, and the lanes a group finds are taken in index order with the
+ * scalar acceptance test, so both widths return the hit of the scalar loop
+ * over the triangles: the same bytes on any machine.
+ *
+ * Before including, define FLAT_LANES, FLAT(name) (the name with a width
+ * suffix), FLAT_TARGET (a function attribute or nothing), FLAT_SPLAT(x),
+ * FLAT_LANE_IDS and FLAT_ANY(mask). Not a public header. */
+
+typedef float FLAT(vfloat) __attribute__((vector_size(FLAT_LANES * sizeof(float))));
+typedef int32_t FLAT(vint) __attribute__((vector_size(FLAT_LANES * sizeof(int32_t))));
+#define vfloat FLAT(vfloat)
+#define vint FLAT(vint)
+
+FLAT_TARGET static inline vfloat FLAT(vload)(const float *p) {
+    vfloat v;
+    memcpy(&v, p, sizeof v);
+    return v;
+}
+
+FLAT_TARGET static inline vfloat FLAT(vsplat)(float x) { return (vfloat)FLAT_SPLAT(x); }
+
+/* Whether any lane of a mask is set. */
+FLAT_TARGET static inline int FLAT(vany)(vint m) { return FLAT_ANY(m); }
+
+/* Lane results of the watertight test for one group of triangles, after the
+ * sign flip that makes det positive. */
+typedef struct {
+    vfloat T, det, V, W;
+    vint ok;   /* inside, det != 0, 0 < T < tmax * det (tmax at the group's start) */
+    vint edge; /* some edge function was exactly 0: the scalar test decides */
+} FLAT(group);
+
+/* The vector half of triangle_intersect() (intersect.h) for triangles
+ * [base, base + FLAT_LANES), term for term. */
+FLAT_TARGET static inline void FLAT(test_group)(const flat_triangles *f, const ray_prep *r, uint32_t base,
+                                                  float tmax, FLAT(group) *g) {
+    const int kx = r->kx, ky = r->ky, kz = r->kz;
+    const float o[3] = {r->o.x, r->o.y, r->o.z};
+    vfloat sx = FLAT(vsplat)(r->sx), sy = FLAT(vsplat)(r->sy), sz = FLAT(vsplat)(r->sz);
+    vfloat Az = FLAT(vload)(f->v[0][kz] + base) - FLAT(vsplat)(o[kz]);
+    vfloat Bz = FLAT(vload)(f->v[1][kz] + base) - FLAT(vsplat)(o[kz]);
+    vfloat Cz = FLAT(vload)(f->v[2][kz] + base) - FLAT(vsplat)(o[kz]);
+    vfloat Ax = (FLAT(vload)(f->v[0][kx] + base) - FLAT(vsplat)(o[kx])) - sx * Az;
+    vfloat Ay = (FLAT(vload)(f->v[0][ky] + base) - FLAT(vsplat)(o[ky])) - sy * Az;
+    vfloat Bx = (FLAT(vload)(f->v[1][kx] + base) - FLAT(vsplat)(o[kx])) - sx * Bz;
+    vfloat By = (FLAT(vload)(f->v[1][ky] + base) - FLAT(vsplat)(o[ky])) - sy * Bz;
+    vfloat Cx = (FLAT(vload)(f->v[2][kx] + base) - FLAT(vsplat)(o[kx])) - sx * Cz;
+    vfloat Cy = (FLAT(vload)(f->v[2][ky] + base) - FLAT(vsplat)(o[ky])) - sy * Cz;
+    vfloat U = Cx * By - Cy * Bx, V = Ax * Cy - Ay * Cx, W = Bx * Ay - By * Ax;
+    vfloat zero = FLAT(vsplat)(0.0f);
+    vint lane_ids = (vint)FLAT_LANE_IDS + (int32_t)base;
+    vint real = (lane_ids < (int32_t)f->count) & (lane_ids != (int32_t)r->skip);
+    g->edge = real & ((U == zero) | (V == zero) | (W == zero));
+    /* Outside unless U, V, W share a sign. With no zero among them (zeros
+     * are edge lanes, decided by the scalar test), a float's sign bit is
+     * its sign, so: do the sign bits differ? */
+    vint outside = (((vint)U ^ (vint)V) | ((vint)U ^ (vint)W)) >> 31;
+    vfloat det = U + V + W;
+    vfloat T = U * sz * Az + V * sz * Bz + W * sz * Cz;
+    /* Negate T, det, V, W where det < 0: flipping the sign bit is exact. */
+    vint flip = (det < zero) & (int32_t)0x80000000u;
+    g->T = (vfloat)((vint)T ^ flip);
+    g->det = (vfloat)((vint)det ^ flip);
+    g->V = (vfloat)((vint)V ^ flip);
+    g->W = (vfloat)((vint)W ^ flip);
+    g->ok = real & ~g->edge & ~outside & (det != zero) & (g->T > zero) & (g->T < FLAT(vsplat)(tmax) * g->det);
+}
+
+/* The scalar tail for lane k of a group, with the current closest distance
+ * h->t: the same acceptance test and arithmetic as triangle_intersect(). */
+FLAT_TARGET static inline int FLAT(take_lane)(const FLAT(group) *g, const scene *s, const ray_prep *r, uint32_t id, int k,
+                                 hit *h) {
+    float t, b1, b2;
+    if (g->edge[k]) {
+        if (!triangle_intersect(r, &s->triangles[id], h->t, &t, &b1, &b2)) return 0;
+    } else {
+        if (!g->ok[k] || g->T[k] >= h->t * g->det[k]) return 0;
+        float inv = 1.0f / g->det[k];
+        t = g->T[k] * inv;
+        b1 = g->V[k] * inv;
+        b2 = g->W[k] * inv;
+    }
+    h->t = t;
+    h->prim = id;
+    h->b1 = b1;
+    h->b2 = b2;
+    return 1;
+}
+
+/* Every triangle, then every sphere; with any_hit, stop at the first hit. */
+FLAT_TARGET static int FLAT(traverse)(const flat_triangles *f, const scene *s, const ray *ray_in, float tmax, hit *h,
+                                      int any_hit) {
+    ray_prep r;
+    ray_prepare(ray_in, &r);
+    h->t = tmax;
+    int found = 0;
+    for (uint32_t base = 0; base < f->padded; base += FLAT_LANES) {
+        FLAT(group) g;
+        FLAT(test_group)(f, &r, base, h->t, &g);
+        if (!FLAT(vany)(g.ok | g.edge)) continue;
+        for (int k = 0; k < FLAT_LANES; k++)
+            if ((g.ok[k] | g.edge[k]) && FLAT(take_lane)(&g, s, &r, base + (uint32_t)k, k, h)) {
+                found = 1;
+                if (any_hit) return 1;
+            }
+    }
+    for (uint32_t i = 0; i < s->sphere_count; i++) {
+        uint32_t id = scene_sphere_base(s) + i;
+        float t;
+        if (!sphere_intersect(&r, &s->spheres[i], id == r.skip, h->t, &t)) continue;
+        h->t = t;
+        h->prim = id;
+        h->b1 = h->b2 = 0.0f;
+        found = 1;
+        if (any_hit) return 1;
+    }
+    return found;
+}
+
+
+#undef vfloat
+#undef vint
