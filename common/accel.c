@@ -18,11 +18,8 @@
 #include <immintrin.h>
 #endif
 
-#define LANES ACCEL_FLAT_LANES
-
-
-typedef float vfloat __attribute__((vector_size(LANES * sizeof(float))));
-typedef int32_t vint __attribute__((vector_size(LANES * sizeof(int32_t))));
+/* Triangle arrays are padded to this many lanes, the widest kernel's. */
+#define LANES 8
 
 /* Triangle vertices as structure of arrays: v[vertex][axis][i], padded with
  * lanes that are masked off to a multiple of LANES. */
@@ -96,6 +93,7 @@ void accel_free(accel *a) {
 
 accel_kind accel_get_kind(const accel *a) { return a->kind; }
 
+
 int accel_get_bvh_stats(const accel *a, bvh_stats *out) {
     if (!a->tree) return -1;
     bvh_get_stats(a->tree, out);
@@ -146,6 +144,13 @@ static flat_traverse_fn flat_choose(void) {
     if (getenv("TESSERA_NO_AVX2") == NULL && __builtin_cpu_supports("avx2")) return flat8_traverse;
 #endif
     return flat4_traverse;
+}
+
+int accel_flat_lanes(const accel *a) {
+#ifdef HAVE_FLAT8
+    if (a->flat_fn == flat8_traverse) return 8;
+#endif
+    return 4;
 }
 
 int accel_intersect(const accel *a, const scene *s, const ray *r, float tmax, hit *h) {

@@ -3,8 +3,8 @@
  * Two structures answer the same two questions (closest hit, any hit):
  *  - ACCEL_BVH: a bounding volume hierarchy (bvh.h), for scenes with many
  *    primitives;
- *  - ACCEL_FLAT: every triangle tested, eight at a time, from arrays laid
- *    out for SIMD, then every sphere; no tree to walk. On a scene as small as
+ *  - ACCEL_FLAT: every triangle tested, 8 (AVX2) or 4 (SSE) at a time, from
+ *    arrays laid out for SIMD, then every sphere; no tree to walk. On a scene as small as
  *    the Cornell box this is faster than any tree (see docs/performance.md).
  * ACCEL_AUTO picks FLAT for small scenes and BVH otherwise. The choice is a
  * function of the scene alone, never of the machine, so every worker of a
@@ -23,8 +23,6 @@
 /* ACCEL_AUTO picks ACCEL_FLAT up to this many triangles and spheres. */
 #define ACCEL_FLAT_MAX_TRIANGLES 64
 #define ACCEL_FLAT_MAX_SPHERES 8
-/* Triangles the flat intersector tests at once. */
-#define ACCEL_FLAT_LANES 4
 
 typedef struct accel accel;
 
@@ -37,6 +35,10 @@ void accel_free(accel *a);
 
 /* The kind that was built: ACCEL_BVH or ACCEL_FLAT, never ACCEL_AUTO. */
 accel_kind accel_get_kind(const accel *a);
+
+/* How many triangles the flat kernel this CPU runs tests at once: 8 with
+ * AVX2, else 4. Can't fail. */
+int accel_flat_lanes(const accel *a);
 
 /* The BVH's statistics; returns 0, or -1 (leaving *out alone) for FLAT. */
 int accel_get_bvh_stats(const accel *a, bvh_stats *out);

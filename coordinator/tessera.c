@@ -272,7 +272,7 @@ static void print_scene_info(const scene *s) {
                 bs.node_count, bs.leaf_count, bs.max_depth, (double)bs.memory_bytes / 1024.0,
                 bs.build_seconds * 1e3);
     else
-        fprintf(stderr, "intersector: flat (every triangle, %d at a time; no tree for %u triangles)\n", ACCEL_FLAT_LANES,
+        fprintf(stderr, "intersector: flat (every triangle, %d at a time; no tree for %u triangles)\n", accel_flat_lanes(s->accel),
                 s->triangle_count);
     fprintf(stderr, "render: %dx%d, %d spp, max depth %d, seed %llu\n", s->settings.width, s->settings.height,
             s->settings.spp, s->settings.max_depth, (unsigned long long)s->settings.seed);
