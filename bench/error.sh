@@ -27,7 +27,7 @@ echo "variant,spp,seconds,msamples_per_s,rmse,relmse,relmse_minus_ref_noise" > "
 run() {
   local variant=$1 spp=$2; shift 2
   local line err
-  line=$("$bin" render "$scene" --width $size --height $size --no-progress -o "$tmp/img.pfm" "$@")
+  line=$("$bin" render "$scene" --width $size --height $size --no-progress -o "$tmp/img.pfm" "$@" | head -1)
   err=$("$bin" compare "$tmp/img.pfm" "$ref")
   local secs rate rmse relmse
   secs=$(awk '{print $3}' <<< "$line")

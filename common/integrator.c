@@ -22,8 +22,8 @@
 enum {
     DIM_LIGHT_POINT = 0, /* and 1: the point on the light */
     DIM_BSDF_DIR = 2,    /* and 3: the BSDF's direction */
-    DIM_LIGHT_PICK = 4,  /* which light; 5: which BSDF lobe */
-    DIM_ROULETTE = 6     /* Russian roulette; 7 is spare */
+    DIM_LOBE = 4,        /* which BSDF lobe */
+    DIM_ROULETTE = 5     /* Russian roulette */
 };
 
 
@@ -66,12 +66,12 @@ static ray spawn(vec3 p, vec3 ng, uint32_t prim, vec3 d) {
  * weight. wo and the frame are in world / local space as the caller has
  * them. */
 static vec3 direct_light(const scene *s, const integrator_options *opt, const material *m, const surface *sf,
-                         uint32_t prim, const frame *fr, vec3 wo_local, float u_pick, const sampler_stream *rng,
+                         uint32_t prim, const frame *fr, vec3 wo_local, const sampler_stream *rng,
                          uint32_t dim, trace_stats *st) {
     light_sample ls;
     float u1, u2;
     sampler_get_2d(rng, dim + DIM_LIGHT_POINT, &u1, &u2);
-    if (!lights_sample(s, sf->p, u_pick, u1, u2, &ls)) return vec3_splat(0.0f);
+    if (!lights_sample(s, sf->p, u1, u2, &ls)) return vec3_splat(0.0f);
     vec3 wi_local = frame_to_local(fr, ls.wi);
     vec3 f = bsdf_eval(m, wo_local, wi_local);
     if (vec3_is_zero(f)) return vec3_splat(0.0f);
@@ -128,11 +128,11 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
         frame fr = frame_from_normal(n);
         vec3 wo_local = frame_to_local(&fr, wo);
         /* Only the numbers a vertex uses are computed. */
-        float u_pick, u_lobe, u1, u2;
-        sampler_get_2d(rng, dim + DIM_LIGHT_PICK, &u_pick, &u_lobe);
+        float u_lobe, u_roulette, u1, u2;
+        sampler_get_2d(rng, dim + DIM_LOBE, &u_lobe, &u_roulette);
         if (bsdf_is_smooth(m) && !opt->no_nee)
             L = vec3_add(L,
-                         vec3_mul(beta, direct_light(s, opt, m, &sf, h.prim, &fr, wo_local, u_pick, rng, dim, st)));
+                         vec3_mul(beta, direct_light(s, opt, m, &sf, h.prim, &fr, wo_local, rng, dim, st)));
 
         bsdf_sample bs;
         sampler_get_2d(rng, dim + DIM_BSDF_DIR, &u1, &u2);
@@ -142,7 +142,7 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
         prev_p = sf.p;
         if (depth >= 3) { /* Russian roulette */
             float survive = min_f(1.0f, vec3_max_comp(beta));
-            if (!(sampler_get_1d(rng, dim + DIM_ROULETTE) < survive)) break;
+            if (!(u_roulette < survive)) break;
             beta = vec3_scale(beta, 1.0f / survive);
         }
         r = spawn(sf.p, sf.ng, h.prim, vec3_normalize(frame_to_world(&fr, bs.wi)));

@@ -32,7 +32,7 @@ typedef struct {
  * jitter, then INTEGRATOR_DIMS_PER_BOUNCE for every bounce, at fixed offsets
  * (so that dimension k always means the same decision). */
 #define INTEGRATOR_CAMERA_DIMS 2
-#define INTEGRATOR_DIMS_PER_BOUNCE 8
+#define INTEGRATOR_DIMS_PER_BOUNCE 6
 
 /* Radiance along r (a camera ray) in the scene s. The random numbers come
  * from rng (dimension 2 onwards). Never returns NaN or Inf: such a sample is

@@ -85,10 +85,13 @@ static int sample_triangle(const scene *s, const light *l, vec3 ref, float u1, f
     return 1;
 }
 
-int lights_sample(const scene *s, vec3 ref, float u_pick, float u1, float u2, light_sample *out) {
+int lights_sample(const scene *s, vec3 ref, float u1, float u2, light_sample *out) {
     if (s->light_count == 0) return 0;
-    const light *l = &s->lights[pick_light(s, u_pick)];
+    uint32_t i = pick_light(s, u1);
+    const light *l = &s->lights[i];
     if (!(l->select_pdf > 0.0f)) return 0;
+    float width = s->light_cdf[i + 1] - s->light_cdf[i];
+    if (width > 0.0f) u1 = min_f((u1 - s->light_cdf[i]) / width, 0x1.fffffep-1f);
     int ok;
     out->is_delta = 0;
     switch (l->kind) {

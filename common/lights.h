@@ -26,10 +26,13 @@ typedef struct {
     uint32_t prim; /* emitter's primitive id (PRIM_NONE for point lights) */
 } light_sample;
 
-/* Pick a light with u_pick and a point on it with (u1, u2), as seen from
- * `ref`. Returns 1 and fills *out when the sample can carry light, 0 when it
- * cannot (no lights, back of a one-sided emitter, degenerate geometry). */
-int lights_sample(const scene *s, vec3 ref, float u_pick, float u1, float u2, light_sample *out);
+/* Pick a light with u1 and a point on it with (u1', u2), where u1' is u1
+ * rescaled within the picked light's slice of the selection CDF (uniform
+ * again, given the pick), as seen from `ref`. Reusing u1 this way carries the
+ * 2D stratification of (u1, u2) over onto every light. Returns 1 and fills
+ * *out when the sample can carry light, 0 when it cannot (no lights, back of
+ * a one-sided emitter, degenerate geometry). */
+int lights_sample(const scene *s, vec3 ref, float u1, float u2, light_sample *out);
 
 /* Radiance leaving light l at a point with unit geometric normal n toward
  * direction w (unit, pointing away from the light). Zero behind a one-sided

@@ -138,13 +138,14 @@ TEST(adaptive_same_bytes_any_threads_tiles_workers) {
  * round go back to the queue and the image is still the same bytes. */
 TEST(adaptive_farm_survives_a_killed_worker) {
     const char *ref = render_adaptive("ad-kill-ref.pfm", "--workers 0");
-    char img[256], log[256], wlog[256], connect[64];
+    char img[256], log[256], wlog[256], slog[256], connect[64];
     snprintf(img, sizeof img, "%s", util_temp_path("ad-kill.pfm"));
     snprintf(log, sizeof log, "%s", util_temp_path("ad-kill.log"));
     snprintf(wlog, sizeof wlog, "%s", util_temp_path("ad-kill-w.log"));
+    snprintf(slog, sizeof slog, "%s", util_temp_path("ad-kill-s.log"));
     const char *argv[] = {harness_tessera(), "render", "scenes/cornell-box.json", "--width", "48", "--height", "40",
                           "--spp", "128", "--noise-threshold", "0.05", "--min-spp", "8", "--no-progress", "-v",
-                          "--tile-size", "8", "--workers", "1", "--listen", "127.0.0.1:0", "-o", img, NULL};
+                          "--tile-size", "8", "--workers", "0", "--listen", "127.0.0.1:0", "-o", img, NULL};
     pid_t coord = util_spawn(argv, log);
     CHECK(util_wait_for_text(log, "coordinator listening on 127.0.0.1:", 120) == 0, "no coordinator; log %s", log);
     int port = -1;
@@ -154,14 +155,20 @@ TEST(adaptive_farm_survives_a_killed_worker) {
         if (sscanf(line, "tessera: coordinator listening on 127.0.0.1:%d", &port) == 1) break;
     if (f) fclose(f);
     snprintf(connect, sizeof connect, "127.0.0.1:%d", port);
-    const char *wargv[] = {util_bin("tessera-worker"), "--connect", connect, "--threads", "1", "--name", "victim",
-                           "--throttle-ms", "30", NULL};
-    pid_t victim = util_spawn(wargv, wlog);
+    /* Both throttled to 40 ms a tile: about 3 s of rounds, so the kill
+     * lands in the middle. */
+    const char *vargv[] = {util_bin("tessera-worker"), "--connect", connect, "--threads", "1", "--name", "victim",
+                           "--throttle-ms", "40", NULL};
+    const char *sargv[] = {util_bin("tessera-worker"), "--connect", connect, "--threads", "1", "--name", "survivor",
+                           "--throttle-ms", "40", "--once", NULL};
+    pid_t victim = util_spawn(vargv, wlog);
     CHECK(util_wait_for_text(log, "worker victim (", 120) == 0, "victim never joined; log %s", log);
-    util_sleep(0.6);
+    pid_t survivor = util_spawn(sargv, slog);
+    util_sleep(0.5);
     kill(victim, SIGKILL);
     util_wait(victim, 120, NULL);
     CHECK(util_wait(coord, 120, NULL) == 0, "coordinator failed; log %s", log);
     CHECK(util_file_count(log, "go back to the queue"), "the victim held no tiles when killed; log %s", log);
     CHECK(util_same_file(img, ref), "image differs after a worker was killed; log %s", log);
+    CHECK(util_wait(survivor, 120, NULL) == 0, "the surviving worker did not exit cleanly; log %s", slog);
 }
