@@ -10,11 +10,11 @@
 struct adaptive {
     int width, height, spp, min_spp;
     double threshold;
-    double *sum;     /* 3 per pixel: all samples */
-    double *sum_odd; /* 3 per pixel: odd sample indices */
-    uint32_t *n;     /* samples taken */
-    float *err;      /* estimated relative RMS error, after its last round */
-    uint8_t *active; /* takes part in the next round */
+    double *sum;      /* 3 per pixel: all samples */
+    double *sum_late; /* 3 per pixel: samples [n/2, n), from the last round taken */
+    uint32_t *n;      /* samples taken */
+    float *err2;      /* estimated squared relative error, after its last round */
+    uint8_t *active;  /* takes part in the next round */
     uint32_t next_first, next_count;
     uint64_t total;
 };
@@ -29,11 +29,11 @@ adaptive *adaptive_new(int width, int height, int spp, int min_spp, double thres
     a->min_spp = min_spp < spp ? min_spp : spp;
     a->threshold = threshold;
     a->sum = calloc(3 * px, sizeof *a->sum);
-    a->sum_odd = calloc(3 * px, sizeof *a->sum_odd);
+    a->sum_late = calloc(3 * px, sizeof *a->sum_late);
     a->n = calloc(px, sizeof *a->n);
-    a->err = calloc(px, sizeof *a->err);
+    a->err2 = calloc(px, sizeof *a->err2);
     a->active = malloc(px);
-    if (!a->sum || !a->sum_odd || !a->n || !a->err || !a->active) {
+    if (!a->sum || !a->sum_late || !a->n || !a->err2 || !a->active) {
         adaptive_free(a);
         return NULL;
     }
@@ -46,9 +46,9 @@ adaptive *adaptive_new(int width, int height, int spp, int min_spp, double thres
 void adaptive_free(adaptive *a) {
     if (!a) return;
     free(a->sum);
-    free(a->sum_odd);
+    free(a->sum_late);
     free(a->n);
-    free(a->err);
+    free(a->err2);
     free(a->active);
     free(a);
 }
@@ -62,32 +62,44 @@ long adaptive_next_round(adaptive *a, uint32_t *first, uint32_t *count, uint8_t 
     return a->next_count ? active : 0;
 }
 
-/* Estimated relative RMS error of pixel i (see adaptive.h); infinite with
- * fewer than two samples, when there are no halves to compare. */
-static float pixel_error(const adaptive *a, size_t i) {
-    uint32_t n = a->n[i], n_odd = n / 2, n_even = n - n_odd;
-    if (n_odd == 0) return INFINITY;
-    double e2 = 0;
+/* Estimated squared relative error of pixel i's mean (see adaptive.h):
+ * from the halves A = [0, n/2) and B = [n/2, n), whose means differ by d,
+ * Var(I) = sigma^2 / n is estimated by d^2 nA nB / n^2 (d^2 / 4 for equal
+ * halves). Infinite with fewer than two samples. */
+static float pixel_error2(const adaptive *a, size_t i) {
+    uint32_t n = a->n[i], n_a = n / 2, n_b = n - n_a;
+    if (n_a == 0) return INFINITY;
+    double e2 = 0, halves = (double)n_a * n_b / ((double)n * n);
     for (int c = 0; c < 3; c++) {
-        double s = a->sum[3 * i + c], odd = a->sum_odd[3 * i + c];
-        double mean = s / n, d = (s - odd) / n_even - odd / n_odd;
-        e2 += d * d / 4.0 / (mean * mean + 0.01);
+        double s = a->sum[3 * i + c], late = a->sum_late[3 * i + c];
+        double mean = s / n, d = (s - late) / n_a - late / n_b;
+        e2 += d * d * halves / (mean * mean + 0.01);
     }
-    return (float)sqrt(e2 / 3.0);
+    return (float)(e2 / 3.0);
 }
 
-/* The largest error in the 3x3 neighbourhood of (x, y), clipped at the
- * image's border. */
-static float neighbourhood_error(const adaptive *a, int x, int y) {
-    float worst = 0.0f;
+/* Whether pixel (x, y) has not converged: the mean of the squared error
+ * estimates over its 3x3 neighbourhood (one estimate alone is too noisy to
+ * act on) above threshold^2 * n / spp. The factor n / spp makes the rule
+ * spend samples where they lower the image's MSE most: a pixel stops once
+ * sigma^2 / (n w) <= t^2 n / spp, at n proportional to sigma / sqrt(w)
+ * (w = I^2 + 0.01), the allocation that minimises the relative MSE for a
+ * given budget; stopping at an equal error everywhere (n proportional to
+ * sigma^2 / w) buys nothing over uniform sampling in MSE. A pixel that
+ * stops early has error below threshold * sqrt(n / spp) < threshold. */
+static int unconverged(const adaptive *a, int x, int y) {
+    double sum = 0;
+    int count = 0;
     for (int dy = -1; dy <= 1; dy++)
         for (int dx = -1; dx <= 1; dx++) {
             int qx = x + dx, qy = y + dy;
             if (qx < 0 || qy < 0 || qx >= a->width || qy >= a->height) continue;
-            float e = a->err[(size_t)qy * (size_t)a->width + (size_t)qx];
-            if (!(e <= worst)) worst = e; /* NaN-proof: anything not <= worst wins */
+            sum += a->err2[(size_t)qy * (size_t)a->width + (size_t)qx];
+            count++;
         }
-    return worst;
+    size_t i = (size_t)y * (size_t)a->width + (size_t)x;
+    double bound = a->threshold * a->threshold * a->n[i] / a->spp;
+    return !(sum / count <= bound); /* NaN or infinity: not converged */
 }
 
 void adaptive_add_round(adaptive *a, const float *sums) {
@@ -97,23 +109,39 @@ void adaptive_add_round(adaptive *a, const float *sums) {
         if (!a->active[i]) continue;
         for (int c = 0; c < 3; c++) {
             a->sum[3 * i + c] += sums[ADAPTIVE_CHANNELS * i + c];
-            a->sum_odd[3 * i + c] += sums[ADAPTIVE_CHANNELS * i + 3 + c];
+            a->sum_late[3 * i + c] = sums[ADAPTIVE_CHANNELS * i + 3 + c];
         }
         a->n[i] += count;
         a->total += count;
-        a->err[i] = pixel_error(a, i);
     }
+    for (size_t i = 0; i < px; i++)
+        if (a->active[i]) a->err2[i] = pixel_error2(a, i);
     uint32_t n = a->next_first + count; /* what every active pixel now has */
     uint32_t next = n * 2 < (uint32_t)a->spp ? n * 2 : (uint32_t)a->spp;
     a->next_first = n;
     a->next_count = next - n;
-    /* A decision reads the errors and the pixel's own flag only, so
-     * deciding in place is the same as deciding from a copy. */
+    if (a->next_count == 0) {
+        memset(a->active, 0, px);
+        return;
+    }
+    /* A pixel goes on while it or a neighbour has not converged; stopped
+     * pixels stay stopped (their estimates still count for neighbours).
+     * Decisions read a->err2 and a->n only, never each other. */
+    uint8_t *go = calloc(px, 1);
     for (int y = 0; y < a->height; y++)
         for (int x = 0; x < a->width; x++) {
             size_t i = (size_t)y * (size_t)a->width + (size_t)x;
-            if (a->next_count == 0 || neighbourhood_error(a, x, y) <= a->threshold) a->active[i] = 0;
+            if (!a->active[i] || !unconverged(a, x, y)) continue;
+            for (int dy = -1; dy <= 1; dy++)
+                for (int dx = -1; dx <= 1; dx++) {
+                    int qx = x + dx, qy = y + dy;
+                    if (qx < 0 || qy < 0 || qx >= a->width || qy >= a->height) continue;
+                    size_t q = (size_t)qy * (size_t)a->width + (size_t)qx;
+                    if (go) go[q] = 1;
+                }
         }
+    for (size_t i = 0; i < px; i++) a->active[i] = a->active[i] && (!go || go[i]);
+    free(go);
 }
 
 void adaptive_result(const adaptive *a, float *rgb, float *samples) {

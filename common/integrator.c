@@ -107,11 +107,15 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
     vec3 L = vec3_splat(0.0f), beta = vec3_splat(1.0f), prev_p = camera_ray->o;
     float prev_pdf = 0.0f; /* the camera ray counts as a delta event */
     ray r = *camera_ray;
+    /* What the scene does not have costs nothing: no light to sample, no sky
+     * to add. (Material kinds and area-light MIS cost nothing unused: they
+     * are reached only through primitives that have them.) */
+    int has_lights = (s->features & (FEATURE_AREA_LIGHTS | FEATURE_POINT_LIGHTS)) != 0;
     for (int depth = 0;; depth++) {
         hit h;
         st->rays++;
         if (!accel_intersect(s->accel, s, &r, INFINITY, &h)) {
-            L = vec3_add(L, vec3_mul(beta, s->background));
+            if (s->features & FEATURE_BACKGROUND) L = vec3_add(L, vec3_mul(beta, s->background));
             break;
         }
         surface sf;
@@ -130,7 +134,7 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
         /* Only the numbers a vertex uses are computed. */
         float u_lobe, u_roulette, u1, u2;
         sampler_get_2d(rng, dim + DIM_LOBE, &u_lobe, &u_roulette);
-        if (bsdf_is_smooth(m) && !opt->no_nee)
+        if (has_lights && bsdf_is_smooth(m) && !opt->no_nee)
             L = vec3_add(L,
                          vec3_mul(beta, direct_light(s, opt, m, &sf, h.prim, &fr, wo_local, rng, dim, st)));
 

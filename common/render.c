@@ -51,12 +51,13 @@ int render_tile_sums(const scene *s, const integrator_options *opt, const tile_r
         for (int x = tile->x0; x < tile->x1; x++) {
             size_t k = (size_t)(y - tile->y0) * (size_t)tw + (size_t)(x - tile->x0);
             double sum[ADAPTIVE_CHANNELS] = {0};
+            uint32_t split = ADAPTIVE_SPLIT(first, count);
             for (uint32_t i = first; mask[k] && i < first + count; i++) {
                 vec3 L = render_sample(s, opt, x, y, i, stats);
                 sum[0] += L.x;
                 sum[1] += L.y;
                 sum[2] += L.z;
-                if (i & 1u) {
+                if (i >= split) {
                     sum[3] += L.x;
                     sum[4] += L.y;
                     sum[5] += L.z;

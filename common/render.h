@@ -42,7 +42,8 @@ int render_tile_means(const scene *s, const integrator_options *opt, const tile_
 /* One adaptive round (adaptive.h) of a tile: for each pixel whose byte in
  * mask (tile-local, row-major) is set, the sums of samples [first, first +
  * count), ADAPTIVE_CHANNELS floats per pixel into out (tile-local): r, g, b
- * over all of them, then over the odd sample indices; zeros elsewhere.
+ * over all of them, then over those from ADAPTIVE_SPLIT(first, count) on;
+ * zeros elsewhere.
  * Each pixel is summed in double in sample order and rounded once, so the
  * floats do not depend on tiling. Returns 0; or -1 if cancel is not NULL
  * and was set (checked between rows), leaving out partial. */
