@@ -132,7 +132,7 @@ bench: $(TESSERA) $(WORKER) $(LOADGEN) bench-reference
 	bench/farm.sh $(BUILD)/bin scenes/cornell-box.json 8 5
 	bench/features.sh $(TESSERA) 5
 	bench/accel.sh $(TESSERA) 3
-	bench/error.sh $(TESSERA) scenes/cornell-box.json $(BENCH_REF_BOX) "4 16 64 256" "0.1 0.05 0.025" 256
+	bench/error.sh $(TESSERA) scenes/cornell-box.json $(BENCH_REF_BOX) "4 16 64 256" "0.1 0.05" 256 quick
 
 bench-full: $(TESSERA) $(WORKER) bench-reference
 	bench/error.sh $(TESSERA) scenes/cornell-box.json $(BENCH_REF_BOX) "4 16 64 256 1024" \

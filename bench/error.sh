@@ -8,24 +8,36 @@
 # Writes bench/results/error-SCENE.csv, .md and .png (gnuplot, log-log) and
 # prints the table. Printed, not asserted.
 #
-# usage: bench/error.sh TESSERA_BIN SCENE REF_SPP "SPP LADDER" "ADAPTIVE THRESHOLDS" [ADAPTIVE_MAX_SPP]
+# usage: bench/error.sh TESSERA_BIN SCENE REF_SPP "SPP LADDER" "ADAPTIVE THRESHOLDS" [ADAPTIVE_MAX_SPP [SUFFIX]]
+# SUFFIX names the results (error-SCENE-SUFFIX.*). With ONLY="variant ..." in
+# the environment, only those variants are rendered again; the other rows of
+# an existing CSV are kept.
 set -euo pipefail
-bin=$1 scene=$2 ref_spp=$3 ladder=$4 thresholds=$5 adaptive_max=${6:-1024}
+bin=$1 scene=$2 ref_spp=$3 ladder=$4 thresholds=$5 adaptive_max=${6:-1024} suffix=${7:+-$7}
+only=${ONLY:-}
 size=256
 name=$(basename "$scene" .json)
 ref=$(bench/reference.sh "$bin" "$scene" "$size" "$ref_spp")
 ref_noise=$(cat "$ref.noise")
 out=bench/results
 mkdir -p "$out"
-csv=$out/error-$name.csv md=$out/error-$name.md png=$out/error-$name.png
 tmp=$(mktemp -d /tmp/tessera-error-bench.XXXXXX)
 trap 'rm -rf "$tmp"' EXIT
+csv=$out/error-$name$suffix.csv md=$out/error-$name$suffix.md png=$out/error-$name$suffix.png
 cores=$(nproc)
-echo "variant,spp,seconds,msamples_per_s,rmse,relmse,relmse_minus_ref_noise" > "$csv"
+header="variant,spp,seconds,msamples_per_s,rmse,relmse,relmse_minus_ref_noise"
+if [[ -n $only && -s $csv ]]; then # keep the rows of the variants not rendered again
+  { echo "$header"; tail -n +2 "$csv" | awk -F, -v only=" $only " 'index(only, " " $1 " ") == 0'; } > "$tmp/kept.csv"
+  mv "$tmp/kept.csv" "$csv"
+else
+  echo "$header" > "$csv"
+fi
+wanted() { [[ -z $only || " $only " == *" $1 "* ]]; }
 
 # run VARIANT LABEL_SPP ARGS...: one render, one CSV line.
 run() {
   local variant=$1 spp=$2; shift 2
+  wanted "$variant" || return 0
   local line err
   line=$("$bin" render "$scene" --width $size --height $size --no-progress -o "$tmp/img.pfm" "$@" | head -1)
   err=$("$bin" compare "$tmp/img.pfm" "$ref")
@@ -76,11 +88,14 @@ if command -v gnuplot > /dev/null; then
     echo "set key top right"
     echo "set grid"
     echo "set datafile separator ','"
-    echo -n "plot '$csv' using (strcol(1) eq 'tessera' ? \$3 : 1/0):6 with linespoints pt 7 title 'Tessera (Sobol, NEE+MIS)'"
-    echo -n ", '' using (strcol(1) eq 'adaptive' ? \$3 : 1/0):6 with linespoints pt 9 title 'Tessera adaptive'"
-    echo -n ", '' using (strcol(1) eq 'random' ? \$3 : 1/0):6 with linespoints pt 5 title 'independent random numbers'"
-    echo -n ", '' using (strcol(1) eq 'no-mis' ? \$3 : 1/0):6 with linespoints pt 4 title 'no MIS'"
-    echo -n ", '' using (strcol(1) eq 'no-nee' ? \$3 : 1/0):6 with linespoints pt 3 title 'no NEE'"
+    for v in tessera adaptive random no-mis no-nee; do # one file per line, in time order
+      awk -F, -v v="$v" '$1 == v {print $3 "," $6}' "$csv" | sort -t, -g -k1 > "$tmp/$v.dat"
+    done
+    echo -n "plot '$tmp/tessera.dat' using 1:2 with linespoints pt 7 lw 2 title 'Tessera (Sobol, NEE+MIS)'"
+    echo -n ", '$tmp/adaptive.dat' using 1:2 with linespoints pt 9 title 'Tessera adaptive'"
+    echo -n ", '$tmp/random.dat' using 1:2 with linespoints pt 5 title 'independent random numbers'"
+    echo -n ", '$tmp/no-mis.dat' using 1:2 with linespoints pt 4 title 'no MIS'"
+    echo -n ", '$tmp/no-nee.dat' using 1:2 with linespoints pt 3 title 'no NEE'"
     echo "$cycles"
     [[ -n $cycles ]] && printf "2.98,8.6e-3\n10.8,1.84e-3\n41.1,4.2e-4\n153,1.07e-4\ne\n"
     true

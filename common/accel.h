@@ -21,7 +21,7 @@
 #include "scene.h"
 
 /* ACCEL_AUTO picks ACCEL_FLAT up to this many triangles and spheres. */
-#define ACCEL_FLAT_MAX_TRIANGLES 64
+#define ACCEL_FLAT_MAX_TRIANGLES 96
 #define ACCEL_FLAT_MAX_SPHERES 8
 
 typedef struct accel accel;
