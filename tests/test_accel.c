@@ -95,7 +95,7 @@ TEST(accel_choice_follows_scene) {
     scene *s = scene_load("scenes/cornell-box.json", NULL, err, sizeof err);
     CHECK(s && accel_get_kind(s->accel) == ACCEL_FLAT, "cornell box (32 triangles) should be flat");
     scene_free(s);
-    char json[8192] = "{\"render\": {\"accel\": \"bvh\"}, \"camera\": {\"type\": \"perspective\", \"position\": [0, 0, -5], \"look_at\": [0, 0, 0], \"fov\": 40},"
+    char json[32768] = "{\"render\": {\"accel\": \"bvh\"}, \"camera\": {\"type\": \"perspective\", \"position\": [0, 0, -5], \"look_at\": [0, 0, 0], \"fov\": 40},"
                       " \"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo\": [0.5, 0.5, 0.5]}}, \"shapes\": [";
     for (int i = 0; i <= ACCEL_FLAT_MAX_TRIANGLES; i++)
         snprintf(json + strlen(json), sizeof json - strlen(json),
