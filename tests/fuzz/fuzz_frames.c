@@ -1,7 +1,8 @@
 /* fuzz_frames.c - libFuzzer target: what a peer can send. The bytes are
  * fed to a frame decoder in pieces whose sizes come from the input, and
  * every frame goes through the parsers a coordinator or worker applies:
- * JSON control messages (job, assign), tiles, scene bundles. */
+ * JSON control messages (job, assign with and without an adaptive mask),
+ * tiles of means or of adaptive sums, scene bundles. */
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -20,13 +21,15 @@ static int on_frame(void *ctx, int kind, const uint8_t *body, size_t len) {
             proto_job j;
             proto_assign a;
             if (strcmp(type, "job") == 0) proto_job_parse(m, "fuzz", &j, err, sizeof err);
-            if (strcmp(type, "assign") == 0) proto_assign_parse(m, "fuzz", &a, err, sizeof err);
+            if (strcmp(type, "assign") == 0 && proto_assign_parse(m, "fuzz", &a, err, sizeof err) == 0)
+                free(a.mask);
             cJSON_Delete(m);
         }
     } else if (kind == WIRE_KIND_TILE) {
         proto_tile t;
         if (proto_tile_parse(body, len, &t, err, sizeof err) == 0 &&
-            len != PROTO_TILE_HEADER_BYTES + (size_t)t.width * t.height * 12)
+            ((t.channels != 3 && t.channels != ADAPTIVE_CHANNELS) ||
+             len != PROTO_TILE_HEADER_BYTES + (size_t)t.width * t.height * 4 * t.channels))
             abort(); /* accepted a tile whose size does not match */
     } else if (kind == WIRE_KIND_SCENE) {
         scene_bundle b;
