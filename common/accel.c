@@ -113,12 +113,6 @@ int accel_get_bvh_stats(const accel *a, bvh_stats *out) {
 #define FLAT_ANY(m) (((m)[0] | (m)[1] | (m)[2] | (m)[3]) != 0)
 #endif
 #include "accel_flat.h"
-#undef FLAT_LANES
-#undef FLAT
-#undef FLAT_TARGET
-#undef FLAT_SPLAT
-#undef FLAT_LANE_IDS
-#undef FLAT_ANY
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #define HAVE_FLAT8 1
@@ -130,12 +124,6 @@ int accel_get_bvh_stats(const accel *a, bvh_stats *out) {
 #define FLAT_LANE_IDS {0, 1, 2, 3, 4, 5, 6, 7}
 #define FLAT_ANY(m) (_mm256_movemask_ps((__m256)(m)) != 0)
 #include "accel_flat.h"
-#undef FLAT_LANES
-#undef FLAT
-#undef FLAT_TARGET
-#undef FLAT_SPLAT
-#undef FLAT_LANE_IDS
-#undef FLAT_ANY
 #endif
 
 /* The widest kernel this CPU can run. */

@@ -8,7 +8,8 @@
  *
  * Before including, define FLAT_LANES, FLAT(name) (the name with a width
  * suffix), FLAT_TARGET (a function attribute or nothing), FLAT_SPLAT(x),
- * FLAT_LANE_IDS and FLAT_ANY(mask). Not a public header. */
+ * FLAT_LANE_IDS and FLAT_ANY(mask); this file undefines them again at its
+ * end. Not a public header. */
 
 typedef float FLAT(vfloat) __attribute__((vector_size(FLAT_LANES * sizeof(float))));
 typedef int32_t FLAT(vint) __attribute__((vector_size(FLAT_LANES * sizeof(int32_t))));
@@ -124,3 +125,9 @@ FLAT_TARGET static int FLAT(traverse)(const flat_triangles *f, const scene *s, c
 
 #undef vfloat
 #undef vint
+#undef FLAT_LANES
+#undef FLAT
+#undef FLAT_TARGET
+#undef FLAT_SPLAT
+#undef FLAT_LANE_IDS
+#undef FLAT_ANY

@@ -21,6 +21,14 @@ typedef struct {
     uint64_t bad_samples; /* samples whose radiance came out NaN or Inf (dropped) */
 } trace_stats;
 
+/* a += b, counter by counter. Can't fail. */
+static inline void trace_stats_add(trace_stats *a, const trace_stats *b) {
+    a->samples += b->samples;
+    a->rays += b->rays;
+    a->shadow_rays += b->shadow_rays;
+    a->bad_samples += b->bad_samples;
+}
+
 /* Integrator switches, for benchmarks that show what each feature buys. */
 typedef struct {
     int no_nee; /* no light sampling: emitters found only by BSDF sampling */

@@ -170,13 +170,6 @@ static void sleep_ms(long ms) {
     nanosleep(&ts, NULL);
 }
 
-static void sum_stats(trace_stats *a, const trace_stats *b) {
-    a->samples += b->samples;
-    a->rays += b->rays;
-    a->shadow_rays += b->shadow_rays;
-    a->bad_samples += b->bad_samples;
-}
-
 /* Run job's tiles on opt->threads threads; their counters are added to
  * stats. progress_done / progress_total: where this pass sits in the whole
  * render, for the progress callback. Returns 0, or -1 if the threads or
@@ -215,7 +208,7 @@ static int frame_run(frame_job *job, int tile_size, trace_stats *stats, int prog
     }
     for (int i = 0; i < started; i++) {
         pthread_join(workers[i].thread, NULL);
-        sum_stats(stats, &workers[i].stats);
+        trace_stats_add(stats, &workers[i].stats);
         free(workers[i].accum);
         free(workers[i].scratch);
         free(workers[i].mask);

@@ -454,10 +454,7 @@ static int on_tile(peer *p, const uint8_t *body, size_t len) {
     j->done[h.tile] = 1;
     j->rep.tiles_done++;
     j->tile_seconds += took;
-    j->rep.stats.samples += h.stats.samples;
-    j->rep.stats.rays += h.stats.rays;
-    j->rep.stats.shadow_rays += h.stats.shadow_rays;
-    j->rep.stats.bad_samples += h.stats.bad_samples;
+    trace_stats_add(&j->rep.stats, &h.stats);
     p->rec.tiles++;
     p->rec.samples += h.stats.samples;
     if (j->holders[h.tile]) job_cancel_copies(f, j, h.tile, p);

@@ -203,13 +203,6 @@ static void render_stop(local_run *r) {
 
 static void on_job(void *ctx, const farm_report *rep, int done);
 
-static void add_stats(trace_stats *a, const trace_stats *b) {
-    a->samples += b->samples;
-    a->rays += b->rays;
-    a->shadow_rays += b->shadow_rays;
-    a->bad_samples += b->bad_samples;
-}
-
 /* Hand the farm the next adaptive round, or finish the render when there is
  * none. Returns 0, or -1 when out of memory (then the render has failed). */
 static int submit_round(local_run *r) {
@@ -250,13 +243,13 @@ static void on_job(void *ctx, const farm_report *rep, int done) {
     local_run *r = ctx;
     r->last = *rep;
     if (r->ad) { /* figures of the whole render, not just this round */
-        add_stats(&r->last.stats, &r->round_stats);
+        trace_stats_add(&r->last.stats, &r->round_stats);
         r->last.tiles_done += r->round_tiles;
         r->last.tiles_total += r->round_tiles;
     }
     if (r->ad && done && !rep->failed && !rep->cancelled) {
         adaptive_add_round(r->ad, r->sums);
-        add_stats(&r->round_stats, &rep->stats);
+        trace_stats_add(&r->round_stats, &rep->stats);
         r->round_tiles += rep->tiles_total;
         uv_timer_start(&r->round_timer, on_round_timer, 0, 0);
         return;
