@@ -40,7 +40,6 @@ static inline int sampler_parse(const char *name, sampler_kind *out) {
 typedef struct {
     uint64_t key;       /* SOBOL: hash of (seed, pixel); RANDOM: of (seed, pixel, sample) */
     uint32_t index_rev; /* the sample index with its bits reversed */
-    uint32_t dim;       /* next dimension sampler_next() hands out */
     sampler_kind kind;
 } sampler_stream;
 
@@ -66,11 +65,6 @@ static inline uint32_t sampler_lk_hash(uint32_t x, uint32_t seed) {
     return x;
 }
 
-/* Owen scrambling of the 32-bit fixed-point number x. */
-static inline uint32_t sampler_owen_scramble(uint32_t x, uint32_t seed) {
-    return sampler_reverse_bits(sampler_lk_hash(sampler_reverse_bits(x), seed));
-}
-
 /* Dimension 1 of the Sobol sequence at `index`, bit-reversed. Its
  * generator columns, reversed, are w_0 = 1 and w_i = w_{i-1} ^ (w_{i-1} << 1)
  * = (1 + z)^i as polynomials over GF(2), so the result is the index's
@@ -92,7 +86,6 @@ static inline sampler_stream sampler_start(sampler_kind kind, uint64_t seed, uin
     sampler_stream s;
     s.kind = kind;
     s.index_rev = sampler_reverse_bits(sample);
-    s.dim = 0;
     uint64_t pixel_key = rng_mix64(rng_mix64(seed) ^ pixel);
     s.key = kind == SAMPLER_SOBOL ? pixel_key : rng_mix64(pixel_key ^ ((uint64_t)sample * 0x9E3779B97F4A7C15ull));
     return s;
@@ -143,8 +136,5 @@ static inline float sampler_get_1d(const sampler_stream *s, uint32_t dim) {
     sampler_pair_bits(s, dim >> 1, &a, &b);
     return sampler_to_float(dim & 1u ? b : a);
 }
-
-/* The number of the next dimension, in [0, 1). */
-static inline float sampler_next(sampler_stream *s) { return sampler_get_1d(s, s->dim++); }
 
 #endif

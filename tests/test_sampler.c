@@ -64,14 +64,16 @@ TEST(sampler_pairs_are_stratified) {
                       "dims %u,%u pixel %llu: %s", dims[d], dims[d] + 1, (unsigned long long)pixel, why);
 }
 
-/* Values stay in [0, 1), the sequential and random-access forms agree, and a
- * stream is a pure function of its arguments. */
+/* Values stay in [0, 1), the 1D and 2D forms agree, and a stream is a pure
+ * function of its arguments. */
 TEST(sampler_streams_are_pure_functions) {
     for (int kind = 0; kind < 2; kind++) {
         sampler_stream a = sampler_start((sampler_kind)kind, 9, 31, 77), b = sampler_start((sampler_kind)kind, 9, 31, 77);
         for (uint32_t d = 0; d < 64; d++) {
-            float x = sampler_next(&a), y = sampler_get_1d(&b, d);
+            float x = sampler_get_1d(&a, d), y = sampler_get_1d(&b, d), u, v;
+            sampler_get_2d(&b, d & ~1u, &u, &v);
             CHECK(memcmp(&x, &y, sizeof x) == 0, "kind %d dimension %u differs", kind, d);
+            CHECK(memcmp(&x, d & 1u ? &v : &u, sizeof x) == 0, "kind %d dimension %u: 1D and 2D differ", kind, d);
             CHECK(x >= 0.0f && x < 1.0f, "value %g out of [0,1)", x);
         }
     }
