@@ -25,7 +25,7 @@ BUILD := build/$(VARIANT)
 # Determinism across hosts: no fast-math, no FMA contraction, no -march=native.
 # (Add your own -march with EXTRA_CFLAGS; the bytes may then differ from other hosts.)
 CFLAGS_COMMON := -std=c11 -D_DEFAULT_SOURCE -g -Wall -Wextra -Werror -ffp-contract=off -fno-fast-math \
-                 -MMD -MP -I/usr/include/OpenEXR $(EXTRA_CFLAGS)
+                 -MMD -MP -I. -Icommon -I/usr/include/OpenEXR $(EXTRA_CFLAGS)
 ifeq ($(VARIANT),asan)
   CFLAGS_OPT := -O1 -fno-omit-frame-pointer -fsanitize=address,undefined -fno-sanitize-recover=all
   LDFLAGS_V := -fsanitize=address,undefined
@@ -40,14 +40,32 @@ CFLAGS := $(CFLAGS_COMMON) $(CFLAGS_OPT) -I$(BUILD)
 LDLIBS := -lcjson -lpng16 -ljpeg -lOpenEXRCore-3_1 -lsodium -luv -lpthread -lm
 LDFLAGS := $(LDFLAGS_V)
 
-COMMON_SRC := $(wildcard common/*.c)
+# Layers (README "Where things are"): one static library per folder of
+# common/, linked in this order (a library may use only those after it):
+# job (what a job and a tile are on the wire) over render, image and net,
+# all over base (common/*.c). scripts/layers.sh checks the #include lines.
+LAYERS := job render image net base
+layer_src = $(if $(filter base,$(1)),$(wildcard common/*.c),$(wildcard common/$(1)/*.c))
+layer_lib = $(BUILD)/lib/libtessera_$(1).a
+COMMON_SRC := $(foreach l,$(LAYERS),$(call layer_src,$(l)))
 COMMON_OBJ := $(COMMON_SRC:%.c=$(BUILD)/%.o)
+define LAYER_RULE
+$(call layer_lib,$(1)): $(patsubst %.c,$(BUILD)/%.o,$(call layer_src,$(1)))
+	@mkdir -p $$(dir $$@)
+	@rm -f $$@ && ar rcs $$@ $$^
+endef
+$(foreach l,$(LAYERS),$(eval $(call LAYER_RULE,$(l))))
+# What each program links, in layer order.
+LIBS_ALL := $(foreach l,$(LAYERS),$(call layer_lib,$(l)))
+LIBS_WORKER := $(foreach l,job render net base,$(call layer_lib,$(l)))
+LIBS_LOADGEN := $(foreach l,job render net base,$(call layer_lib,$(l)))
 TEST_SRC := $(wildcard tests/*.c)
 TEST_OBJ := $(TEST_SRC:%.c=$(BUILD)/%.o)
 
 TESSERA := $(BUILD)/bin/tessera
 WORKER := $(BUILD)/bin/tessera-worker
 COORD_OBJ := $(patsubst %.c,$(BUILD)/%.o,$(wildcard coordinator/*.c))
+CLI_OBJ := $(patsubst %.c,$(BUILD)/%.o,$(wildcard cli/*.c))
 WORKER_OBJ := $(patsubst %.c,$(BUILD)/%.o,$(wildcard worker/*.c))
 
 # Peers of a farm must run the same code (docs/protocol.md): the handshake
@@ -62,7 +80,7 @@ build/%/build_id.h: FORCE
 	@mkdir -p $(dir $@)
 	@echo '#define TESSERA_BUILD_ID "$(GIT_ID)"' > $@.new
 	@cmp -s $@.new $@ && rm -f $@.new || mv $@.new $@
-$(BUILD)/common/protocol.o: $(BUILD)/build_id.h
+$(BUILD)/common/net/protocol.o: $(BUILD)/build_id.h
 
 DEPS_STAMP := build/.deps-ok
 deps: $(DEPS_STAMP)
@@ -73,7 +91,7 @@ $(DEPS_STAMP): Makefile
 	if [ -n "$$missing" ]; then \
 	  echo "installing missing Debian packages:$$missing"; \
 	  SUDO=""; [ "$$(id -u)" -ne 0 ] && SUDO=sudo; \
-	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq $$missing \
+	  $$SUDO apt-get -o DPkg::Lock::Timeout=900 update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq -o DPkg::Lock::Timeout=900 $$missing \
 	    || { echo "error: could not install:$$missing" >&2; exit 1; }; \
 	fi
 	@mkdir -p build && touch $@
@@ -82,21 +100,21 @@ $(BUILD)/%.o: %.c | $(DEPS_STAMP)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) -c $< -o $@
 
-$(TESSERA): $(COORD_OBJ) $(COMMON_OBJ)
+$(TESSERA): $(CLI_OBJ) $(COORD_OBJ) $(LIBS_ALL)
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 	ln -sf tessera $(BUILD)/bin/tessera-coordinator
 
 LOADGEN := $(BUILD)/bin/loadgen
-$(LOADGEN): $(BUILD)/bench/loadgen.o $(COMMON_OBJ)
+$(LOADGEN): $(BUILD)/bench/loadgen.o $(LIBS_LOADGEN)
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
-$(WORKER): $(WORKER_OBJ) $(COMMON_OBJ)
+$(WORKER): $(WORKER_OBJ) $(LIBS_WORKER)
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
-$(TEST_BIN): $(TEST_OBJ) $(COMMON_OBJ)
+$(TEST_BIN): $(TEST_OBJ) $(LIBS_ALL)
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
@@ -160,7 +178,7 @@ FUZZ_COMMON_OBJ := $(COMMON_SRC:%.c=$(FUZZ_BUILD)/%.o)
 FUZZ_BINS := $(addprefix $(FUZZ_BUILD)/fuzz_,$(FUZZ_TARGETS))
 
 .PRECIOUS: $(FUZZ_BUILD)/%.o
-$(FUZZ_BUILD)/common/protocol.o: $(FUZZ_BUILD)/build_id.h
+$(FUZZ_BUILD)/common/net/protocol.o: $(FUZZ_BUILD)/build_id.h
 $(FUZZ_BUILD)/%.o: %.c | $(DEPS_STAMP)
 	@mkdir -p $(dir $@)
 	clang $(FUZZ_CFLAGS) -c $< -o $@
@@ -179,4 +197,4 @@ fuzz: $(FUZZ_BINS)
 	done; echo "fuzz: $(words $(FUZZ_TARGETS)) targets, no failures"
 
 -include $(FUZZ_COMMON_OBJ:.o=.d)
--include $(COMMON_OBJ:.o=.d) $(TEST_OBJ:.o=.d) $(COORD_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(BUILD)/bench/loadgen.d
+-include $(COMMON_OBJ:.o=.d) $(TEST_OBJ:.o=.d) $(COORD_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(BUILD)/bench/loadgen.d

@@ -11,10 +11,10 @@
 #include <string.h>
 #include <uv.h>
 
-#include "../common/address.h"
-#include "../common/conn.h"
-#include "../common/protocol.h"
-#include "../common/wire.h"
+#include "net/address.h"
+#include "net/conn.h"
+#include "net/protocol.h"
+#include "net/wire.h"
 
 typedef struct {
     conn *c;

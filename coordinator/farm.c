@@ -19,8 +19,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../common/conn.h"
-#include "../common/wire.h"
+#include "net/conn.h"
+#include "net/wire.h"
 
 #define FARM_TICK_MS 100
 #define HELLO_TIMEOUT_S 10.0

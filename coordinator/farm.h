@@ -16,8 +16,8 @@
 #include <stdio.h>
 #include <uv.h>
 
-#include "../common/auth.h"
-#include "../common/protocol.h"
+#include "net/auth.h"
+#include "net/protocol.h"
 
 struct conn;
 

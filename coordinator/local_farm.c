@@ -8,9 +8,9 @@
 #define _GNU_SOURCE
 #include "local_farm.h"
 
-#include "cli_util.h"
+#include "cli/cli_util.h"
 
-#include "../common/adaptive.h"
+#include "render/adaptive.h"
 
 #include <limits.h>
 #include <signal.h>

@@ -8,7 +8,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "../common/protocol.h"
+#include "net/protocol.h"
 #include "farm.h"
 
 typedef struct {

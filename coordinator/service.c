@@ -29,11 +29,11 @@
 #include <unistd.h>
 #include <uv.h>
 
-#include "../common/conn.h"
-#include "../common/fileio.h"
-#include "../common/image.h"
-#include "../common/scene.h"
-#include "../common/wire.h"
+#include "net/conn.h"
+#include "fileio.h"
+#include "image/image.h"
+#include "render/scene.h"
+#include "net/wire.h"
 
 #define TILE_MAGIC 0x454c4954u /* "TILE" */
 #define WIRE_KIND_IMAGE 'I'

@@ -5,9 +5,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../common/accel.h"
-#include "../common/rng.h"
-#include "../common/scene.h"
+#include "render/accel.h"
+#include "render/rng.h"
+#include "render/scene.h"
 #include "harness.h"
 #include "util.h"
 

@@ -7,9 +7,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../common/adaptive.h"
-#include "../common/fileio.h"
-#include "../common/image.h"
+#include "render/adaptive.h"
+#include "fileio.h"
+#include "image/image.h"
 #include "harness.h"
 #include "util.h"
 

@@ -4,8 +4,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../common/bsdf.h"
-#include "../common/rng.h"
+#include "render/bsdf.h"
+#include "render/rng.h"
 #include "harness.h"
 
 #define THETA_BINS 20

@@ -17,8 +17,8 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
-#include "../common/protocol.h"
-#include "../common/wire.h"
+#include "net/protocol.h"
+#include "net/wire.h"
 #include "harness.h"
 #include "util.h"
 

@@ -5,8 +5,8 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "../common/image.h"
-#include "../common/image_compare.h"
+#include "image/image.h"
+#include "image/image_compare.h"
 #include "harness.h"
 #include "util.h"
 

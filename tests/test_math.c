@@ -3,10 +3,10 @@
 #include <stdint.h>
 #include <string.h>
 
-#include "../common/camera.h"
-#include "../common/rng.h"
-#include "../common/vec.h"
-#include "../common/warp.h"
+#include "render/camera.h"
+#include "render/rng.h"
+#include "vec.h"
+#include "render/warp.h"
 #include "harness.h"
 
 TEST(math_frame_is_orthonormal) {

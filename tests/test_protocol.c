@@ -4,10 +4,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../common/address.h"
-#include "../common/protocol.h"
-#include "../common/scene_bundle.h"
-#include "../common/wire.h"
+#include "net/address.h"
+#include "net/protocol.h"
+#include "render/scene_bundle.h"
+#include "net/wire.h"
 #include "harness.h"
 #include "util.h"
 

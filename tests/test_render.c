@@ -8,8 +8,8 @@
 
 #include <cjson/cJSON.h>
 
-#include "../common/fileio.h"
-#include "../common/image.h"
+#include "fileio.h"
+#include "image/image.h"
 #include "harness.h"
 #include "util.h"
 

@@ -5,7 +5,7 @@
 #include <stdint.h>
 #include <string.h>
 
-#include "../common/sampler.h"
+#include "render/sampler.h"
 #include "harness.h"
 
 /* Sobol dimension 1 by its definition: XOR of generator columns v_i for the

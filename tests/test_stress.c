@@ -10,7 +10,7 @@
 
 #include <cjson/cJSON.h>
 
-#include "../common/fileio.h"
+#include "fileio.h"
 #include "harness.h"
 #include "util.h"
 

@@ -4,8 +4,8 @@
 
 #include <stddef.h>
 
-#include "../common/render.h"
-#include "../common/scene.h"
+#include "render/render.h"
+#include "render/scene.h"
 
 /* Write text to a new file under a fresh temporary folder; returns its path
  * (static storage, overwritten by the next call). */

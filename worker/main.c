@@ -9,9 +9,9 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "../common/address.h"
-#include "../common/args.h"
-#include "../common/protocol.h"
+#include "net/address.h"
+#include "args.h"
+#include "net/protocol.h"
 #include "worker.h"
 
 static void usage(FILE *f) {

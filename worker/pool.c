@@ -12,7 +12,7 @@
 #include <string.h>
 #include <time.h>
 
-#include "../common/scene.h"
+#include "render/scene.h"
 
 struct pool_job {
     proto_job desc;

@@ -14,8 +14,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "../common/protocol.h"
-#include "../common/scene_bundle.h"
+#include "net/protocol.h"
+#include "render/scene_bundle.h"
 
 typedef struct pool pool;
 typedef struct pool_job pool_job;

@@ -15,9 +15,9 @@
 #include <string.h>
 #include <uv.h>
 
-#include "../common/conn.h"
-#include "../common/protocol.h"
-#include "../common/wire.h"
+#include "net/conn.h"
+#include "net/protocol.h"
+#include "net/wire.h"
 #include "pool.h"
 
 #define WORKER_MAX_BUNDLES 8

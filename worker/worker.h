@@ -4,7 +4,7 @@
 #ifndef TESSERA_WORKER_H
 #define TESSERA_WORKER_H
 
-#include "../common/auth.h"
+#include "net/auth.h"
 
 typedef struct {
     const char *host; /* coordinator name or address */

@@ -7,9 +7,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../../common/protocol.h"
-#include "../../common/scene_bundle.h"
-#include "../../common/wire.h"
+#include "net/protocol.h"
+#include "render/scene_bundle.h"
+#include "net/wire.h"
 
 static int on_frame(void *ctx, int kind, const uint8_t *body, size_t len) {
     (void)ctx;

@@ -2,7 +2,7 @@
 #include <stdint.h>
 #include <stdlib.h>
 
-#include "../../common/obj.h"
+#include "render/obj.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     obj_mesh m;

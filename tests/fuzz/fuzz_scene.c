@@ -5,8 +5,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../../common/scene.h"
-#include "../../common/scene_bundle.h"
+#include "render/scene.h"
+#include "render/scene_bundle.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     char *text = malloc(size + 1);

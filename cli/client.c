@@ -21,13 +21,13 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "../common/address.h"
-#include "../common/args.h"
-#include "../common/auth.h"
-#include "../common/image.h"
-#include "../common/protocol.h"
-#include "../common/scene_bundle.h"
-#include "../common/wire.h"
+#include "net/address.h"
+#include "args.h"
+#include "net/auth.h"
+#include "image/image.h"
+#include "net/protocol.h"
+#include "render/scene_bundle.h"
+#include "net/wire.h"
 
 #define DEFAULT_COORDINATOR "127.0.0.1:7000"
 #define IO_TIMEOUT_MS 30000

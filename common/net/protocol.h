@@ -12,10 +12,10 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "adaptive.h"
-#include "integrator.h"
-#include "render.h"
-#include "scene_bundle.h"
+#include "render/adaptive.h"
+#include "render/integrator.h"
+#include "render/render.h"
+#include "render/scene_bundle.h"
 
 #define PROTOCOL_VERSION 1
 

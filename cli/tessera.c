@@ -16,18 +16,18 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "../common/address.h"
-#include "../common/args.h"
-#include "../common/accel.h"
-#include "../common/image.h"
-#include "../common/image_compare.h"
-#include "../common/render.h"
-#include "../common/scene.h"
-#include "../common/version.h"
+#include "net/address.h"
+#include "args.h"
+#include "render/accel.h"
+#include "image/image.h"
+#include "image/image_compare.h"
+#include "render/render.h"
+#include "render/scene.h"
+#include "version.h"
 #include "cli_util.h"
 #include "client.h"
-#include "local_farm.h"
-#include "service.h"
+#include "coordinator/local_farm.h"
+#include "coordinator/service.h"
 
 typedef struct {
     const char *scene_path;
