@@ -13,6 +13,7 @@
 
 #include "net/address.h"
 #include "net/conn.h"
+#include "job/job.h"
 #include "net/protocol.h"
 #include "net/wire.h"
 

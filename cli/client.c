@@ -26,6 +26,7 @@
 #include "net/auth.h"
 #include "image/image.h"
 #include "net/protocol.h"
+#include "render/scene.h"
 #include "render/scene_bundle.h"
 #include "net/wire.h"
 

@@ -293,6 +293,13 @@ static int render_in_process(render_args *a, const scene *s, image *img, trace_s
     return -1;
 }
 
+/* local_farm_options.progress: the bar on stderr. */
+static void farm_progress(void *ctx, int done, int total, double samples_per_s, int workers, double eta_s,
+                          int final) {
+    (void)ctx;
+    cli_progress(done, total, samples_per_s, workers, eta_s, final);
+}
+
 /* Render on a farm: local worker processes and/or remote ones. Returns 0 or
  * -1 (printed). */
 static int render_on_farm(render_args *a, const scene *s, const scene_bundle *b, image *img, trace_stats *st) {
@@ -310,7 +317,8 @@ static int render_on_farm(render_args *a, const scene *s, const scene_bundle *b,
     local_farm_options lo = {.workers = a->workers, .threads_per_worker = a->threads_given ? a->threads : 1,
                              .tile_size = a->tile_size, .farm = a->farm, .listening = a->listen != NULL,
                              .token_file = a->token_file,
-                             .progress = a->progress && isatty(STDERR_FILENO), .verbose = a->verbose,
+                             .progress = a->progress && isatty(STDERR_FILENO) ? farm_progress : NULL,
+                             .verbose = a->verbose,
                              .noise_threshold = a->ro.noise_threshold, .min_spp = a->ro.min_spp,
                              .samples = a->ro.samples};
     lo.farm.verbose = a->verbose;

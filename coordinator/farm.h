@@ -17,6 +17,7 @@
 #include <uv.h>
 
 #include "net/auth.h"
+#include "job/job.h"
 #include "net/protocol.h"
 
 struct conn;

@@ -1,6 +1,6 @@
 /* local_farm.c - one render on a farm run from this process (see
  * local_farm.h): listen, spawn the local workers, feed the farm the job,
- * show progress, and tear everything down when the last tile is stitched.
+ * report progress, and tear everything down when the last tile is stitched.
  *
  * Local workers run with --once, so they exit when the coordinator closes
  * their connection; a local worker that dies early is started again (up to
@@ -8,7 +8,6 @@
 #define _GNU_SOURCE
 #include "local_farm.h"
 
-#include "cli/cli_util.h"
 
 #include "render/adaptive.h"
 
@@ -162,7 +161,7 @@ static void show_progress(local_run *r, const farm_report *rep, int final) {
     double el = mono_now(r);
     double rate = el > 0 ? (double)rep->stats.samples / el : 0;
     double eta = rate > 0 ? (double)(r->total_samples - rep->stats.samples) / rate : 0;
-    cli_progress(rep->tiles_done, rep->tiles_total, rate, rep->workers, eta, final);
+    r->o->progress(r->o->progress_ctx, rep->tiles_done, rep->tiles_total, rate, rep->workers, eta, final);
 }
 
 /* Kill what remains after the grace period. */

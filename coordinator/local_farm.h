@@ -8,6 +8,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "job/job.h"
 #include "net/protocol.h"
 #include "farm.h"
 
@@ -17,7 +18,11 @@ typedef struct {
     int tile_size;
     farm_options farm;      /* host/port: where to listen (port 0: any) */
     int listening;          /* farm.host/port were given: say where, wait for remote workers */
-    int progress;           /* show a progress bar on stderr */
+    /* Called on the farm's loop at most every 0.1 s and once more with
+     * final = 1 when the last tile is stitched (NULL: nothing shown). The
+     * command line draws its bar here; the farm knows nothing of terminals. */
+    void (*progress)(void *ctx, int done, int total, double samples_per_s, int workers, double eta_s, int final);
+    void *progress_ctx;
     int verbose;            /* per-worker table and farm figures at the end */
     const char *token_file; /* handed to the local workers, or NULL */
     double noise_threshold; /* > 0: adaptive sampling in rounds (adaptive.h) */

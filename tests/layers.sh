@@ -12,9 +12,10 @@
 #   base         -> (nothing)            (common/*.h: vectors, JSON, files, args, logging, limits)
 # A quoted include names its layer by its first folder ("render/scene.h"); a
 # plain name is the including file's sibling if one exists, else a base header.
-# Prints each crossing as FILE:LINE: LAYER may not include HEADER; exit 1 if any.
+# Usage: layers.sh [ROOT] (default: this checkout). Prints each crossing as
+# FILE:LINE: LAYER may not include HEADER; exit 1 if any.
 set -u
-cd "$(dirname "$0")/.."
+cd "${1:-$(dirname "$0")/..}" || exit 2
 declare -A allowed=(
   [cli]="cli coordinator job render image net base"
   [coordinator]="coordinator job render image net base"
@@ -48,6 +49,6 @@ while IFS= read -r f; do
       *) echo "$f:$line: $layer may not include \"$inc\" ($target)"; bad=1 ;;
     esac
   done < <(grep -n '^[[:space:]]*#[[:space:]]*include[[:space:]]*"' "$f" | sed -E 's/^([0-9]+):[^"]*"([^"]+)".*/\1:\2/')
-done < <(git ls-files -co --exclude-standard -- 'common/*.[ch]' 'cli/*.[ch]' 'coordinator/*.[ch]' 'worker/*.[ch]' 'bench/*.c')
+done < <(find common cli coordinator worker bench -name '*.[ch]' 2>/dev/null | sort)
 if [ $bad -eq 0 ]; then echo "layers: every #include stays within its layer"; fi
 exit $bad

@@ -17,6 +17,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include "job/job.h"
 #include "net/protocol.h"
 #include "net/wire.h"
 #include "harness.h"

@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "net/address.h"
+#include "job/job.h"
 #include "net/protocol.h"
 #include "render/scene_bundle.h"
 #include "net/wire.h"

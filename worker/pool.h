@@ -14,6 +14,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "job/job.h"
 #include "net/protocol.h"
 #include "render/scene_bundle.h"
 

@@ -16,6 +16,7 @@
 #include <uv.h>
 
 #include "net/conn.h"
+#include "job/job.h"
 #include "net/protocol.h"
 #include "net/wire.h"
 #include "pool.h"

@@ -1,10 +1,8 @@
-/* protocol.h - the farm's messages (docs/protocol.md): what coordinator and
- * workers say to each other inside wire.h's frames.
+/* protocol.h - the farm's control messages (docs/protocol.md): JSON objects
+ * with a "type" inside wire.h's frames, and the build identity peers compare.
  *
- * Control messages are JSON objects with a "type"; this module builds and
- * validates the ones that carry data (job descriptions, tile assignments)
- * and encodes the binary tile result. Validation errors name the peer and
- * the field: "worker w1 (127.0.0.1:40312): assign.rect: ...". */
+ * net/ carries messages and knows nothing of radiance: what a job, an
+ * assignment and a rendered tile contain is job/job.h, one layer up. */
 #ifndef TESSERA_PROTOCOL_H
 #define TESSERA_PROTOCOL_H
 
@@ -12,60 +10,11 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "render/adaptive.h"
-#include "render/integrator.h"
-#include "render/render.h"
-#include "render/scene_bundle.h"
-
 #define PROTOCOL_VERSION 1
 
 /* The build's identity, "0.1.0+<git commit>": peers must match exactly,
  * because bit-identical images need the same code on both sides. */
 const char *protocol_build_id(void);
-
-/* What a job is: which scene, rendered how. Every field a worker needs to
- * produce the same pixels as the single-process renderer. */
-typedef struct {
-    uint32_t id;
-    char scene_hash[SCENE_BUNDLE_HASH_HEX];
-    int width, height, spp, max_depth;
-    uint64_t seed; /* sent as a decimal string: JSON numbers are doubles */
-    integrator_options integrator;
-    int adaptive; /* a round of adaptive sampling: assignments carry a pixel
-                   * mask, results are ADAPTIVE_CHANNELS sums per pixel */
-} proto_job;
-
-/* One tile of a job to render, with its sample range. */
-typedef struct {
-    uint32_t job, tile;
-    tile_rect rect;
-    uint32_t first, count;
-    uint8_t *mask; /* adaptive jobs: one byte per pixel of rect (1 = render it);
-                    * sent as "mask", hex digits holding 4 pixels each, bit k
-                    * of digit i being pixel 4i + k. NULL otherwise.
-                    * proto_assign_parse allocates it; free with free(). */
-} proto_assign;
-
-/* A rendered tile's fixed header; pixels follow as width * height *
- * channels little-endian float32 values, row-major, top row first: 3
- * means per pixel, or for adaptive jobs ADAPTIVE_CHANNELS sums. */
-typedef struct {
-    uint32_t job, tile, width, height;
-    trace_stats stats;
-    uint32_t channels; /* not in the header: told by the frame's length */
-} proto_tile;
-
-#define PROTO_TILE_HEADER_BYTES 48
-
-/* Build {"type": "job", ...} / {"type": "assign", ...}. Return NULL only
- * when out of memory; the caller frees with cJSON_Delete. */
-cJSON *proto_job_json(const proto_job *j);
-cJSON *proto_assign_json(const proto_assign *a);
-
-/* Read a job / assign message into *out. Return 0, or -1 with
- * "PEER: job.FIELD: what is wrong" in err. */
-int proto_job_parse(const cJSON *msg, const char *peer, proto_job *out, char *err, size_t err_len);
-int proto_assign_parse(const cJSON *msg, const char *peer, proto_assign *out, char *err, size_t err_len);
 
 /* Parse a 'J' frame's body: a JSON object with a string "type". Returns the
  * tree (cJSON_Delete it) and sets *type, or NULL with the reason in err. */
@@ -78,17 +27,5 @@ uint8_t *proto_frame_simple(const char *type, size_t *frame_len);
 /* A {"type": TYPE, "reason": REASON} message ("error", "refused") as a
  * frame (caller frees), or NULL when out of memory. */
 uint8_t *proto_frame_reason(const char *type, const char *reason, size_t *frame_len);
-
-/* Encode a tile result as a complete 'T' frame (the caller frees), or NULL
- * when out of memory. rgb holds width * height * t->channels floats. */
-uint8_t *proto_tile_frame(const proto_tile *t, const float *rgb, size_t *frame_len);
-
-/* Decode a 'T' body's header and check that its length matches the size it
- * claims with 3 or ADAPTIVE_CHANNELS floats per pixel (set in channels). Returns 0 (the pixels then start at body +
- * PROTO_TILE_HEADER_BYTES), or -1 with the reason in err. */
-int proto_tile_parse(const uint8_t *body, size_t len, proto_tile *out, char *err, size_t err_len);
-
-/* Largest 'T' frame (L of wire.h) for tiles of at most side x side pixels. */
-size_t proto_tile_frame_max(int side);
 
 #endif

@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "job/job.h"
 #include "net/protocol.h"
 #include "render/scene_bundle.h"
 #include "net/wire.h"

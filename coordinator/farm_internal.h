@@ -1,0 +1,173 @@
+/* farm_internal.h - the farm's state, shared by its four files and no one
+ * else (the public interface is farm.h; the protocol docs/protocol.md):
+ *   farm.c        - the farm itself: create, listen, close, log;
+ *   farm_peers.c  - connections, the handshake, control messages, heartbeats;
+ *   farm_sched.c  - jobs, the tile queue, leases, assignment and backups;
+ *   farm_tiles.c  - results: checked, stitched into the film, copies cancelled.
+ *
+ * State, all owned by the loop thread:
+ *   job   - a render: its tiles, for each tile whether it is done, how many
+ *           live leases it has, and whether it waits in the queue;
+ *   peer  - a connected worker: its unfilled "ready" slots (credits), its
+ *           leases, which scenes and jobs it has been sent;
+ *   lease - one tile handed to one peer. A lease is "live" while the tile
+ *           counts it as a holder; a revoked (stall, overrun) or cancelled
+ *           (another copy won) lease stays on the peer's list until the peer
+ *           answers for it, so a late result is recognised, not mistaken
+ *           for a tile it was never given.
+ * Invariant: a tile is queued iff it is not done and has no live lease. */
+#ifndef TESSERA_FARM_INTERNAL_H
+#define TESSERA_FARM_INTERNAL_H
+
+#include <math.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "farm.h"
+#include "net/conn.h"
+#include "net/wire.h"
+#include "render/film.h"
+
+#define FARM_TICK_MS 100
+
+#define HELLO_TIMEOUT_S 10.0
+
+#define MAX_CREDITS 4096
+
+#define MAX_TILE_FAILURES 3   /* a tile that fails this often fails its job */
+
+#define MAX_PEER_FAILURES 3   /* a worker that fails this often gets no more work */
+
+#define BACKUP_AGE_FACTOR 1.5 /* back up tiles running this many times the mean */
+
+#define BACKUP_MIN_AGE_S 0.5  /* ...and at least this long: younger copies gain nothing */
+
+typedef struct job job;
+
+typedef struct peer peer;
+
+typedef struct lease {
+    job *job;
+    uint32_t tile;
+    double start;
+    int live; /* counts as a holder of the tile */
+    struct lease *next;
+} lease;
+
+struct job {
+    proto_job desc;
+    conn_blob *scene; /* the 'S' frame */
+    int tile_size, tile_count;
+    tile_rect *rects;
+    uint8_t *done, *holders, *queued, *failures;
+    double *first_start; /* when the tile's oldest live lease began */
+    uint32_t *queue;     /* ring of tile_count entries */
+    int q_head, q_len;
+    film film;             /* the caller's pixels; channels: 3 (means), or
+                            * ADAPTIVE_CHANNELS (an adaptive round's sums) */
+    const uint8_t *mask;   /* adaptive: the frame's pixels to render */
+    uint32_t first, count; /* the sample range every assignment carries */
+    farm_job_cb cb;
+    farm_tile_cb on_tile;
+    void *ctx;
+    int priority;
+    farm_report rep;
+    double tile_seconds; /* sum of assign-to-result times, for the mean */
+    int reported;        /* tiles_done at the last progress callback */
+    int finished;
+    job *next;
+};
+
+enum { PEER_HELLO, PEER_ACTIVE, PEER_STALLED };
+
+typedef struct {
+    char name[64];
+    char addr[64];
+    int threads;
+    uint64_t tiles, samples, bytes_in, bytes_out;
+    double joined, left;
+    char why[128];
+} peer_record;
+
+struct peer {
+    farm *f;
+    conn *c;
+    int state;
+    int blocked; /* failed too often: no more work */
+    int credits;
+    int failures;
+    double joined, last_heard, last_sent;
+    lease *leases;
+    char (*scenes)[SCENE_BUNDLE_HASH_HEX];
+    int scene_count;
+    uint32_t *jobs;
+    int job_count;
+    peer_record rec;
+    char nonce[AUTH_HEX]; /* the challenge this connection must answer */
+    char label[200]; /* "worker NAME (ADDR)" */
+    peer *next;
+};
+
+struct farm {
+    uv_loop_t *loop;
+    farm_options opt;
+    uv_tcp_t listener;
+    uv_timer_t tick;
+    int port;
+    peer *peers;
+    job *jobs;
+    peer_record *departed;
+    int departed_count, departed_cap;
+    uint64_t closed_bytes_in, closed_bytes_out;
+    int closing, open_handles;
+    void (*closed_cb)(void *);
+    void *closed_ctx;
+};
+
+static inline double farm_now(const farm *f) { return (double)uv_now(f->loop) / 1e3; }
+
+/* ---- shared between the farm's files ---------------------------------------- */
+
+void farm_log(const farm *f, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+
+void peer_send_json(peer *p, cJSON *m);
+
+/* {"type": TYPE, "job": J[, "tile": T]} */
+void peer_send_ids(peer *p, const char *type, uint32_t job, long tile);
+
+/* Disconnect p over a protocol violation, telling it why. Returns 1 (for
+ * on_frame). */
+int peer_violation(peer *p, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+
+void farm_on_connection(uv_stream_t *server, int status);
+
+void farm_on_tick(uv_timer_t *t);
+
+/* A lease stops counting as a holder; the tile is queued if nobody else
+ * holds it. */
+void farm_lease_release(lease *l);
+
+job *farm_find_job(const farm *f, uint32_t id);
+
+void farm_job_free(job *j);
+
+void farm_report_fill(const farm *f, const job *j, farm_report *r);
+
+/* The job is complete or has failed: tell its workers and the caller. */
+void farm_job_finish(farm *f, job *j);
+
+void farm_job_fail(farm *f, job *j, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+
+int peer_told_job(const peer *p, uint32_t id);
+
+lease *peer_find_lease(peer *p, uint32_t job_id, uint32_t tile, lease ***link);
+
+/* Use p's credits on queued tiles, then on backups. */
+void peer_schedule(peer *p);
+
+void farm_schedule_all(farm *f);
+
+int farm_on_tile(peer *p, const uint8_t *body, size_t len);
+
+#endif

@@ -1,0 +1,392 @@
+/* farm_peers.c - the farm's side of each worker connection: accept, the
+ * authenticated hello, control messages (ready, give back, failed), the
+ * heartbeat clock that finds stalled and silent workers, departures. */
+#include "farm_internal.h"
+
+static void peer_send(peer *p, uint8_t *frame, size_t len) {
+    if (!frame) return;
+    conn_send(p->c, frame, len);
+    p->last_sent = farm_now(p->f);
+}
+
+void peer_send_json(peer *p, cJSON *m) {
+    size_t len;
+    uint8_t *f = m ? wire_frame_json(m, &len) : NULL;
+    cJSON_Delete(m);
+    peer_send(p, f, len);
+}
+
+/* {"type": TYPE, "job": J[, "tile": T]} */
+void peer_send_ids(peer *p, const char *type, uint32_t job, long tile) {
+    cJSON *m = cJSON_CreateObject();
+    cJSON_AddStringToObject(m, "type", type);
+    cJSON_AddNumberToObject(m, "job", job);
+    if (tile >= 0) cJSON_AddNumberToObject(m, "tile", (double)tile);
+    peer_send_json(p, m);
+}
+
+/* Send {"type": type, "reason": reason} and close once it is written.
+ * Returns 1 (for on_frame). */
+static int peer_refuse(peer *p, const char *type, const char *reason) {
+    size_t len;
+    uint8_t *frame = proto_frame_reason(type, reason, &len);
+    peer_send(p, frame, len);
+    conn_close(p->c, reason, 1);
+    return 1;
+}
+
+int peer_violation(peer *p, const char *fmt, ...) {
+    char reason[512];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(reason, sizeof reason, fmt, ap);
+    va_end(ap);
+    farm_log(p->f, "%s: %s; disconnecting", p->label, reason);
+    return peer_refuse(p, "error", reason);
+}
+
+static void peer_unlink(farm *f, peer *p) {
+    for (peer **pp = &f->peers; *pp; pp = &(*pp)->next)
+        if (*pp == p) {
+            *pp = p->next;
+            break;
+        }
+}
+
+/* Give a client's connection to opt.on_client and forget the peer. */
+static void peer_hand_over(peer *p, const cJSON *hello) {
+    farm *f = p->f;
+    conn *c = p->c;
+    char addr[64];
+    snprintf(addr, sizeof addr, "%s", p->rec.addr);
+    peer_unlink(f, p);
+    free(p->scenes);
+    free(p->jobs);
+    free(p);
+    f->opt.on_client(f->opt.client_ctx, c, hello, addr);
+}
+
+void farm_add_proof(const farm *f, const cJSON *hello, cJSON *welcome) {
+    const cJSON *nonce = cJSON_GetObjectItemCaseSensitive(hello, "nonce");
+    if (!f->opt.auth.enabled || !cJSON_IsString(nonce)) return;
+    char proof[AUTH_HEX];
+    auth_proof(&f->opt.auth, nonce->valuestring, "coordinator", proof);
+    cJSON_AddStringToObject(welcome, "proof", proof);
+}
+
+static int on_hello(peer *p, const cJSON *m) {
+    farm *f = p->f;
+    const cJSON *proto = cJSON_GetObjectItemCaseSensitive(m, "protocol");
+    const cJSON *build = cJSON_GetObjectItemCaseSensitive(m, "build");
+    const cJSON *name = cJSON_GetObjectItemCaseSensitive(m, "name");
+    const cJSON *threads = cJSON_GetObjectItemCaseSensitive(m, "threads");
+    if (!cJSON_IsNumber(proto) || !cJSON_IsString(build) || !cJSON_IsString(name) || !cJSON_IsNumber(threads) ||
+        !(threads->valuedouble >= 1 && threads->valuedouble <= 4096))
+        return peer_violation(p, "hello: expected protocol, build, name and threads (1 to 4096)");
+    snprintf(p->rec.name, sizeof p->rec.name, "%s", name->valuestring);
+    snprintf(p->label, sizeof p->label, "worker %s (%s)", p->rec.name, p->rec.addr);
+    const cJSON *role = cJSON_GetObjectItemCaseSensitive(m, "role");
+    int is_client = cJSON_IsString(role) && strcmp(role->valuestring, "client") == 0;
+    if (f->opt.auth.enabled) {
+        char who[128];
+        snprintf(who, sizeof who, "%s:%s", is_client ? "client" : "worker", name->valuestring);
+        const cJSON *proof = cJSON_GetObjectItemCaseSensitive(m, "proof");
+        if (!auth_check(&f->opt.auth, p->nonce, who, cJSON_IsString(proof) ? proof->valuestring : NULL)) {
+            /* Says nothing else: an outsider learns no version, job or worker. */
+            farm_log(f, "peer %s (calling itself %s %.60s): authentication failed (%s token); refused", p->rec.addr,
+                     is_client ? "client" : "worker", name->valuestring, cJSON_IsString(proof) ? "wrong" : "no");
+            p->rec.name[0] = '\0';
+            return peer_refuse(p, "refused", "authentication failed");
+        }
+    }
+    if (is_client) {
+        if (!f->opt.on_client) return peer_violation(p, "this coordinator takes no clients (it renders one scene)");
+        if (proto->valuedouble != PROTOCOL_VERSION)
+            return peer_violation(p, "version mismatch: client speaks protocol %g; coordinator speaks protocol %d",
+                                  proto->valuedouble, PROTOCOL_VERSION);
+        peer_hand_over(p, m);
+        return 0; /* the connection lives on with the client's callbacks */
+    }
+    if (proto->valuedouble != PROTOCOL_VERSION || strcmp(build->valuestring, protocol_build_id()) != 0) {
+        char reason[400];
+        snprintf(reason, sizeof reason,
+                 "version mismatch: worker speaks protocol %g, build %.100s; coordinator speaks protocol %d, "
+                 "build %s",
+                 proto->valuedouble, build->valuestring, PROTOCOL_VERSION, protocol_build_id());
+        farm_log(f, "%s refused: %s", p->label, reason);
+        return peer_refuse(p, "refused", reason);
+    }
+    p->rec.threads = (int)threads->valuedouble;
+    p->state = PEER_ACTIVE;
+    size_t max_frame = proto_tile_frame_max(f->opt.max_tile_side);
+    conn_set_max_frame(p->c, max_frame > WIRE_JSON_MAX + 1 ? max_frame : WIRE_JSON_MAX + 1);
+    cJSON *w = cJSON_CreateObject();
+    cJSON_AddStringToObject(w, "type", "welcome");
+    cJSON_AddNumberToObject(w, "protocol", PROTOCOL_VERSION);
+    cJSON_AddStringToObject(w, "build", protocol_build_id());
+    cJSON_AddNumberToObject(w, "heartbeat_ms", f->opt.heartbeat_s * 1e3);
+    cJSON_AddNumberToObject(w, "timeout_ms", f->opt.timeout_s * 1e3);
+    farm_add_proof(f, m, w);
+    peer_send_json(p, w);
+    if (f->opt.verbose) farm_log(f, "%s joined with %d threads", p->label, p->rec.threads);
+    return 0;
+}
+
+static int read_tile_ids(peer *p, const cJSON *m, const char *type, uint32_t *job, uint32_t *tile) {
+    const cJSON *j = cJSON_GetObjectItemCaseSensitive(m, "job"), *t = cJSON_GetObjectItemCaseSensitive(m, "tile");
+    if (!cJSON_IsNumber(j) || !cJSON_IsNumber(t) || j->valuedouble < 0 || t->valuedouble < 0 ||
+        j->valuedouble > UINT32_MAX || t->valuedouble > UINT32_MAX) {
+        peer_violation(p, "%s: expected job and tile numbers", type);
+        return -1;
+    }
+    *job = (uint32_t)j->valuedouble;
+    *tile = (uint32_t)t->valuedouble;
+    return 0;
+}
+
+/* "cancelled" or "failed": p gives a tile back. */
+static int on_give_back(peer *p, const cJSON *m, int failed) {
+    farm *f = p->f;
+    uint32_t job_id, tile;
+    if (read_tile_ids(p, m, failed ? "failed" : "cancelled", &job_id, &tile)) return 1;
+    lease **link, *l = peer_find_lease(p, job_id, tile, &link);
+    if (!l) return 0; /* its result or an earlier answer already settled it */
+    job *j = l->job;
+    *link = l->next;
+    if (failed) {
+        const cJSON *r = cJSON_GetObjectItemCaseSensitive(m, "reason");
+        const char *why = cJSON_IsString(r) ? r->valuestring : "no reason given";
+        farm_log(f, "%s: tile %u of job %u failed: %.300s", p->label, tile, job_id, why);
+        if (++p->failures >= MAX_PEER_FAILURES && !p->blocked) {
+            p->blocked = 1;
+            farm_log(f, "%s failed %d tiles; it gets no more work", p->label, p->failures);
+        }
+        if (!j->finished && ++j->failures[tile] >= MAX_TILE_FAILURES) {
+            farm_lease_release(l);
+            free(l);
+            farm_job_fail(f, j, "tile %u failed %d times, last on %s: %.300s", tile, MAX_TILE_FAILURES, p->label, why);
+            return 0;
+        }
+    }
+    farm_lease_release(l);
+    free(l);
+    farm_schedule_all(f);
+    return 0;
+}
+
+static int on_json(peer *p, const uint8_t *body, size_t len) {
+    char err[256];
+    const char *type;
+    cJSON *m = proto_parse_json(body, len, &type, err, sizeof err);
+    if (!m) return peer_violation(p, "%s", err);
+    int rc = 0;
+    if (p->state == PEER_HELLO) {
+        rc = strcmp(type, "hello") == 0 ? on_hello(p, m) : peer_violation(p, "expected hello, got \"%.40s\"", type);
+    } else if (strcmp(type, "ready") == 0) {
+        const cJSON *s = cJSON_GetObjectItemCaseSensitive(m, "slots");
+        if (!cJSON_IsNumber(s) || s->valuedouble < 1 || p->credits + s->valuedouble > MAX_CREDITS) {
+            rc = peer_violation(p, "ready: slots must be a number from 1 to %d in all", MAX_CREDITS);
+        } else {
+            p->credits += (int)s->valuedouble;
+            peer_schedule(p);
+        }
+    } else if (strcmp(type, "cancelled") == 0 || strcmp(type, "failed") == 0) {
+        rc = on_give_back(p, m, type[0] == 'f');
+    } else if (strcmp(type, "bye") == 0) {
+        conn_close(p->c, "worker left", 0);
+        rc = 1;
+    } else if (strcmp(type, "heartbeat") != 0) {
+        rc = peer_violation(p, "unknown message type \"%.40s\"", type);
+    }
+    cJSON_Delete(m);
+    return rc;
+}
+
+static int on_frame(conn *c, int kind, const uint8_t *body, size_t len) {
+    peer *p = conn_data(c);
+    farm *f = p->f;
+    p->last_heard = farm_now(f);
+    if (p->state == PEER_STALLED) {
+        p->state = PEER_ACTIVE;
+        farm_log(f, "%s is responding again", p->label);
+    }
+    if (kind == WIRE_KIND_JSON) return on_json(p, body, len);
+    if (kind == WIRE_KIND_TILE && p->state != PEER_HELLO) return farm_on_tile(p, body, len);
+    return peer_violation(p, "unexpected frame kind 0x%02x%s", kind, p->state == PEER_HELLO ? " before hello" : "");
+}
+
+static void peer_record_departure(farm *f, peer *p, const char *why) {
+    p->rec.bytes_in = conn_bytes_in(p->c);
+    p->rec.bytes_out = conn_bytes_out(p->c);
+    p->rec.left = farm_now(f);
+    snprintf(p->rec.why, sizeof p->rec.why, "%s", why);
+    f->closed_bytes_in += p->rec.bytes_in;
+    f->closed_bytes_out += p->rec.bytes_out;
+    if (p->state == PEER_HELLO && p->rec.name[0] == '\0') return; /* never introduced itself */
+    if (f->departed_count == f->departed_cap) {
+        int cap = f->departed_cap ? 2 * f->departed_cap : 16;
+        peer_record *d = realloc(f->departed, (size_t)cap * sizeof *d);
+        if (!d) return;
+        f->departed = d;
+        f->departed_cap = cap;
+    }
+    f->departed[f->departed_count++] = p->rec;
+}
+
+static void on_conn_close(conn *c, const char *reason) {
+    peer *p = conn_data(c);
+    farm *f = p->f;
+    int requeued = 0;
+    while (p->leases) {
+        lease *l = p->leases;
+        p->leases = l->next;
+        requeued += l->live;
+        farm_lease_release(l);
+        free(l);
+    }
+    if (conn_malformed(c))
+        farm_log(f, "%s: %s; disconnecting", p->label, reason);
+    else if ((p->state != PEER_HELLO && !f->closing) || f->opt.verbose)
+        farm_log(f, "%s left: %s (%llu tiles done%s)", p->label, reason, (unsigned long long)p->rec.tiles,
+                 requeued ? ", its unfinished tiles go back to the queue" : "");
+    peer_record_departure(f, p, reason);
+    peer_unlink(f, p);
+    free(p->scenes);
+    free(p->jobs);
+    memset(p, 0xdb, sizeof *p);
+    free(p);
+    if (requeued && !f->closing) farm_schedule_all(f);
+}
+
+static const conn_callbacks farm_conn_cb = {on_frame, on_conn_close};
+
+void farm_on_connection(uv_stream_t *server, int status) {
+    farm *f = server->data;
+    if (status < 0) {
+        farm_log(f, "accept failed: %s", uv_strerror(status));
+        return;
+    }
+    peer *p = calloc(1, sizeof *p);
+    conn *c = p ? conn_new(f->loop, &farm_conn_cb, p, WIRE_JSON_MAX + 1) : NULL;
+    if (!c) {
+        free(p);
+        farm_log(f, "out of memory for a new connection");
+        return;
+    }
+    p->f = f;
+    p->c = c;
+    p->joined = p->last_heard = p->last_sent = farm_now(f);
+    p->rec.joined = p->joined;
+    if (uv_accept(server, (uv_stream_t *)conn_tcp(c)) != 0 || conn_start(c) != 0) {
+        snprintf(p->label, sizeof p->label, "connection");
+        p->next = f->peers;
+        f->peers = p;
+        conn_close(c, "accept failed", 0);
+        return;
+    }
+    uv_tcp_nodelay(conn_tcp(c), 1);
+    conn_peer_address(c, p->rec.addr, sizeof p->rec.addr);
+    snprintf(p->label, sizeof p->label, "peer %s", p->rec.addr);
+    p->next = f->peers;
+    f->peers = p;
+    auth_nonce(p->nonce);
+    cJSON *ch = cJSON_CreateObject();
+    cJSON_AddStringToObject(ch, "type", "challenge");
+    cJSON_AddStringToObject(ch, "nonce", p->nonce);
+    peer_send_json(p, ch);
+}
+
+static void peer_stall(peer *p, double silent) {
+    p->state = PEER_STALLED;
+    int n = 0;
+    for (lease *l = p->leases; l; l = l->next) {
+        n += l->live;
+        farm_lease_release(l);
+    }
+    farm_log(p->f, "%s silent for %.1f s: %d tiles go back to the queue", p->label, silent, n);
+}
+
+static void peer_check(peer *p, double now) {
+    farm *f = p->f;
+    double silent = now - p->last_heard;
+    if (p->state == PEER_HELLO && silent > HELLO_TIMEOUT_S) {
+        conn_close(p->c, "no hello within 10 s", 0);
+        return;
+    }
+    if (p->state == PEER_HELLO) return;
+    if (silent > f->opt.drop_s) {
+        char why[96];
+        snprintf(why, sizeof why, "silent for %.1f s", silent);
+        conn_close(p->c, why, 0);
+        return;
+    }
+    if (p->state == PEER_ACTIVE && silent > f->opt.timeout_s) peer_stall(p, silent);
+    for (lease *l = p->leases; l; l = l->next)
+        if (l->live && now - l->start > f->opt.lease_s) {
+            farm_log(f, "%s held tile %u of job %u for %.0f s, past its lease; it goes back to the queue", p->label,
+                     l->tile, l->job->desc.id, now - l->start);
+            farm_lease_release(l);
+        }
+    if (now - p->last_sent >= f->opt.heartbeat_s) {
+        size_t len;
+        uint8_t *frame = proto_frame_simple("heartbeat", &len);
+        peer_send(p, frame, len);
+    }
+}
+
+void farm_on_tick(uv_timer_t *t) {
+    farm *f = t->data;
+    double now = farm_now(f);
+    for (peer *p = f->peers, *next; p; p = next) {
+        next = p->next; /* p may be closed (but is freed only later) */
+        if (!conn_is_closing(p->c)) peer_check(p, now);
+    }
+    farm_schedule_all(f);
+    for (job *j = f->jobs; j; j = j->next)
+        if (!j->finished && j->cb && j->reported != j->rep.tiles_done) {
+            farm_report r;
+            farm_report_fill(f, j, &r);
+            j->reported = j->rep.tiles_done;
+            j->cb(j->ctx, &r, 0);
+        }
+}
+
+int farm_list_workers(const farm *f, farm_worker_info *out, int max) {
+    int n = 0;
+    double now = farm_now(f);
+    for (const peer *p = f->peers; p; p = p->next) {
+        if (p->state == PEER_HELLO) continue;
+        if (n < max) {
+            farm_worker_info *w = &out[n];
+            memset(w, 0, sizeof *w);
+            snprintf(w->name, sizeof w->name, "%s", p->rec.name);
+            snprintf(w->addr, sizeof w->addr, "%s", p->rec.addr);
+            w->threads = p->rec.threads;
+            w->stalled = p->state == PEER_STALLED;
+            w->tiles = p->rec.tiles;
+            w->samples = p->rec.samples;
+            w->connected_s = now - p->joined;
+            w->silent_s = now - p->last_heard;
+        }
+        n++;
+    }
+    return n;
+}
+
+static void print_record(FILE *out, const peer_record *r, const char *state, uint64_t in, uint64_t out_b) {
+    fprintf(out, "  %-20s %-22s %3d threads %6llu tiles %8.2f Msamples  in %8.1f KiB  out %8.1f KiB  %s\n",
+            r->name, r->addr, r->threads, (unsigned long long)r->tiles, (double)r->samples / 1e6,
+            (double)in / 1024.0, (double)out_b / 1024.0, state);
+}
+
+void farm_print_workers(const farm *f, FILE *out) {
+    for (const peer *p = f->peers; p; p = p->next)
+        if (p->state != PEER_HELLO)
+            print_record(out, &p->rec, p->state == PEER_STALLED ? "stalled" : "connected", conn_bytes_in(p->c),
+                         conn_bytes_out(p->c));
+    for (int i = 0; i < f->departed_count; i++) {
+        char state[160];
+        snprintf(state, sizeof state, "left: %s", f->departed[i].why);
+        print_record(out, &f->departed[i], state, f->departed[i].bytes_in, f->departed[i].bytes_out);
+    }
+}

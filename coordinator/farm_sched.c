@@ -1,0 +1,285 @@
+/* farm_sched.c - jobs and their tile queues, leases, assignment to workers
+ * with credits, backup copies of slow tiles, and the public job calls
+ * (submit, cancel, forget, report). Invariant: farm_internal.h. */
+#include "farm_internal.h"
+
+static void job_enqueue(job *j, uint32_t t) {
+    if (j->done[t] || j->holders[t] || j->queued[t] || j->finished) return;
+    j->queue[(j->q_head + j->q_len) % j->tile_count] = t;
+    j->q_len++;
+    j->queued[t] = 1;
+}
+
+static int job_dequeue(job *j, uint32_t *t) {
+    while (j->q_len > 0) {
+        uint32_t x = j->queue[j->q_head];
+        j->q_head = (j->q_head + 1) % j->tile_count;
+        j->q_len--;
+        j->queued[x] = 0;
+        if (!j->done[x] && !j->holders[x]) {
+            *t = x;
+            return 1;
+        }
+    }
+    return 0;
+}
+
+/* A lease stops counting as a holder; the tile is queued if nobody else
+ * holds it. */
+void farm_lease_release(lease *l) {
+    if (!l->live) return;
+    l->live = 0;
+    job *j = l->job;
+    if (j->holders[l->tile] > 0) j->holders[l->tile]--;
+    if (!j->done[l->tile] && j->holders[l->tile] == 0) {
+        job_enqueue(j, l->tile);
+        j->rep.requeued++;
+    }
+}
+
+job *farm_find_job(const farm *f, uint32_t id) {
+    for (job *j = f->jobs; j; j = j->next)
+        if (j->desc.id == id) return j;
+    return NULL;
+}
+
+void farm_job_free(job *j) {
+    conn_blob_unref(j->scene);
+    free(j->rects);
+    free(j->done);
+    free(j->holders);
+    free(j->queued);
+    free(j->failures);
+    free(j->first_start);
+    free(j->queue);
+    free(j);
+}
+
+void farm_report_fill(const farm *f, const job *j, farm_report *r) {
+    *r = j->rep;
+    r->tiles_total = j->tile_count;
+    r->workers = 0;
+    r->bytes_in = f->closed_bytes_in;
+    r->bytes_out = f->closed_bytes_out;
+    for (const peer *p = f->peers; p; p = p->next) {
+        if (p->state == PEER_ACTIVE && !p->blocked) r->workers++;
+        r->bytes_in += conn_bytes_in(p->c);
+        r->bytes_out += conn_bytes_out(p->c);
+    }
+}
+
+/* The job is complete or has failed: tell its workers and the caller. */
+void farm_job_finish(farm *f, job *j) {
+    j->finished = 1;
+    for (peer *p = f->peers; p; p = p->next)
+        for (int i = 0; i < p->job_count; i++)
+            if (p->jobs[i] == j->desc.id && !conn_is_closing(p->c)) peer_send_ids(p, "job_end", j->desc.id, -1);
+    farm_report r;
+    farm_report_fill(f, j, &r);
+    if (j->cb) j->cb(j->ctx, &r, 1);
+}
+
+void farm_job_fail(farm *f, job *j, const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(j->rep.error, sizeof j->rep.error, fmt, ap);
+    va_end(ap);
+    j->rep.failed = 1;
+    farm_log(f, "job %u failed: %s", j->desc.id, j->rep.error);
+    farm_job_finish(f, j);
+}
+
+/* Make sure p has the job's scene and description. */
+static void peer_tell_job(peer *p, job *j) {
+    for (int i = 0; i < p->job_count; i++)
+        if (p->jobs[i] == j->desc.id) return;
+    int have_scene = 0;
+    for (int i = 0; i < p->scene_count; i++) have_scene |= strcmp(p->scenes[i], j->desc.scene_hash) == 0;
+    if (!have_scene) {
+        void *s = realloc(p->scenes, (size_t)(p->scene_count + 1) * sizeof *p->scenes);
+        if (s) {
+            p->scenes = s;
+            memcpy(p->scenes[p->scene_count++], j->desc.scene_hash, SCENE_BUNDLE_HASH_HEX);
+        }
+        conn_send_blob(p->c, j->scene);
+    }
+    uint32_t *js = realloc(p->jobs, (size_t)(p->job_count + 1) * sizeof *p->jobs);
+    if (js) {
+        p->jobs = js;
+        p->jobs[p->job_count++] = j->desc.id;
+    }
+    peer_send_json(p, proto_job_json(&j->desc));
+}
+
+int peer_told_job(const peer *p, uint32_t id) {
+    for (int i = 0; i < p->job_count; i++)
+        if (p->jobs[i] == id) return 1;
+    return 0;
+}
+
+lease *peer_find_lease(peer *p, uint32_t job_id, uint32_t tile, lease ***link) {
+    for (lease **pp = &p->leases; *pp; pp = &(*pp)->next)
+        if ((*pp)->job->desc.id == job_id && (*pp)->tile == tile) {
+            if (link) *link = pp;
+            return *pp;
+        }
+    return NULL;
+}
+
+/* A tile worth backing up for p: not done, held once, not by p, running
+ * longer than BACKUP_AGE_FACTOR times the mean tile time. Oldest first. */
+static int job_pick_backup(const farm *f, job *j, peer *p, uint32_t *out) {
+    int done = j->rep.tiles_done;
+    if (done == 0) return 0;
+    double mean = j->tile_seconds / done, now = farm_now(f), best_age = BACKUP_AGE_FACTOR * mean;
+    if (best_age < BACKUP_MIN_AGE_S) best_age = BACKUP_MIN_AGE_S;
+    int found = 0;
+    for (int t = 0; t < j->tile_count; t++) {
+        if (j->done[t] || j->holders[t] != 1 || now - j->first_start[t] <= best_age) continue;
+        if (peer_find_lease(p, j->desc.id, (uint32_t)t, NULL)) continue;
+        best_age = now - j->first_start[t];
+        *out = (uint32_t)t;
+        found = 1;
+    }
+    return found;
+}
+
+/* The part of the job's mask under tile t, row-major (the caller frees), or
+ * NULL when out of memory. */
+static uint8_t *job_tile_mask(const job *j, uint32_t t) {
+    const tile_rect *r = &j->rects[t];
+    uint8_t *m = malloc((size_t)tile_width(r) * (size_t)tile_height(r)), *out = m;
+    for (int y = r->y0; m && y < r->y1; y++, out += tile_width(r))
+        memcpy(out, j->mask + (size_t)y * (size_t)j->desc.width + (size_t)r->x0, (size_t)tile_width(r));
+    return m;
+}
+
+static int peer_assign(peer *p, job *j, uint32_t t, int backup) {
+    proto_assign a = {j->desc.id, t, j->rects[t], j->first, j->count, NULL};
+    lease *l = calloc(1, sizeof *l);
+    if (!l || (j->mask && !(a.mask = job_tile_mask(j, t)))) {
+        farm_log(p->f, "out of memory assigning tile %u of job %u; it stays queued", t, j->desc.id);
+        free(l);
+        job_enqueue(j, t);
+        return -1;
+    }
+    double now = farm_now(p->f);
+    *l = (lease){j, t, now, 1, p->leases};
+    p->leases = l;
+    if (j->holders[t]++ == 0) j->first_start[t] = now;
+    if (backup) j->rep.backups++;
+    p->credits--;
+    peer_tell_job(p, j);
+    peer_send_json(p, proto_assign_json(&a));
+    free(a.mask);
+    return 0;
+}
+
+/* Use p's credits on queued tiles, then on backups. */
+void peer_schedule(peer *p) {
+    farm *f = p->f;
+    if (p->state != PEER_ACTIVE || p->blocked || conn_is_closing(p->c)) return;
+    for (job *j = f->jobs; j && p->credits > 0; j = j->next) {
+        uint32_t t;
+        while (!j->finished && p->credits > 0 && job_dequeue(j, &t))
+            if (peer_assign(p, j, t, 0)) return;
+        while (!j->finished && p->credits > 0 && j->q_len == 0 && job_pick_backup(f, j, p, &t))
+            if (peer_assign(p, j, t, 1)) return;
+    }
+}
+
+void farm_schedule_all(farm *f) {
+    for (peer *p = f->peers; p; p = p->next)
+        if (p->credits > 0) peer_schedule(p);
+}
+
+int farm_submit(farm *f, const proto_job *desc, const uint8_t *bundle, size_t bundle_len,
+                const farm_job_options *o, float *rgb, farm_job_cb cb, void *ctx) {
+    job *j = calloc(1, sizeof *j);
+    if (!j) return -1;
+    j->desc = *desc;
+    j->tile_size = o->tile_size;
+    j->priority = o->priority;
+    j->on_tile = o->on_tile;
+    j->film = (film){rgb, desc->width, desc->height, desc->adaptive ? ADAPTIVE_CHANNELS : 3};
+    j->mask = desc->adaptive ? o->mask : NULL;
+    j->first = desc->adaptive ? o->first : 0;
+    j->count = desc->adaptive ? o->count : (uint32_t)desc->spp;
+    j->cb = cb;
+    j->ctx = ctx;
+    j->tile_count = render_split_tiles(desc->width, desc->height, o->tile_size, NULL, 0);
+    size_t n = (size_t)j->tile_count;
+    j->rects = calloc(n, sizeof *j->rects);
+    j->done = calloc(n, 1);
+    j->holders = calloc(n, 1);
+    j->queued = calloc(n, 1);
+    j->failures = calloc(n, 1);
+    j->first_start = calloc(n, sizeof *j->first_start);
+    j->queue = calloc(n, sizeof *j->queue);
+    j->scene = bundle_len < UINT32_MAX ? conn_blob_new(WIRE_HEADER_BYTES + bundle_len) : NULL;
+    if (!j->rects || !j->done || !j->holders || !j->queued || !j->failures || !j->first_start || !j->queue ||
+        !j->scene) {
+        farm_job_free(j);
+        return -1;
+    }
+    wire_put_u32(j->scene->data, (uint32_t)(bundle_len + 1));
+    j->scene->data[4] = WIRE_KIND_SCENE;
+    memcpy(j->scene->data + WIRE_HEADER_BYTES, bundle, bundle_len);
+    render_split_tiles(desc->width, desc->height, o->tile_size, j->rects, j->tile_count);
+    for (int t = 0; t < j->tile_count; t++) {
+        if (o->done && o->done[t]) {
+            j->done[t] = 1;
+            j->rep.tiles_done++;
+        }
+        job_enqueue(j, (uint32_t)t);
+    }
+    j->reported = j->rep.tiles_done;
+    job **pp = &f->jobs; /* by priority, then submission order */
+    while (*pp && (*pp)->priority >= j->priority) pp = &(*pp)->next;
+    j->next = *pp;
+    *pp = j;
+    if (j->rep.tiles_done == j->tile_count)
+        farm_job_finish(f, j);
+    else
+        farm_schedule_all(f);
+    return 0;
+}
+
+int farm_cancel(farm *f, uint32_t id) {
+    job *j = farm_find_job(f, id);
+    if (!j || j->finished) return -1;
+    j->rep.cancelled = 1;
+    snprintf(j->rep.error, sizeof j->rep.error, "cancelled");
+    farm_job_finish(f, j);
+    farm_schedule_all(f); /* the freed workers take other jobs */
+    return 0;
+}
+
+int farm_forget(farm *f, uint32_t id) {
+    for (job **pp = &f->jobs; *pp; pp = &(*pp)->next)
+        if ((*pp)->desc.id == id) {
+            job *j = *pp;
+            if (!j->finished) return -1;
+            for (peer *p = f->peers; p; p = p->next) /* leases of it die with it */
+                for (lease **lp = &p->leases; *lp;) {
+                    lease *l = *lp;
+                    if (l->job == j) {
+                        *lp = l->next;
+                        free(l);
+                    } else {
+                        lp = &l->next;
+                    }
+                }
+            *pp = j->next;
+            farm_job_free(j);
+            return 0;
+        }
+    return -1;
+}
+
+int farm_job_report(const farm *f, uint32_t id, farm_report *r) {
+    const job *j = farm_find_job(f, id);
+    if (!j) return -1;
+    farm_report_fill(f, j, r);
+    return 0;
+}
