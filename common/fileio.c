@@ -1,11 +1,14 @@
-/* fileio.c - whole-file reads with error messages that name the file. */
+/* fileio.c - whole-file reads and atomic writes (fileio.h). */
 #include "fileio.h"
 
 #include <errno.h>
+#include <fcntl.h>
+#include <libgen.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 char *file_read_all(const char *path, size_t max_len, size_t *len, char *err, size_t err_len) {
     FILE *f = fopen(path, "rb");
@@ -43,4 +46,57 @@ char *file_read_all(const char *path, size_t max_len, size_t *len, char *err, si
     buf[n] = '\0';
     *len = n;
     return buf;
+}
+
+/* Write all of data to fd. Returns 0 or an errno value. */
+static int write_all(int fd, const char *data, size_t len) {
+    while (len > 0) {
+        ssize_t w = write(fd, data, len);
+        if (w < 0 && errno == EINTR) continue;
+        if (w < 0) return errno;
+        if (w == 0) return EIO;
+        data += w;
+        len -= (size_t)w;
+    }
+    return 0;
+}
+
+/* fsync the folder holding path, so a rename in it is durable. Returns 0 or
+ * an errno value. */
+static int sync_parent(const char *path) {
+    char *copy = strdup(path);
+    if (!copy) return ENOMEM;
+    int fd = open(dirname(copy), O_RDONLY | O_DIRECTORY);
+    free(copy);
+    if (fd < 0) return errno;
+    int e = fsync(fd) != 0 && errno != EINVAL ? errno : 0; /* EINVAL: a filesystem that cannot sync folders */
+    close(fd);
+    return e;
+}
+
+int file_write_atomic(const char *path, const void *data, size_t len, char *err, size_t err_len) {
+    size_t pl = strlen(path);
+    char *tmp = malloc(pl + 16);
+    if (!tmp) {
+        snprintf(err, err_len, "%s: cannot write: out of memory", path);
+        return -1;
+    }
+    snprintf(tmp, pl + 16, "%s.tmp.XXXXXX", path);
+    int fd = mkstemp(tmp), e = fd < 0 ? errno : 0;
+    if (!e) {
+        mode_t mask = umask(0); /* mkstemp makes 0600; give the usual 0666 & ~umask */
+        umask(mask);
+        if (fchmod(fd, 0666 & ~mask) != 0) e = errno;
+    }
+    if (!e) e = write_all(fd, data, len);
+    if (!e && fsync(fd) != 0) e = errno;
+    if (fd >= 0 && close(fd) != 0 && !e) e = errno;
+    if (!e && rename(tmp, path) != 0) e = errno;
+    if (!e) e = sync_parent(path);
+    if (e) {
+        if (fd >= 0) unlink(tmp);
+        snprintf(err, err_len, "%s: cannot write: %s", path, strerror(e));
+    }
+    free(tmp);
+    return e ? -1 : 0;
 }

@@ -1,4 +1,5 @@
-/* fileio.h - whole-file reads with error messages that name the file. */
+/* fileio.h - whole-file reads and atomic, durable writes, with error messages
+ * that name the file. */
 #ifndef TESSERA_FILEIO_H
 #define TESSERA_FILEIO_H
 
@@ -9,5 +10,14 @@
  * files larger than max_len. On error returns NULL and writes
  * "PATH: reason" to err. */
 char *file_read_all(const char *path, size_t max_len, size_t *len, char *err, size_t err_len);
+
+/* Replace the file at path with len bytes of data, atomically and durably:
+ * written to a unique temporary file in the same folder (mode 0666 less the
+ * umask), synced, renamed over path, and the folder synced, so that after a
+ * crash path holds either the old contents or the new, never a mix, and a
+ * successful return survives power loss. Returns 0, or -1 with "PATH: cannot
+ * write: reason" in err (the temporary is removed). Used for images, the job
+ * journal's records and the scene store. */
+int file_write_atomic(const char *path, const void *data, size_t len, char *err, size_t err_len);
 
 #endif

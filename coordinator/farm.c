@@ -3,13 +3,9 @@
 #include "farm_internal.h"
 
 void farm_log(const farm *f, const char *fmt, ...) {
-    FILE *out = f->opt.log ? f->opt.log : stderr;
     va_list ap;
     va_start(ap, fmt);
-    fputs("tessera: ", out);
-    vfprintf(out, fmt, ap);
-    fputc('\n', out);
-    fflush(out);
+    log_vline(f->opt.log, LOG_INFO, "tessera-coordinator", fmt, ap);
     va_end(ap);
 }
 

@@ -25,6 +25,7 @@
 #include <string.h>
 
 #include "farm.h"
+#include "log.h"
 #include "net/conn.h"
 #include "net/wire.h"
 #include "render/film.h"
@@ -129,6 +130,7 @@ static inline double farm_now(const farm *f) { return (double)uv_now(f->loop) / 
 
 /* ---- shared between the farm's files ---------------------------------------- */
 
+/* A log line (log.h) from the coordinator, to opt.log or stderr. */
 void farm_log(const farm *f, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 
 void peer_send_json(peer *p, cJSON *m);

@@ -29,6 +29,7 @@
 #include <unistd.h>
 #include <uv.h>
 
+#include "log.h"
 #include "net/conn.h"
 #include "fileio.h"
 #include "image/image.h"
@@ -80,10 +81,7 @@ static void svc_log(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 static void svc_log(const char *fmt, ...) {
     va_list ap;
     va_start(ap, fmt);
-    fputs("tessera-coordinator: ", stderr);
-    vfprintf(stderr, fmt, ap);
-    fputc('\n', stderr);
-    fflush(stderr);
+    log_vline(NULL, LOG_INFO, "tessera-coordinator", fmt, ap);
     va_end(ap);
 }
 
@@ -97,30 +95,6 @@ static double wall_now(void) {
 
 static void job_path(const service *s, uint32_t id, const char *ext, char *out, size_t n) {
     snprintf(out, n, "%s/jobs/%u.%s", s->o.data_dir, id, ext);
-}
-
-/* Write data to path through a synced temporary file. Returns 0 or -1 with
- * "PATH: reason" in err. */
-static int write_atomic(const char *path, const void *data, size_t len, char *err, size_t err_len) {
-    char tmp[4200];
-    snprintf(tmp, sizeof tmp, "%s.tmp", path);
-    int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    int ok = fd >= 0;
-    const char *p = data;
-    for (size_t left = len; ok && left > 0;) {
-        ssize_t n = write(fd, p, left);
-        if (n <= 0) ok = 0;
-        else p += n, left -= (size_t)n;
-    }
-    if (ok && fsync(fd) != 0) ok = 0;
-    if (fd >= 0 && close(fd) != 0) ok = 0;
-    if (ok && rename(tmp, path) != 0) ok = 0;
-    if (!ok) {
-        snprintf(err, err_len, "%.400s: cannot write: %s", path, strerror(errno));
-        unlink(tmp);
-        return -1;
-    }
-    return 0;
 }
 
 static int save_job(sjob *j, char *err, size_t err_len) {
@@ -147,7 +121,7 @@ static int save_job(sjob *j, char *err, size_t err_len) {
     char *text = cJSON_Print(m);
     cJSON_Delete(m);
     job_path(j->svc, j->desc.id, "json", path, sizeof path);
-    int rc = text ? write_atomic(path, text, strlen(text), err, err_len) : -1;
+    int rc = text ? file_write_atomic(path, text, strlen(text), err, err_len) : -1;
     if (!text) snprintf(err, err_len, "out of memory");
     free(text);
     return rc;
@@ -518,7 +492,7 @@ static void on_submit(client *cl, const cJSON *m) {
     snprintf(path, sizeof path, "%s/scenes/%s", s->o.data_dir, hash);
     int rc = j->rgb ? 0 : -1;
     if (!j->rgb) snprintf(err, sizeof err, "out of memory for a %dx%d image", j->desc.width, j->desc.height);
-    if (rc == 0) rc = write_atomic(path, cl->bundle, cl->bundle_len, err, sizeof err);
+    if (rc == 0) rc = file_write_atomic(path, cl->bundle, cl->bundle_len, err, sizeof err);
     if (rc == 0) rc = save_job(j, err, sizeof err);
     if (rc == 0) rc = job_start(s, j, cl->bundle, cl->bundle_len, err, sizeof err);
     if (rc) {
@@ -752,7 +726,7 @@ static int prepare_data_dir(const char *dir, char *err, size_t err_len) {
         }
     }
     snprintf(path, sizeof path, "%s/.probe", dir);
-    if (write_atomic(path, "ok", 2, err, err_len)) return -1;
+    if (file_write_atomic(path, "ok", 2, err, err_len)) return -1;
     unlink(path);
     return 0;
 }

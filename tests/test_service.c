@@ -158,7 +158,7 @@ TEST(service_queue_priority_and_cancel) {
     while (f && fgets(line, sizeof line, f))
         if (strstr(line, " done (")) {
             order++;
-            if (order == 1) sscanf(line, "tessera-coordinator: job %d", &first_done);
+            if (order == 1 && strstr(line, ": job ")) sscanf(strstr(line, ": job ") + 2, "job %d", &first_done);
         }
     if (f) fclose(f);
     CHECK(first_done == 3, "job %d finished first; the high-priority job 3 should; log %s", first_done, s.log);
@@ -192,8 +192,10 @@ TEST(service_restart_resumes_without_rerendering) {
     FILE *f = fopen(s.log, "r");
     char line[512];
     while (f && fgets(line, sizeof line, f)) {
-        sscanf(line, "tessera-coordinator: job 1 resumed: %d of 64", &resumed);
-        sscanf(line, "tessera-coordinator: job 1 done (%d tiles from the journal, %d rendered", &again, &rendered);
+        const char *msg = strstr(line, "job 1 ");
+        if (!msg) continue;
+        sscanf(msg, "job 1 resumed: %d of 64", &resumed);
+        sscanf(msg, "job 1 done (%d tiles from the journal, %d rendered", &again, &rendered);
     }
     if (f) fclose(f);
     CHECK(resumed >= 20 && again == resumed && resumed + rendered == 64,

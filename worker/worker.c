@@ -15,6 +15,7 @@
 #include <string.h>
 #include <uv.h>
 
+#include "log.h"
 #include "net/conn.h"
 #include "job/job.h"
 #include "net/protocol.h"
@@ -60,11 +61,11 @@ static double now_s(worker *w) { return (double)uv_now(&w->loop) / 1e3; }
 
 static void worker_log(worker *w, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 static void worker_log(worker *w, const char *fmt, ...) {
+    char who[128];
+    snprintf(who, sizeof who, "tessera-worker %s", w->cfg.name);
     va_list ap;
     va_start(ap, fmt);
-    fprintf(stderr, "tessera-worker %s: ", w->cfg.name);
-    vfprintf(stderr, fmt, ap);
-    fputc('\n', stderr);
+    log_vline(NULL, LOG_INFO, who, fmt, ap);
     va_end(ap);
 }
 

@@ -123,41 +123,6 @@ static uint8_t *encode_8bit(const char *ext, const image *img, image_write_optio
     return buf;
 }
 
-/* Write len bytes to path through a temporary file in the same folder. */
-static int write_atomic(const char *path, const uint8_t *data, size_t len, char *err, size_t err_len) {
-    size_t pl = strlen(path);
-    char *tmp = malloc(pl + 16);
-    if (!tmp) {
-        snprintf(err, err_len, "%s: out of memory", path);
-        return -1;
-    }
-    snprintf(tmp, pl + 16, "%s.tmp.XXXXXX", path);
-    int fd = mkstemp(tmp);
-    if (fd < 0) {
-        snprintf(err, err_len, "%s: cannot create file: %s", path, strerror(errno));
-        free(tmp);
-        return -1;
-    }
-    mode_t mask = umask(0); /* mkstemp makes 0600; give the usual 0666 & ~umask */
-    umask(mask);
-    size_t off = 0;
-    int e = fchmod(fd, 0666 & ~mask) != 0 ? errno : 0;
-    while (off < len && !e) {
-        ssize_t w = write(fd, data + off, len - off);
-        if (w < 0 && errno != EINTR) e = errno;
-        if (w > 0) off += (size_t)w;
-    }
-    if (!e && fsync(fd) != 0) e = errno;
-    if (close(fd) != 0 && !e) e = errno;
-    if (!e && rename(tmp, path) != 0) e = errno;
-    if (e) {
-        unlink(tmp);
-        snprintf(err, err_len, "%s: write failed: %s", path, strerror(e));
-    }
-    free(tmp);
-    return e ? -1 : 0;
-}
-
 int image_write(const char *path, const image *img, image_write_options *opt, char *err, size_t err_len) {
     const char *ext = extension(path);
     size_t len = 0;
@@ -181,7 +146,7 @@ int image_write(const char *path, const image *img, image_write_options *opt, ch
         snprintf(err, err_len, "%s: cannot encode the image: %s", path, why);
         return -1;
     }
-    int rc = write_atomic(path, buf, len, err, err_len);
+    int rc = file_write_atomic(path, buf, len, err, err_len);
     free(buf);
     return rc;
 }
