@@ -1,0 +1,318 @@
+/* jobstore.c - the job store and its journal (layout in service_internal.h):
+ * jobs written whole, tiles appended and synced before they count, the
+ * farm's callbacks that journal and finish jobs, and the restart that reads
+ * it all back. */
+#define _GNU_SOURCE
+#include "service_internal.h"
+
+void store_job_path(const service *s, uint32_t id, const char *ext, char *out, size_t n) {
+    snprintf(out, n, "%s/jobs/%u.%s", s->o.data_dir, id, ext);
+}
+
+int store_save_job(sjob *j, char *err, size_t err_len) {
+    char seed[32], path[4096];
+    snprintf(seed, sizeof seed, "%" PRIu64, j->desc.seed);
+    cJSON *m = cJSON_CreateObject();
+    cJSON_AddNumberToObject(m, "job", j->desc.id);
+    cJSON_AddStringToObject(m, "name", j->name);
+    cJSON_AddStringToObject(m, "scene", j->desc.scene_hash);
+    cJSON_AddNumberToObject(m, "width", j->desc.width);
+    cJSON_AddNumberToObject(m, "height", j->desc.height);
+    cJSON_AddNumberToObject(m, "spp", j->desc.spp);
+    cJSON_AddNumberToObject(m, "max_depth", j->desc.max_depth);
+    cJSON_AddStringToObject(m, "seed", seed);
+    cJSON_AddBoolToObject(m, "nee", !j->desc.integrator.no_nee);
+    cJSON_AddBoolToObject(m, "mis", !j->desc.integrator.no_mis);
+    cJSON_AddStringToObject(m, "sampler", sampler_name(j->desc.integrator.sampler));
+    cJSON_AddNumberToObject(m, "priority", j->priority);
+    cJSON_AddNumberToObject(m, "tile_size", j->tile_size);
+    cJSON_AddStringToObject(m, "state", state_names[j->state]);
+    cJSON_AddStringToObject(m, "error", j->error);
+    cJSON_AddNumberToObject(m, "submitted", j->submitted);
+    cJSON_AddNumberToObject(m, "finished", j->finished);
+    char *text = cJSON_Print(m);
+    cJSON_Delete(m);
+    store_job_path(j->svc, j->desc.id, "json", path, sizeof path);
+    int rc = text ? file_write_atomic(path, text, strlen(text), err, err_len) : -1;
+    if (!text) snprintf(err, err_len, "out of memory");
+    free(text);
+    return rc;
+}
+
+static uint32_t record_check(uint32_t tile, const float *px, size_t n) {
+    uint32_t h = 2166136261u ^ tile; /* FNV-1a over the bytes: catches torn writes */
+    const uint8_t *b = (const uint8_t *)px;
+    for (size_t i = 0; i < 4 * n; i++) h = (h ^ b[i]) * 16777619u;
+    return h;
+}
+
+static void store_job_release(sjob *j) {
+    free(j->rgb);
+    free(j->journaled);
+    j->rgb = NULL;
+    j->journaled = NULL;
+    if (j->tiles_fd >= 0) close(j->tiles_fd);
+    j->tiles_fd = -1;
+}
+
+sjob *store_find_job(service *s, uint32_t id) {
+    for (sjob *j = s->jobs; j; j = j->next)
+        if (j->desc.id == id) return j;
+    return NULL;
+}
+
+/* Append a finished tile to the journal and sync it: the farm counts the
+ * tile only when this returns 0. */
+static int store_on_tile_done(void *ctx, uint32_t tile, const tile_rect *r, char *err, size_t err_len) {
+    sjob *j = ctx;
+    size_t w = (size_t)tile_width(r), n = 3 * w * (size_t)tile_height(r);
+    size_t len = 16 + 4 * n;
+    uint8_t *rec = malloc(len);
+    if (!rec) {
+        snprintf(err, err_len, "out of memory journaling tile %u", tile);
+        return -1;
+    }
+    wire_put_u32(rec, TILE_MAGIC);
+    wire_put_u32(rec + 4, tile);
+    wire_put_u32(rec + 8, (uint32_t)n);
+    float *px = (float *)malloc(4 * n);
+    for (int y = r->y0; px && y < r->y1; y++)
+        memcpy(px + 3 * w * (size_t)(y - r->y0), j->rgb + 3 * ((size_t)y * (size_t)j->desc.width + (size_t)r->x0),
+               12 * w);
+    for (size_t i = 0; px && i < n; i++) wire_put_f32(rec + 12 + 4 * i, px[i]);
+    if (px) wire_put_u32(rec + 12 + 4 * n, record_check(tile, px, n));
+    size_t written = 0;
+    int e = px ? 0 : ENOMEM;
+    while (!e && written < len) { /* a short write (disk full, file limit) is followed by the error */
+        ssize_t wr = write(j->tiles_fd, rec + written, len - written);
+        if (wr > 0) written += (size_t)wr;
+        else e = wr < 0 ? errno : EIO;
+    }
+    if (!e && fdatasync(j->tiles_fd) != 0) e = errno;
+    int rc = e ? -1 : 0;
+    if (rc) {
+        char path[4096];
+        store_job_path(j->svc, j->desc.id, "tiles", path, sizeof path);
+        snprintf(err, err_len, "%.400s: cannot journal tile %u: %s", path, tile, strerror(e));
+        off_t end = lseek(j->tiles_fd, 0, SEEK_CUR);
+        if (written > 0 && end >= (off_t)written && ftruncate(j->tiles_fd, end - (off_t)written) != 0) {
+            /* a torn record left behind is cut off at the next start */
+        }
+    }
+    free(px);
+    free(rec);
+    if (rc == 0) j->tiles_done++;
+    return rc;
+}
+
+void store_on_job_event(void *ctx, const farm_report *r, int done) {
+    sjob *j = ctx;
+    service *s = j->svc;
+    j->stats = r->stats;
+    if (!done) return;
+    char err[600] = "", path[4096];
+    j->finished = svc_wall_now();
+    if (r->cancelled) {
+        j->state = SJOB_CANCELLED;
+    } else if (r->failed) {
+        j->state = SJOB_FAILED;
+        snprintf(j->error, sizeof j->error, "%s", r->error);
+    } else {
+        image img = {j->desc.width, j->desc.height, j->rgb};
+        image_write_options wo = {0};
+        store_job_path(s, j->desc.id, "pfm", path, sizeof path);
+        if (image_write(path, &img, &wo, err, sizeof err) == 0) {
+            j->state = SJOB_DONE;
+        } else {
+            j->state = SJOB_FAILED;
+            snprintf(j->error, sizeof j->error, "%.500s", err);
+        }
+    }
+    if (store_save_job(j, err, sizeof err)) svc_log("job %u: %s", j->desc.id, err);
+    svc_log("job %u %s (%d tiles from the journal, %d rendered in this run)%s%s", j->desc.id, state_names[j->state],
+            j->tiles_resumed, j->tiles_done - j->tiles_resumed, j->error[0] ? ": " : "", j->error);
+    store_job_path(s, j->desc.id, "tiles", path, sizeof path);
+    unlink(path); /* done: the image has it; failed or cancelled: never resumed */
+    store_job_release(j);
+    farm_forget(s->f, j->desc.id);
+}
+
+/* Hand a job (new or resumed) to the farm, opening its tile journal. */
+int store_job_start(service *s, sjob *j, const uint8_t *bundle, size_t len, char *err, size_t err_len) {
+    char path[4096];
+    store_job_path(s, j->desc.id, "tiles", path, sizeof path);
+    j->tiles_fd = open(path, O_WRONLY | O_CREAT | O_APPEND, 0644);
+    if (j->tiles_fd < 0) {
+        snprintf(err, err_len, "%.400s: cannot open the tile journal: %s", path, strerror(errno));
+        return -1;
+    }
+    farm_job_options fo = {.tile_size = j->tile_size, .priority = j->priority, .done = j->journaled,
+                           .on_tile = store_on_tile_done};
+    j->started = svc_wall_now();
+    if (farm_submit(s->f, &j->desc, bundle, len, &fo, j->rgb, store_on_job_event, j)) {
+        snprintf(err, err_len, "out of memory for job %u", j->desc.id);
+        return -1;
+    }
+    return 0;
+}
+
+sjob *store_job_new(service *s) {
+    sjob *j = calloc(1, sizeof *j);
+    if (!j) return NULL;
+    j->svc = s;
+    j->tiles_fd = -1;
+    sjob **pp = &s->jobs;
+    while (*pp) pp = &(*pp)->next;
+    *pp = j;
+    return j;
+}
+
+void store_job_unlink_free(service *s, sjob *j) {
+    for (sjob **pp = &s->jobs; *pp; pp = &(*pp)->next)
+        if (*pp == j) {
+            *pp = j->next;
+            break;
+        }
+    store_job_release(j);
+    free(j);
+}
+
+int store_running_jobs(const service *s) {
+    int n = 0;
+    for (const sjob *j = s->jobs; j; j = j->next) n += j->state == SJOB_RUNNING;
+    return n;
+}
+
+/* Replay jobs/ID.tiles into j->rgb; a torn or corrupt tail is cut off. */
+static void replay_tiles(service *s, sjob *j, const tile_rect *rects) {
+    char path[4096], err[512];
+    store_job_path(s, j->desc.id, "tiles", path, sizeof path);
+    size_t len = 0;
+    char *data = file_read_all(path, (size_t)1 << 40, &len, err, sizeof err);
+    if (!data) return; /* no journal yet */
+    size_t off = 0;
+    while (off + 16 <= len) {
+        const uint8_t *p = (const uint8_t *)data + off;
+        uint32_t tile = wire_get_u32(p + 4), n = wire_get_u32(p + 8);
+        if (wire_get_u32(p) != TILE_MAGIC || tile >= (uint32_t)j->tile_count) break;
+        const tile_rect *r = &rects[tile];
+        size_t w = (size_t)tile_width(r);
+        if (n != 3 * w * (size_t)tile_height(r) || off + 16 + 4 * (size_t)n > len) break;
+        float *px = malloc(4 * (size_t)n);
+        if (!px) break;
+        for (uint32_t i = 0; i < n; i++) px[i] = wire_get_f32(p + 12 + 4 * i);
+        int ok = record_check(tile, px, n) == wire_get_u32(p + 12 + 4 * (size_t)n);
+        for (int y = r->y0; ok && y < r->y1; y++)
+            memcpy(j->rgb + 3 * ((size_t)y * (size_t)j->desc.width + (size_t)r->x0), px + 3 * w * (size_t)(y - r->y0),
+                   12 * w);
+        free(px);
+        if (!ok) break;
+        if (!j->journaled[tile]) j->tiles_resumed++;
+        j->journaled[tile] = 1;
+        off += 16 + 4 * (size_t)n;
+    }
+    if (off < len) {
+        svc_log("job %u: %s: dropping %zu bytes of a torn or corrupt record at the end", j->desc.id, path, len - off);
+        if (truncate(path, (off_t)off) != 0) svc_log("%s: cannot truncate: %s", path, strerror(errno));
+    }
+    free(data);
+    j->tiles_done = j->tiles_resumed;
+}
+
+/* Read one job file; resume it if it was running. */
+static void load_job(service *s, const char *file) {
+    char path[4096], err[600];
+    snprintf(path, sizeof path, "%s/jobs/%s", s->o.data_dir, file);
+    size_t len;
+    char *text = file_read_all(path, 1 << 20, &len, err, sizeof err);
+    cJSON *m = text ? cJSON_Parse(text) : NULL;
+    free(text);
+    const cJSON *name = cJSON_GetObjectItemCaseSensitive(m, "name"), *state = cJSON_GetObjectItemCaseSensitive(m, "state");
+    const cJSON *pri = cJSON_GetObjectItemCaseSensitive(m, "priority"), *ts = cJSON_GetObjectItemCaseSensitive(m, "tile_size");
+    const cJSON *error = cJSON_GetObjectItemCaseSensitive(m, "error");
+    proto_job d;
+    sjob *j = NULL;
+    int st = -1;
+    for (int i = 0; cJSON_IsString(state) && i < 4; i++)
+        if (strcmp(state->valuestring, state_names[i]) == 0) st = i;
+    cJSON *jobmsg = cJSON_Duplicate(m, 1); /* the job fields, as a job message */
+    static const char *const extra[] = {"name", "state", "priority", "tile_size", "error", "submitted", "finished"};
+    for (size_t i = 0; jobmsg && i < sizeof extra / sizeof extra[0]; i++) cJSON_DeleteItemFromObject(jobmsg, extra[i]);
+    if (!m || st < 0 || !cJSON_IsString(name) || !cJSON_IsNumber(pri) || !cJSON_IsNumber(ts) || !jobmsg ||
+        proto_job_parse(jobmsg, path, &d, err, sizeof err) || !(j = store_job_new(s))) {
+        svc_log("%s: not a job file I can read (%s); left alone", path, m ? err : "not JSON");
+        cJSON_Delete(m);
+        cJSON_Delete(jobmsg);
+        return;
+    }
+    j->desc = d;
+    snprintf(j->name, sizeof j->name, "%s", name->valuestring);
+    j->priority = (int)pri->valuedouble;
+    j->tile_size = (int)ts->valuedouble;
+    j->state = (sjob_state)st;
+    if (cJSON_IsString(error)) snprintf(j->error, sizeof j->error, "%s", error->valuestring);
+    const cJSON *sub = cJSON_GetObjectItemCaseSensitive(m, "submitted"), *fin = cJSON_GetObjectItemCaseSensitive(m, "finished");
+    j->submitted = cJSON_IsNumber(sub) ? sub->valuedouble : svc_wall_now();
+    j->finished = cJSON_IsNumber(fin) ? fin->valuedouble : 0;
+    cJSON_Delete(m);
+    cJSON_Delete(jobmsg);
+    if (d.id >= s->next_id) s->next_id = d.id + 1;
+    j->tile_count = render_split_tiles(d.width, d.height, j->tile_size, NULL, 0);
+    if (j->state != SJOB_RUNNING) return;
+    /* Resume: the scene from its hash, the tiles from the journal. */
+    snprintf(path, sizeof path, "%s/scenes/%s", s->o.data_dir, d.scene_hash);
+    char *bundle = file_read_all(path, s->o.max_upload, &len, err, sizeof err);
+    tile_rect *rects = calloc((size_t)j->tile_count, sizeof *rects);
+    j->rgb = calloc((size_t)d.width * (size_t)d.height * 3, sizeof(float));
+    j->journaled = calloc((size_t)j->tile_count, 1);
+    if (!bundle || !rects || !j->rgb || !j->journaled) {
+        j->state = SJOB_FAILED;
+        snprintf(j->error, sizeof j->error, "cannot resume: %.480s", bundle ? "out of memory" : err);
+        svc_log("job %u: %s", d.id, j->error);
+        store_save_job(j, err, sizeof err);
+        store_job_release(j);
+    } else {
+        render_split_tiles(d.width, d.height, j->tile_size, rects, j->tile_count);
+        replay_tiles(s, j, rects);
+        svc_log("job %u resumed: %d of %d tiles from the journal", d.id, j->tiles_resumed, j->tile_count);
+        if (store_job_start(s, j, (const uint8_t *)bundle, len, err, sizeof err)) {
+            j->state = SJOB_FAILED;
+            snprintf(j->error, sizeof j->error, "%.500s", err);
+            store_save_job(j, err, sizeof err);
+            store_job_release(j);
+        }
+    }
+    free(rects);
+    free(bundle);
+}
+
+static int cmp_job_files(const void *a, const void *b) {
+    return (int)(strtoul(*(char *const *)a, NULL, 10) > strtoul(*(char *const *)b, NULL, 10)) -
+           (int)(strtoul(*(char *const *)a, NULL, 10) < strtoul(*(char *const *)b, NULL, 10));
+}
+
+/* Resume every job in the data dir, oldest first. */
+void store_load_jobs(service *s) {
+    char path[4096];
+    snprintf(path, sizeof path, "%s/jobs", s->o.data_dir);
+    DIR *d = opendir(path);
+    if (!d) return;
+    char **names = NULL;
+    size_t n = 0;
+    struct dirent *e;
+    while ((e = readdir(d)) != NULL) {
+        size_t l = strlen(e->d_name);
+        if (l < 6 || strcmp(e->d_name + l - 5, ".json") != 0 || strspn(e->d_name, "0123456789") != l - 5) continue;
+        char **nn = realloc(names, (n + 1) * sizeof *names);
+        if (!nn) break;
+        names = nn;
+        names[n++] = strdup(e->d_name);
+    }
+    closedir(d);
+    if (n) qsort(names, n, sizeof *names, cmp_job_files);
+    for (size_t i = 0; i < n; i++) {
+        if (names[i]) load_job(s, names[i]);
+        free(names[i]);
+    }
+    free(names);
+}

@@ -1,0 +1,125 @@
+/* service_internal.h - the job service's state, shared by its two files and
+ * no one else (the public interface is service.h):
+ *   jobstore.c - the job store and journal: jobs on disk, tiles journaled as
+ *                they land, restart from the journal;
+ *   service.c  - the service: client requests (submit, status, workers,
+ *                cancel, fetch), expiry, signals, start-up.
+ *
+ * Data dir layout (every file written whole to a temporary name, synced and
+ * renamed, except the tile journal, which is appended and synced per tile):
+ *   scenes/HASH     uploaded scene bundles, named by their BLAKE2b hash
+ *   jobs/ID.json    a job: what to render and its state
+ *   jobs/ID.tiles   finished tiles of a running job: records of
+ *                   u32 magic, u32 tile, u32 float count, floats, u32 check
+ *   jobs/ID.pfm     the finished image
+ * A tile counts as done only after its record is on disk, so after kill -9
+ * and a restart every journalled tile is kept and only the others are
+ * rendered again. Nothing a client sends names a path: scenes are stored by
+ * hash, jobs by number. */
+#ifndef TESSERA_SERVICE_INTERNAL_H
+#define TESSERA_SERVICE_INTERNAL_H
+
+#include <dirent.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <inttypes.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+#include <uv.h>
+
+#include "fileio.h"
+#include "image/image.h"
+#include "log.h"
+#include "net/conn.h"
+#include "net/wire.h"
+#include "render/scene.h"
+#include "service.h"
+
+#define TILE_MAGIC 0x454c4954u /* "TILE" */
+#define WIRE_KIND_IMAGE 'I'
+
+typedef enum { SJOB_RUNNING, SJOB_DONE, SJOB_FAILED, SJOB_CANCELLED } sjob_state;
+static const char *const state_names[] = {"running", "done", "failed", "cancelled"};
+
+/* A job of the service: what to render, its state, and while it runs its
+ * frame and open tile journal. */
+typedef struct sjob {
+    struct service *svc;
+    proto_job desc;
+    char name[256]; /* the scene's file name, for people */
+    int priority, tile_size, tile_count;
+    sjob_state state;
+    char error[512];
+    float *rgb;         /* while running */
+    uint8_t *journaled; /* tiles on disk before this run */
+    int tiles_done, tiles_resumed;
+    trace_stats stats;
+    double submitted, started, finished; /* wall clock, seconds */
+    int tiles_fd;
+    struct sjob *next;
+} sjob;
+
+typedef struct service {
+    service_options o;
+    uv_loop_t loop;
+    farm *f;
+    uv_signal_t sigint, sigterm;
+    uv_timer_t expiry;
+    sjob *jobs;
+    uint32_t next_id;
+    int stopping;
+} service;
+
+/* A connected client (submit, status, ...). */
+typedef struct {
+    service *svc;
+    conn *c;
+    char addr[64];
+    uint8_t *bundle; /* the last scene uploaded */
+    size_t bundle_len;
+} client;
+
+/* ---- shared between the files ---- */
+
+/* DATA_DIR/jobs/ID.EXT into out. Can't fail (truncates). */
+void store_job_path(const service *s, uint32_t id, const char *ext, char *out, size_t n);
+
+/* Write jobs/ID.json atomically. Returns 0, or -1 with "PATH: reason". */
+int store_save_job(sjob *j, char *err, size_t err_len);
+
+/* The job with this id, or NULL. */
+sjob *store_find_job(service *s, uint32_t id);
+
+/* farm_job_cb of every service job (ctx: the sjob): progress, and at the end
+ * the image saved, the journal closed and the state recorded. */
+void store_on_job_event(void *ctx, const farm_report *r, int done);
+
+/* Hand a job (new or resumed) to the farm, opening its tile journal. */
+int store_job_start(service *s, sjob *j, const uint8_t *bundle, size_t len, char *err, size_t err_len);
+
+/* A new job with the next id, linked into s->jobs, or NULL when out of
+ * memory. */
+sjob *store_job_new(service *s);
+
+/* Take j out of s->jobs and free it (its files stay). */
+void store_job_unlink_free(service *s, sjob *j);
+
+/* How many jobs are running (queued or rendering). */
+int store_running_jobs(const service *s);
+
+/* Resume every job in the data dir, oldest first. */
+void store_load_jobs(service *s);
+
+/* A log line (log.h) from the service. */
+void svc_log(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+
+/* Wall-clock seconds since the epoch. */
+double svc_wall_now(void);
+
+#endif
