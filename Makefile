@@ -25,7 +25,7 @@ BUILD := build/$(VARIANT)
 # Determinism across hosts: no fast-math, no FMA contraction, no -march=native.
 # (Add your own -march with EXTRA_CFLAGS; the bytes may then differ from other hosts.)
 CFLAGS_COMMON := -std=c11 -D_DEFAULT_SOURCE -g -Wall -Wextra -Werror -ffp-contract=off -fno-fast-math \
-                 -MMD -MP -I. -Icommon -I/usr/include/OpenEXR $(EXTRA_CFLAGS)
+                 -MMD -MP -iquote . -iquote common -I/usr/include/OpenEXR $(EXTRA_CFLAGS)
 ifeq ($(VARIANT),asan)
   CFLAGS_OPT := -O1 -fno-omit-frame-pointer -fsanitize=address,undefined -fno-sanitize-recover=all
   LDFLAGS_V := -fsanitize=address,undefined

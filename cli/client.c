@@ -29,10 +29,11 @@
 #include "render/scene.h"
 #include "render/scene_bundle.h"
 #include "net/wire.h"
+#include "limit.h"
 
 #define DEFAULT_COORDINATOR "127.0.0.1:7000"
 #define IO_TIMEOUT_MS 30000
-#define MAX_ANSWER ((size_t)2 << 30)
+#define MAX_ANSWER LIMIT_ANSWER_BYTES
 
 typedef struct {
     int fd;
@@ -473,10 +474,10 @@ int client_main(int argc, char **argv) {
         case C_COORD: a.coordinator = optarg; break;
         case C_JSON: a.json = 1; break;
         case C_WAIT: a.wait = 1; break;
-        case C_SPP: a.ov.spp = (int)parse_num("--spp", optarg, 1, 1 << 24); break;
-        case C_WIDTH: a.ov.width = (int)parse_num("--width", optarg, 1, 32768); break;
-        case C_HEIGHT: a.ov.height = (int)parse_num("--height", optarg, 1, 32768); break;
-        case C_DEPTH: a.ov.max_depth = (int)parse_num("--max-depth", optarg, 1, 1024); break;
+        case C_SPP: a.ov.spp = (int)parse_num("--spp", optarg, 1, LIMIT_SPP); break;
+        case C_WIDTH: a.ov.width = (int)parse_num("--width", optarg, 1, LIMIT_SIDE); break;
+        case C_HEIGHT: a.ov.height = (int)parse_num("--height", optarg, 1, LIMIT_SIDE); break;
+        case C_DEPTH: a.ov.max_depth = (int)parse_num("--max-depth", optarg, 1, LIMIT_DEPTH); break;
         case C_SEED:
             a.ov.seed = (uint64_t)parse_num("--seed", optarg, 0, 0x7fffffffffffffffL);
             a.ov.has_seed = 1;

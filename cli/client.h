@@ -1,4 +1,7 @@
-/* client.h - the command-line client of a running coordinator. */
+/* client.h - the command-line client of a running coordinator.
+ *
+ * Folder cli/: the command line; stands on coordinator/ and common/, and
+ * nothing stands on it (README "Where things are"). */
 #ifndef TESSERA_CLIENT_H
 #define TESSERA_CLIENT_H
 

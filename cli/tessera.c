@@ -6,12 +6,12 @@
  * Exit status 0 on success, 1 on a runtime failure, 2 on a usage error. */
 #define _GNU_SOURCE
 #include <errno.h>
-#include <getopt.h>
 #include <signal.h>
 #include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
@@ -28,6 +28,7 @@
 #include "client.h"
 #include "coordinator/local_farm.h"
 #include "coordinator/service.h"
+#include "limit.h"
 
 typedef struct {
     const char *scene_path;
@@ -93,42 +94,38 @@ static void usage_render(FILE *f) {
             "  -h, --help             this text\n");
 }
 
-static long parse_int(const char *opt, const char *s, long lo, long hi) { return args_long("tessera", opt, s, lo, hi); }
-
-static double parse_double(const char *opt, const char *s, double lo, double hi) {
-    return args_double("tessera", opt, s, lo, hi);
+/* arg_spec parsers (args.h) for the options whose values are names. */
+static int parse_tonemap_arg(const char *v, void *dest, char *err, size_t n) {
+    if (tonemap_parse(v, dest) == 0) return 0;
+    snprintf(err, n, "unknown operator \"%s\" (known: %s)", v, TONEMAP_NAMES);
+    return -1;
 }
 
-/* Parse a --tonemap operator name; exits with status 2 if unknown. */
-static void parse_tonemap(const char *s, tonemap_kind *out) {
-    if (tonemap_parse(s, out) == 0) return;
-    fprintf(stderr, "tessera: --tonemap: unknown operator \"%s\" (known: %s)\n", s, TONEMAP_NAMES);
-    exit(2);
+static int parse_sampler_arg(const char *v, void *dest, char *err, size_t n) {
+    if (sampler_parse(v, dest) == 0) return 0;
+    snprintf(err, n, "expected sobol or random, got \"%s\"", v);
+    return -1;
 }
 
-enum { OPT_SPP = 256, OPT_WIDTH, OPT_HEIGHT, OPT_DEPTH, OPT_SEED, OPT_THREADS, OPT_WORKERS, OPT_TILE,
-       OPT_PASSES, OPT_TONEMAP, OPT_EXPOSURE, OPT_WHITE, OPT_QUALITY, OPT_EXR_COMPRESSION, OPT_EXR_HALF, OPT_EXR_ALPHA, OPT_PNG16, OPT_NO_NEE, OPT_NO_MIS, OPT_SAMPLER, OPT_NOISE_THRESHOLD, OPT_MIN_SPP, OPT_AOV, OPT_NO_PROGRESS, OPT_LISTEN, OPT_HEARTBEAT, OPT_WORKER_TIMEOUT, OPT_LEASE, OPT_TOKEN };
+static int parse_exr_compression_arg(const char *v, void *dest, char *err, size_t n) {
+    static const char *const names[] = {"zip", "piz", "none"};
+    for (int i = 0; i < 3; i++)
+        if (strcmp(v, names[i]) == 0) {
+            *(codec_exr_compression *)dest = (codec_exr_compression)i;
+            return 0;
+        }
+    snprintf(err, n, "unknown \"%s\" (known: zip, piz, none)", v);
+    return -1;
+}
 
-static void parse_render_args(int argc, char **argv, render_args *a) {
-    static const struct option opts[] = {
-        {"output", required_argument, 0, 'o'}, {"spp", required_argument, 0, OPT_SPP},
-        {"width", required_argument, 0, OPT_WIDTH}, {"height", required_argument, 0, OPT_HEIGHT},
-        {"max-depth", required_argument, 0, OPT_DEPTH}, {"seed", required_argument, 0, OPT_SEED},
-        {"threads", required_argument, 0, OPT_THREADS}, {"workers", required_argument, 0, OPT_WORKERS},
-        {"tile-size", required_argument, 0, OPT_TILE}, {"passes", required_argument, 0, OPT_PASSES},
-        {"tonemap", required_argument, 0, OPT_TONEMAP}, {"exposure", required_argument, 0, OPT_EXPOSURE},
-        {"quality", required_argument, 0, OPT_QUALITY}, {"white", required_argument, 0, OPT_WHITE},
-        {"exr-compression", required_argument, 0, OPT_EXR_COMPRESSION},
-        {"png16", no_argument, 0, OPT_PNG16}, {"exr-half", no_argument, 0, OPT_EXR_HALF}, {"exr-alpha", no_argument, 0, OPT_EXR_ALPHA},
-        {"no-nee", no_argument, 0, OPT_NO_NEE}, {"no-mis", no_argument, 0, OPT_NO_MIS},
-        {"sampler", required_argument, 0, OPT_SAMPLER},
-        {"noise-threshold", required_argument, 0, OPT_NOISE_THRESHOLD},
-        {"min-spp", required_argument, 0, OPT_MIN_SPP}, {"aov", required_argument, 0, OPT_AOV},
-        {"no-progress", no_argument, 0, OPT_NO_PROGRESS}, {"verbose", no_argument, 0, 'v'},
-        {"listen", required_argument, 0, OPT_LISTEN}, {"heartbeat", required_argument, 0, OPT_HEARTBEAT},
-        {"worker-timeout", required_argument, 0, OPT_WORKER_TIMEOUT}, {"lease", required_argument, 0, OPT_LEASE},
-        {"token-file", required_argument, 0, OPT_TOKEN},
-        {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
+static int parse_aov_arg(const char *v, void *dest, char *err, size_t n) {
+    if (strcmp(v, "samples") == 0) return *(int *)dest = 1, 0;
+    snprintf(err, n, "the one output on offer is \"samples\", not \"%s\"", v);
+    return -1;
+}
+
+/* The defaults of `tessera render`, before its options. */
+static void render_args_default(render_args *a) {
     memset(a, 0, sizeof *a);
     a->ov.width = a->ov.height = a->ov.spp = a->ov.max_depth = -1;
     a->threads = (int)sysconf(_SC_NPROCESSORS_ONLN);
@@ -139,104 +136,89 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
     a->ro.min_spp = 16;
     a->progress = 1;
     a->tm.kind = TONEMAP_REINHARD;
-    int c;
-    optind = 1;
-    while ((c = getopt_long(argc, argv, "o:vh", opts, NULL)) != -1) {
-        switch (c) {
-        case 'o': a->out_path = optarg; break;
-        case OPT_SPP: a->ov.spp = (int)parse_int("--spp", optarg, 1, 1 << 24); break;
-        case OPT_WIDTH: a->ov.width = (int)parse_int("--width", optarg, 1, 32768); break;
-        case OPT_HEIGHT: a->ov.height = (int)parse_int("--height", optarg, 1, 32768); break;
-        case OPT_DEPTH: a->ov.max_depth = (int)parse_int("--max-depth", optarg, 1, 1024); break;
-        case OPT_SEED:
-            a->ov.seed = (uint64_t)parse_int("--seed", optarg, 0, LONG_MAX);
-            a->ov.has_seed = 1;
-            break;
-        case OPT_THREADS:
-            a->threads = (int)parse_int("--threads", optarg, 1, 1024);
-            a->threads_given = 1;
-            break;
-        case OPT_LISTEN: a->listen = optarg; break;
-        case OPT_TOKEN: a->token_file = optarg; break;
-        case OPT_HEARTBEAT: a->farm.heartbeat_s = parse_double("--heartbeat", optarg, 0.01, 3600); break;
-        case OPT_WORKER_TIMEOUT: a->farm.timeout_s = parse_double("--worker-timeout", optarg, 0.05, 86400); break;
-        case OPT_LEASE: a->farm.lease_s = parse_double("--lease", optarg, 0.1, 1e7); break;
-        case OPT_WORKERS: a->workers = (int)parse_int("--workers", optarg, 0, 4096); break;
-        case OPT_TILE: a->tile_size = (int)parse_int("--tile-size", optarg, 1, 4096); break;
-        case OPT_PASSES: a->ro.passes = (int)parse_int("--passes", optarg, 1, 1 << 24); break;
-        case OPT_TONEMAP:
-            parse_tonemap(optarg, &a->tm.kind);
-            break;
-        case OPT_WHITE: a->tm.white = (float)parse_double("--white", optarg, 1e-6, 1e30); break;
-        case OPT_EXPOSURE: a->tm.exposure_stops = (float)parse_double("--exposure", optarg, -64, 64); break;
-        case OPT_QUALITY: a->jpeg_quality = (int)parse_int("--quality", optarg, 1, 100); break;
-        case OPT_EXR_COMPRESSION: {
-            static const char *const names[] = {"zip", "piz", "none"};
-            int found = -1;
-            for (int i = 0; i < 3; i++)
-                if (strcmp(optarg, names[i]) == 0) found = i;
-            if (found < 0) {
-                fprintf(stderr, "tessera: --exr-compression: unknown \"%s\" (known: zip, piz, none)\n", optarg);
-                exit(2);
-            }
-            a->exr.compression = (codec_exr_compression)found;
-            break;
-        }
-        case OPT_EXR_HALF: a->exr.half = 1; break;
-        case OPT_PNG16: a->png16 = 1; break;
-        case OPT_EXR_ALPHA: a->exr.alpha = 1; break;
-        case OPT_NO_NEE: a->ro.integrator.no_nee = 1; break;
-        case OPT_NO_MIS: a->ro.integrator.no_mis = 1; break;
-        case OPT_NOISE_THRESHOLD:
-            a->ro.noise_threshold = parse_double("--noise-threshold", optarg, 1e-6, 1e6);
-            break;
-        case OPT_MIN_SPP: a->ro.min_spp = (int)parse_int("--min-spp", optarg, 2, 1 << 24); break;
-        case OPT_AOV:
-            if (strcmp(optarg, "samples") != 0) {
-                fprintf(stderr, "tessera: --aov: the one output on offer is \"samples\", not \"%s\"\n", optarg);
-                exit(2);
-            }
-            a->aov_samples = 1;
-            break;
-        case OPT_SAMPLER:
-            if (sampler_parse(optarg, &a->ro.integrator.sampler) != 0) {
-                fprintf(stderr, "tessera: --sampler: expected sobol or random, got \"%s\"\n", optarg);
-                exit(2);
-            }
-            break;
-        case OPT_NO_PROGRESS: a->progress = 0; break;
-        case 'v': a->verbose = 1; break;
-        case 'h': usage_render(stdout); exit(0);
-        default: usage_render(stderr); exit(2);
-        }
-    }
-    if (optind != argc - 1) {
-        fprintf(stderr, "tessera render: expected exactly one scene file\n");
-        usage_render(stderr);
-        exit(2);
-    }
-    a->scene_path = argv[optind];
+}
+
+/* Refuse output options that do not apply to the output's format (they
+ * would be silently ignored). Exits with status 2. */
+static void render_args_check_output(const render_args *a) {
+    const char *out = a->out_path ? a->out_path : "x.png", *dot = strrchr(out, '.');
+    const char *ext = dot ? dot + 1 : "";
+    int png = strcasecmp(ext, "png") == 0, jpg = strcasecmp(ext, "jpg") == 0 || strcasecmp(ext, "jpeg") == 0;
+    int exr = strcasecmp(ext, "exr") == 0;
+    if (a->png16 && !png) args_usage_error("tessera render", "--png16 applies to .png output, not \"%s\"", out);
+    if (a->jpeg_quality && !jpg)
+        args_usage_error("tessera render", "--quality applies to .jpg output, not \"%s\"", out);
+    if ((a->exr.half || a->exr.alpha || a->exr.compression != CODEC_EXR_ZIP) && !exr)
+        args_usage_error("tessera render", "--exr-half, --exr-alpha and --exr-compression apply to .exr output, "
+                         "not \"%s\"", out);
+}
+
+/* Check and complete parsed render options: the listen address, the token,
+ * worker count and farm timings. A usage error exits with status 2. */
+static void render_args_check(render_args *a) {
     if (a->listen) {
         char err[300];
-        if (address_parse(a->listen, a->listen_host, sizeof a->listen_host, &a->farm.port, err, sizeof err)) {
-            fprintf(stderr, "tessera: --listen %s\n", err);
-            exit(2);
-        }
+        if (address_parse(a->listen, a->listen_host, sizeof a->listen_host, &a->farm.port, err, sizeof err))
+            args_usage_error("tessera render", "--listen %s", err);
         a->farm.host = a->listen_host;
     }
     if (a->workers < 0) a->workers = a->listen ? 0 : (int)sysconf(_SC_NPROCESSORS_ONLN);
     char terr[300];
-    if (a->token_file && auth_key_load(a->token_file, &a->farm.auth, terr, sizeof terr)) {
-        fprintf(stderr, "tessera: --token-file %s\n", terr);
-        exit(2);
-    }
-    if (!(a->farm.heartbeat_s < a->farm.timeout_s)) {
-        fprintf(stderr, "tessera: --worker-timeout (%g s) must be longer than --heartbeat (%g s)\n",
-                a->farm.timeout_s, a->farm.heartbeat_s);
-        exit(2);
-    }
+    if (a->token_file && auth_key_load(a->token_file, &a->farm.auth, terr, sizeof terr))
+        args_usage_error("tessera render", "--token-file %s", terr);
+    if (!(a->farm.heartbeat_s < a->farm.timeout_s))
+        args_usage_error("tessera render", "--worker-timeout (%g s) must be longer than --heartbeat (%g s)",
+                         a->farm.timeout_s, a->farm.heartbeat_s);
+    render_args_check_output(a);
     if (a->farm.drop_s < 6 * a->farm.timeout_s) a->farm.drop_s = 6 * a->farm.timeout_s;
     if (a->tile_size > a->farm.max_tile_side) a->farm.max_tile_side = a->tile_size;
+}
+
+
+/* Parse `tessera render`'s arguments (argv[0] is "render") into a; a usage
+ * error exits with status 2 (args.h). */
+static void parse_render_args(int argc, char **argv, render_args *a) {
+    int no_progress = 0;
+    render_args_default(a);
+    const arg_spec opts[] = {
+        {.name = "output", .short_name = 'o', .kind = ARG_STRING, .dest = &a->out_path},
+        {.name = "spp", .kind = ARG_INT, .dest = &a->ov.spp, .lo = 1, .hi = LIMIT_SPP},
+        {.name = "width", .kind = ARG_INT, .dest = &a->ov.width, .lo = 1, .hi = LIMIT_SIDE},
+        {.name = "height", .kind = ARG_INT, .dest = &a->ov.height, .lo = 1, .hi = LIMIT_SIDE},
+        {.name = "max-depth", .kind = ARG_INT, .dest = &a->ov.max_depth, .lo = 1, .hi = LIMIT_DEPTH},
+        {.name = "seed", .kind = ARG_U64, .dest = &a->ov.seed, .given = &a->ov.has_seed},
+        {.name = "threads", .kind = ARG_INT, .dest = &a->threads, .lo = 1, .hi = 1024, .given = &a->threads_given},
+        {.name = "workers", .kind = ARG_INT, .dest = &a->workers, .lo = 0, .hi = 4096},
+        {.name = "listen", .kind = ARG_STRING, .dest = &a->listen},
+        {.name = "token-file", .kind = ARG_STRING, .dest = &a->token_file},
+        {.name = "heartbeat", .kind = ARG_DOUBLE, .dest = &a->farm.heartbeat_s, .lo = 0.01, .hi = 3600},
+        {.name = "worker-timeout", .kind = ARG_DOUBLE, .dest = &a->farm.timeout_s, .lo = 0.05, .hi = 86400},
+        {.name = "lease", .kind = ARG_DOUBLE, .dest = &a->farm.lease_s, .lo = 0.1, .hi = 1e7},
+        {.name = "tile-size", .kind = ARG_INT, .dest = &a->tile_size, .lo = 1, .hi = 4096},
+        {.name = "passes", .kind = ARG_INT, .dest = &a->ro.passes, .lo = 1, .hi = LIMIT_SPP},
+        {.name = "tonemap", .kind = ARG_CUSTOM, .dest = &a->tm.kind, .parse = parse_tonemap_arg},
+        {.name = "white", .kind = ARG_FLOAT, .dest = &a->tm.white, .lo = 1e-6, .hi = 1e30},
+        {.name = "exposure", .kind = ARG_FLOAT, .dest = &a->tm.exposure_stops, .lo = -64, .hi = 64},
+        {.name = "quality", .kind = ARG_INT, .dest = &a->jpeg_quality, .lo = 1, .hi = 100},
+        {.name = "png16", .kind = ARG_FLAG, .dest = &a->png16},
+        {.name = "exr-compression", .kind = ARG_CUSTOM, .dest = &a->exr.compression, .parse = parse_exr_compression_arg},
+        {.name = "exr-half", .kind = ARG_FLAG, .dest = &a->exr.half},
+        {.name = "exr-alpha", .kind = ARG_FLAG, .dest = &a->exr.alpha},
+        {.name = "no-nee", .kind = ARG_FLAG, .dest = &a->ro.integrator.no_nee},
+        {.name = "no-mis", .kind = ARG_FLAG, .dest = &a->ro.integrator.no_mis},
+        {.name = "sampler", .kind = ARG_CUSTOM, .dest = &a->ro.integrator.sampler, .parse = parse_sampler_arg},
+        {.name = "noise-threshold", .kind = ARG_DOUBLE, .dest = &a->ro.noise_threshold, .lo = 1e-6, .hi = 1e6},
+        {.name = "min-spp", .kind = ARG_INT, .dest = &a->ro.min_spp, .lo = 2, .hi = LIMIT_SPP},
+        {.name = "aov", .kind = ARG_CUSTOM, .dest = &a->aov_samples, .parse = parse_aov_arg},
+        {.name = "no-progress", .kind = ARG_FLAG, .dest = &no_progress},
+        {.name = "verbose", .short_name = 'v', .kind = ARG_FLAG, .dest = &a->verbose},
+        {NULL}};
+    const char *scene[1];
+    if (args_parse("tessera render", argc, argv, opts, usage_render, scene, 1) != 1)
+        args_usage_error("tessera render", "expected exactly one scene file");
+    a->scene_path = scene[0];
+    a->progress = !no_progress;
+    render_args_check(a);
 }
 
 static double now_seconds(void) {
@@ -439,6 +421,7 @@ static int cmd_render(int argc, char **argv) {
 static void usage_tonemap(FILE *f) {
     fprintf(f,
             "usage: tessera tonemap IN.exr|IN.pfm -o OUT [--tonemap NAME] [--exposure STOPS] [--white L] [--quality Q]\n"
+            "                       [--png16]\n"
             "\n"
             "Tone map a saved HDR image (.exr, .pfm) again without rendering; OUT's extension\n"
             "names the format (.png .jpg .jpeg .ppm, or .pfm/.exr to convert).\n"
@@ -447,51 +430,42 @@ static void usage_tonemap(FILE *f) {
 
 /* `tessera tonemap`: read an HDR image, write it with new tone mapping. */
 static int cmd_tonemap(int argc, char **argv) {
-    static const struct option opts[] = {
-        {"output", required_argument, 0, 'o'}, {"tonemap", required_argument, 0, OPT_TONEMAP},
-        {"exposure", required_argument, 0, OPT_EXPOSURE}, {"white", required_argument, 0, OPT_WHITE},
-        {"quality", required_argument, 0, OPT_QUALITY}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
     image_write_options wo = {.tonemap = {.kind = TONEMAP_REINHARD}};
-    const char *out = NULL;
-    int c;
-    optind = 1;
-    while ((c = getopt_long(argc, argv, "o:h", opts, NULL)) != -1) {
-        switch (c) {
-        case 'o': out = optarg; break;
-        case OPT_TONEMAP:
-            parse_tonemap(optarg, &wo.tonemap.kind);
-            break;
-        case OPT_EXPOSURE: wo.tonemap.exposure_stops = (float)parse_double("--exposure", optarg, -64, 64); break;
-        case OPT_WHITE: wo.tonemap.white = (float)parse_double("--white", optarg, 1e-6, 1e30); break;
-        case OPT_QUALITY: wo.jpeg_quality = (int)parse_int("--quality", optarg, 1, 100); break;
-        case 'h': usage_tonemap(stdout); return 0;
-        default: usage_tonemap(stderr); return 2;
-        }
-    }
-    if (optind != argc - 1 || !out) {
-        fprintf(stderr, "tessera tonemap: expected one input image and -o OUT\n");
-        usage_tonemap(stderr);
-        return 2;
-    }
+    const char *out = NULL, *in[1];
+    const arg_spec opts[] = {
+        {.name = "output", .short_name = 'o', .kind = ARG_STRING, .dest = &out},
+        {.name = "tonemap", .kind = ARG_CUSTOM, .dest = &wo.tonemap.kind, .parse = parse_tonemap_arg},
+        {.name = "exposure", .kind = ARG_FLOAT, .dest = &wo.tonemap.exposure_stops, .lo = -64, .hi = 64},
+        {.name = "white", .kind = ARG_FLOAT, .dest = &wo.tonemap.white, .lo = 1e-6, .hi = 1e30},
+        {.name = "quality", .kind = ARG_INT, .dest = &wo.jpeg_quality, .lo = 1, .hi = 100},
+        {.name = "png16", .kind = ARG_FLAG, .dest = &wo.png16},
+        {NULL}};
+    if (args_parse("tessera tonemap", argc, argv, opts, usage_tonemap, in, 1) != 1 || !out)
+        args_usage_error("tessera tonemap", "expected one input image and -o OUT");
     char err[1024];
     image img;
-    if (image_read(argv[optind], &img, err, sizeof err) != 0 || image_write(out, &img, &wo, err, sizeof err) != 0) {
+    if (image_read(in[0], &img, err, sizeof err) != 0 || image_write(out, &img, &wo, err, sizeof err) != 0) {
         fprintf(stderr, "tessera: %s\n", err);
         image_free(&img);
         return 1;
     }
-    printf("tone mapped %s: %zu NaN/Inf pixels written black, image: %s\n", argv[optind], wo.bad_pixels, out);
+    printf("tone mapped %s: %zu NaN/Inf pixels written black, image: %s\n", in[0], wo.bad_pixels, out);
     image_free(&img);
     return 0;
 }
 
 /* `tessera compare IMAGE REFERENCE`: error measures for benchmarks. */
+static void usage_compare(FILE *f) {
+    fprintf(f, "usage: tessera compare IMAGE REFERENCE   (.pfm, .exr or .ppm)\n"
+               "prints rmse, relmse = mean (x-ref)^2/(ref^2+0.01), max |x-ref|\n");
+}
+
 static int cmd_compare(int argc, char **argv) {
-    if (argc != 3) {
-        fprintf(stderr, "usage: tessera compare IMAGE REFERENCE   (.pfm, .exr or .ppm)\n"
-                        "prints rmse, relmse = mean (x-ref)^2/(ref^2+0.01), max |x-ref|\n");
-        return 2;
-    }
+    const arg_spec none[] = {{NULL}};
+    const char *files[2];
+    if (args_parse("tessera compare", argc, argv, none, usage_compare, files, 2) != 2)
+        args_usage_error("tessera compare", "expected an image and a reference");
+    argv[1] = (char *)files[0], argv[2] = (char *)files[1];
     image a = {0}, r = {0};
     image_error e;
     char err[1024];
@@ -530,58 +504,49 @@ static void usage_coordinator(FILE *f) {
             "  -v, --verbose            log every worker event\n");
 }
 
-enum { S_LISTEN = 400, S_DATA, S_TILE, S_UPLOAD, S_JOBS, S_KEEP, S_HB, S_TIMEOUT, S_LEASE, S_TOKEN };
 
 /* `tessera-coordinator`: the long-running service (service.c). */
+/* `tessera version` (also --version, -V, tessera-coordinator --version). */
+static int print_version(void) {
+    printf("tessera %s (build %s, protocol %d)\n", TESSERA_VERSION, protocol_build_id(), PROTOCOL_VERSION);
+    return 0;
+}
+
 static int cmd_coordinator(int argc, char **argv) {
-    static const struct option opts[] = {
-        {"listen", required_argument, 0, S_LISTEN}, {"data-dir", required_argument, 0, S_DATA},
-        {"tile-size", required_argument, 0, S_TILE}, {"max-upload", required_argument, 0, S_UPLOAD},
-        {"max-jobs", required_argument, 0, S_JOBS}, {"keep-hours", required_argument, 0, S_KEEP},
-        {"heartbeat", required_argument, 0, S_HB}, {"worker-timeout", required_argument, 0, S_TIMEOUT},
-        {"lease", required_argument, 0, S_LEASE}, {"verbose", no_argument, 0, 'v'},
-        {"token-file", required_argument, 0, S_TOKEN}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
-    service_options o = {.tile_size = 32, .max_upload = (size_t)256 << 20, .max_jobs = 100, .keep_s = 86400};
+    service_options o = {.tile_size = 32, .max_upload = (size_t)LIMIT_UPLOAD_DEFAULT_MIB << 20, .max_jobs = 100,
+                         .keep_s = 86400};
     farm_options_default(&o.farm);
     const char *listen = "127.0.0.1:7000", *token = NULL;
     char host[256], err[300];
-    int c;
-    optind = 1;
-    while ((c = getopt_long(argc, argv, "vh", opts, NULL)) != -1) {
-        switch (c) {
-        case S_LISTEN: listen = optarg; break;
-        case S_DATA: o.data_dir = optarg; break;
-        case S_TILE: o.tile_size = (int)parse_int("--tile-size", optarg, 1, 4096); break;
-        case S_UPLOAD: o.max_upload = (size_t)parse_int("--max-upload", optarg, 1, 512) << 20; break;
-        case S_JOBS: o.max_jobs = (int)parse_int("--max-jobs", optarg, 1, 100000); break;
-        case S_KEEP: o.keep_s = 3600 * parse_double("--keep-hours", optarg, 0, 1e6); break;
-        case S_HB: o.farm.heartbeat_s = parse_double("--heartbeat", optarg, 0.01, 3600); break;
-        case S_TIMEOUT: o.farm.timeout_s = parse_double("--worker-timeout", optarg, 0.05, 86400); break;
-        case S_LEASE: o.farm.lease_s = parse_double("--lease", optarg, 0.1, 1e7); break;
-        case S_TOKEN: token = optarg; break;
-        case 'v': o.farm.verbose = 1; break;
-        case 'h': usage_coordinator(stdout); return 0;
-        default: usage_coordinator(stderr); return 2;
-        }
-    }
-    if (optind != argc || !o.data_dir) {
-        fprintf(stderr, "tessera-coordinator: %s\n", o.data_dir ? "unexpected arguments" : "--data-dir DIR is required");
-        usage_coordinator(stderr);
-        return 2;
-    }
-    if (address_parse(listen, host, sizeof host, &o.farm.port, err, sizeof err)) {
-        fprintf(stderr, "tessera-coordinator: --listen %s\n", err);
-        return 2;
-    }
+    int upload_mib = LIMIT_UPLOAD_DEFAULT_MIB, version = 0;
+    double keep_hours = 24;
+    const arg_spec opts[] = {
+        {.name = "listen", .kind = ARG_STRING, .dest = &listen},
+        {.name = "data-dir", .kind = ARG_STRING, .dest = &o.data_dir},
+        {.name = "tile-size", .kind = ARG_INT, .dest = &o.tile_size, .lo = 1, .hi = 4096},
+        {.name = "max-upload", .kind = ARG_INT, .dest = &upload_mib, .lo = 1, .hi = LIMIT_UPLOAD_MAX_MIB},
+        {.name = "max-jobs", .kind = ARG_INT, .dest = &o.max_jobs, .lo = 1, .hi = 100000},
+        {.name = "keep-hours", .kind = ARG_DOUBLE, .dest = &keep_hours, .lo = 0, .hi = 1e6},
+        {.name = "heartbeat", .kind = ARG_DOUBLE, .dest = &o.farm.heartbeat_s, .lo = 0.01, .hi = 3600},
+        {.name = "worker-timeout", .kind = ARG_DOUBLE, .dest = &o.farm.timeout_s, .lo = 0.05, .hi = 86400},
+        {.name = "lease", .kind = ARG_DOUBLE, .dest = &o.farm.lease_s, .lo = 0.1, .hi = 1e7},
+        {.name = "token-file", .kind = ARG_STRING, .dest = &token},
+        {.name = "verbose", .short_name = 'v', .kind = ARG_FLAG, .dest = &o.farm.verbose},
+        {.name = "version", .kind = ARG_FLAG, .dest = &version},
+        {NULL}};
+    const char *none[1];
+    args_parse("tessera-coordinator", argc, argv, opts, usage_coordinator, none, 0);
+    if (version) return print_version();
+    if (!o.data_dir) args_usage_error("tessera-coordinator", "--data-dir DIR is required");
+    o.max_upload = (size_t)upload_mib << 20;
+    o.keep_s = 3600 * keep_hours;
+    if (address_parse(listen, host, sizeof host, &o.farm.port, err, sizeof err))
+        args_usage_error("tessera-coordinator", "--listen %s", err);
     o.farm.host = host;
-    if (token && auth_key_load(token, &o.farm.auth, err, sizeof err)) {
-        fprintf(stderr, "tessera-coordinator: --token-file %s\n", err);
-        return 2;
-    }
-    if (!(o.farm.heartbeat_s < o.farm.timeout_s)) {
-        fprintf(stderr, "tessera-coordinator: --worker-timeout must be longer than --heartbeat\n");
-        return 2;
-    }
+    if (token && auth_key_load(token, &o.farm.auth, err, sizeof err))
+        args_usage_error("tessera-coordinator", "--token-file %s", err);
+    if (!(o.farm.heartbeat_s < o.farm.timeout_s))
+        args_usage_error("tessera-coordinator", "--worker-timeout must be longer than --heartbeat");
     if (o.farm.drop_s < 6 * o.farm.timeout_s) o.farm.drop_s = 6 * o.farm.timeout_s;
     if (o.tile_size > o.farm.max_tile_side) o.farm.max_tile_side = o.tile_size;
     return service_run(&o);
@@ -616,15 +581,15 @@ int main(int argc, char **argv) {
     static const char *const client_cmds[] = {"submit", "status", "workers", "cancel", "fetch"};
     for (int i = 0; i < 5; i++)
         if (strcmp(argv[1], client_cmds[i]) == 0) return client_main(argc - 1, argv + 1);
-    if (strcmp(argv[1], "version") == 0) {
-        printf("tessera %s (build %s, protocol %d)\n", TESSERA_VERSION, protocol_build_id(), PROTOCOL_VERSION);
-        return 0;
-    }
-    if (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0) {
+    if (strcmp(argv[1], "version") == 0 || strcmp(argv[1], "--version") == 0 || strcmp(argv[1], "-V") == 0)
+        return print_version();
+    if (strcmp(argv[1], "help") == 0 || strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0) {
         usage(stdout);
         return 0;
     }
-    fprintf(stderr, "tessera: unknown command \"%s\"\n", argv[1]);
-    usage(stderr);
-    return 2;
+    static const char *const commands[] = {"render", "tonemap", "coordinator", "compare", "submit", "status",
+                                           "workers", "cancel", "fetch", "version", "help", NULL};
+    const char *near = args_closest(argv[1], commands);
+    if (near) args_usage_error("tessera", "unknown command \"%s\" (did you mean \"%s\"?)", argv[1], near);
+    args_usage_error("tessera", "unknown command \"%s\"", argv[1]);
 }

@@ -7,7 +7,10 @@
  * timeout_s, or holds it past lease_s; when the queue is empty an idle
  * worker may take a copy of a tile that is running long (a backup task) and
  * the first result wins. A peer that breaks the protocol is disconnected
- * with a log line naming it and why; the render goes on. */
+ * with a log line naming it and why; the render goes on.
+ *
+ * Folder coordinator/: the farm, the local farm and the job service; may
+ * include common/ and its layers, never cli/ (README "Where things are"). */
 #ifndef TESSERA_FARM_H
 #define TESSERA_FARM_H
 

@@ -281,55 +281,25 @@ static double cpu_seconds(void) {
            1e-6 * (double)ru.ru_stime.tv_usec;
 }
 
-int local_farm_render(const local_farm_options *o, const proto_job *job, const uint8_t *bundle, size_t bundle_len,
-                      float *rgb, local_farm_report *rep, char *err, size_t err_len) {
-    local_run *r = calloc(1, sizeof *r);
-    if (!r || (o->workers > 0 && !(r->slots = calloc((size_t)o->workers, sizeof *r->slots)))) {
-        free(r);
-        snprintf(err, err_len, "out of memory");
-        return -1;
-    }
-    r->o = o;
-    memset(rep, 0, sizeof *rep);
-    if (o->workers > 0 && find_worker_exe(r->exe, sizeof r->exe, err, err_len)) {
-        free(r->slots);
-        free(r);
-        return -1;
-    }
-    double cpu0 = cpu_seconds();
-    uv_loop_init(&r->loop);
-    r->f = farm_new(&r->loop, &o->farm, err, err_len);
-    if (!r->f) {
-        uv_loop_close(&r->loop);
-        free(r->slots);
-        free(r);
-        return -1;
-    }
-    const char *host = o->farm.host;
-    if (strcmp(host, "0.0.0.0") == 0) host = "127.0.0.1";
-    if (strcmp(host, "::") == 0) host = "::1";
-    snprintf(r->connect, sizeof r->connect, strchr(host, ':') ? "[%s]:%d" : "%s:%d", host, farm_port(r->f));
-    if (o->listening) {
-        fprintf(stderr, "tessera: coordinator listening on %s:%d\n", o->farm.host, farm_port(r->f));
-        fflush(stderr);
-    }
-    r->start = (double)uv_hrtime() / 1e9;
-    r->total_samples = (uint64_t)job->width * (uint64_t)job->height * (uint64_t)job->spp;
-    r->job = job;
-    r->bundle = bundle;
-    r->bundle_len = bundle_len;
-    r->rgb = rgb;
+/* Set up the adaptive rounds' state of r (when a noise threshold is set).
+ * Returns 0, or -1 when out of memory. */
+static int adaptive_setup(local_run *r) {
+    const local_farm_options *o = r->o;
+    const proto_job *job = r->job;
+    if (o->noise_threshold <= 0) return 0;
+    size_t px = (size_t)job->width * (size_t)job->height;
+    r->ad = adaptive_new(job->width, job->height, job->spp, o->min_spp, o->noise_threshold);
+    r->sums = calloc(px * ADAPTIVE_CHANNELS, sizeof(float));
+    r->mask = malloc(px);
+    r->done = malloc((size_t)render_split_tiles(job->width, job->height, o->tile_size, NULL, 0));
+    return r->ad && r->sums && r->mask && r->done ? 0 : -1;
+}
+
+/* The loop's handles other than the farm's: signals, the grace and round
+ * timers. Can't fail. */
+static void handles_init(local_run *r) {
     uv_timer_init(&r->loop, &r->round_timer);
     r->round_timer.data = r;
-    int adaptive_ok = 1;
-    if (o->noise_threshold > 0) {
-        size_t px = (size_t)job->width * (size_t)job->height;
-        r->ad = adaptive_new(job->width, job->height, job->spp, o->min_spp, o->noise_threshold);
-        r->sums = calloc(px * ADAPTIVE_CHANNELS, sizeof(float));
-        r->mask = malloc(px);
-        r->done = malloc((size_t)render_split_tiles(job->width, job->height, o->tile_size, NULL, 0));
-        adaptive_ok = r->ad && r->sums && r->mask && r->done;
-    }
     uv_signal_init(&r->loop, &r->sigint);
     uv_signal_init(&r->loop, &r->sigterm);
     r->sigint.data = r->sigterm.data = r;
@@ -337,29 +307,40 @@ int local_farm_render(const local_farm_options *o, const proto_job *job, const u
     uv_signal_start(&r->sigterm, on_signal, SIGTERM);
     uv_timer_init(&r->loop, &r->grace);
     r->grace.data = r;
+}
+
+/* Where local workers dial: the farm's address, with a wildcard listen
+ * address replaced by loopback. */
+static void set_connect_address(local_run *r) {
+    const char *host = r->o->farm.host;
+    if (strcmp(host, "0.0.0.0") == 0) host = "127.0.0.1";
+    if (strcmp(host, "::") == 0) host = "::1";
+    snprintf(r->connect, sizeof r->connect, strchr(host, ':') ? "[%s]:%d" : "%s:%d", host, farm_port(r->f));
+}
+
+/* Spawn the workers and hand the farm its first job (or adaptive round);
+ * any failure stops the render with r->err set. */
+static void start_render(local_run *r, int adaptive_ok) {
+    const local_farm_options *o = r->o;
     for (int i = 0; i < o->workers; i++) spawn_worker(r, i);
-    if (o->workers > 0 && r->alive == 0 && !o->listening) {
-        snprintf(r->err, sizeof r->err, "could not start any local worker");
-        r->failed = 1;
-        render_stop(r);
-    } else if (!adaptive_ok) {
-        snprintf(r->err, sizeof r->err, "out of memory for adaptive sampling");
-        r->failed = 1;
-        render_stop(r);
-    } else if (r->ad) {
-        r->round_id = job->id - 1;
+    const char *why = NULL;
+    if (o->workers > 0 && r->alive == 0 && !o->listening) why = "could not start any local worker";
+    else if (!adaptive_ok) why = "out of memory for adaptive sampling";
+    else if (r->ad) {
+        r->round_id = r->job->id - 1;
         submit_round(r);
-    } else if (farm_submit(r->f, job, bundle, bundle_len, &(farm_job_options){.tile_size = o->tile_size}, rgb,
-                           on_job, r)) {
-        snprintf(r->err, sizeof r->err, "out of memory for the job");
+    } else if (farm_submit(r->f, r->job, r->bundle, r->bundle_len,
+                           &(farm_job_options){.tile_size = o->tile_size}, r->rgb, on_job, r))
+        why = "out of memory for the job";
+    if (why) {
+        snprintf(r->err, sizeof r->err, "%s", why);
         r->failed = 1;
         render_stop(r);
     }
-    uv_run(&r->loop, UV_RUN_DEFAULT);
-    if (o->verbose) farm_print_workers(r->f, stderr);
-    farm_free(r->f);
-    int rc = uv_loop_close(&r->loop);
-    if (rc) fprintf(stderr, "tessera: event loop closed with handles open: %s\n", uv_strerror(rc));
+}
+
+/* Fill the caller's report from the last farm report. */
+static void report_fill(const local_run *r, local_farm_report *rep, double cpu0) {
     rep->stats = r->last.stats;
     rep->coordinator_cpu_s = cpu_seconds() - cpu0;
     rep->bytes_in = r->last.bytes_in;
@@ -368,13 +349,57 @@ int local_farm_render(const local_farm_options *o, const proto_job *job, const u
     rep->duplicates = r->last.duplicates;
     rep->requeued = r->last.requeued;
     rep->backups = r->last.backups;
-    int failed = r->failed;
-    if (failed) snprintf(err, err_len, "%s", r->err);
+}
+
+/* Free r and everything it owns (the loop is already closed). */
+static void run_free(local_run *r) {
     adaptive_free(r->ad);
     free(r->sums);
     free(r->mask);
     free(r->done);
     free(r->slots);
     free(r);
+}
+
+int local_farm_render(const local_farm_options *o, const proto_job *job, const uint8_t *bundle, size_t bundle_len,
+                      float *rgb, local_farm_report *rep, char *err, size_t err_len) {
+    local_run *r = calloc(1, sizeof *r);
+    if (!r || (o->workers > 0 && !(r->slots = calloc((size_t)o->workers, sizeof *r->slots)))) {
+        free(r);
+        snprintf(err, err_len, "out of memory");
+        return -1;
+    }
+    *r = (local_run){.slots = r->slots, .o = o, .job = job, .bundle = bundle, .bundle_len = bundle_len, .rgb = rgb};
+    memset(rep, 0, sizeof *rep);
+    if (o->workers > 0 && find_worker_exe(r->exe, sizeof r->exe, err, err_len)) {
+        run_free(r);
+        return -1;
+    }
+    double cpu0 = cpu_seconds();
+    uv_loop_init(&r->loop);
+    if (!(r->f = farm_new(&r->loop, &o->farm, err, err_len))) {
+        uv_loop_close(&r->loop);
+        run_free(r);
+        return -1;
+    }
+    set_connect_address(r);
+    if (o->listening) {
+        fprintf(stderr, "tessera: coordinator listening on %s:%d\n", o->farm.host, farm_port(r->f));
+        fflush(stderr);
+    }
+    r->start = (double)uv_hrtime() / 1e9;
+    r->total_samples = (uint64_t)job->width * (uint64_t)job->height * (uint64_t)job->spp;
+    int adaptive_ok = adaptive_setup(r) == 0;
+    handles_init(r);
+    start_render(r, adaptive_ok);
+    uv_run(&r->loop, UV_RUN_DEFAULT);
+    if (o->verbose) farm_print_workers(r->f, stderr);
+    farm_free(r->f);
+    int rc = uv_loop_close(&r->loop);
+    if (rc) fprintf(stderr, "tessera: event loop closed with handles open: %s\n", uv_strerror(rc));
+    report_fill(r, rep, cpu0);
+    int failed = r->failed;
+    if (failed) snprintf(err, err_len, "%s", r->err);
+    run_free(r);
     return failed ? -1 : 0;
 }

@@ -57,8 +57,8 @@ static void on_submit(client *cl, const cJSON *m) {
     if (!cJSON_IsString(h) || strcmp(h->valuestring, hash) != 0)
         return client_error(cl, "submit: \"scene\" is not the hash of the uploaded scene (%s)", hash);
     long w = -1, ht = -1, spp = -1, depth = -1, pri = 0, tile = s->o.tile_size;
-    if (opt_int(m, "width", 1, 32768, &w) || opt_int(m, "height", 1, 32768, &ht) ||
-        opt_int(m, "spp", 1, 1 << 24, &spp) || opt_int(m, "max_depth", 1, 1024, &depth) ||
+    if (opt_int(m, "width", 1, LIMIT_SIDE, &w) || opt_int(m, "height", 1, LIMIT_SIDE, &ht) ||
+        opt_int(m, "spp", 1, LIMIT_SPP, &spp) || opt_int(m, "max_depth", 1, LIMIT_DEPTH, &depth) ||
         opt_int(m, "priority", -1000000, 1000000, &pri) || opt_int(m, "tile_size", 1, s->o.farm.max_tile_side, &tile))
         return client_error(cl, "submit: width, height, spp, max_depth, priority or tile_size out of range");
     const cJSON *sname = cJSON_GetObjectItemCaseSensitive(m, "sampler");

@@ -35,6 +35,7 @@
 
 #include "fileio.h"
 #include "image/image.h"
+#include "limit.h"
 #include "log.h"
 #include "net/conn.h"
 #include "net/wire.h"

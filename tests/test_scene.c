@@ -126,7 +126,7 @@ TEST(cli_render_and_errors) {
     } cases[] = {
         {"render tests/scenes/nope.json -o /tmp/x.pfm", 1, "nope.json: cannot open"},
         {"render tests/scenes/cornell-small.json -o /tmp/x.bmp --spp 1", 1, "unknown image format \"bmp\""},
-        {"render tests/scenes/cornell-small.json -o /nonexistent-dir/x.pfm --spp 1", 1, "/nonexistent-dir/x.pfm: cannot create"},
+        {"render tests/scenes/cornell-small.json -o /nonexistent-dir/x.pfm --spp 1", 1, "/nonexistent-dir/x.pfm: cannot write"},
         {"render tests/scenes/cornell-small.json --spp 0", 2, "--spp: expected an integer from 1"},
         {"render tests/scenes/cornell-small.json --width 40000", 2, "--width: expected an integer from 1 to 32768"},
         {"render", 2, "expected exactly one scene file"},

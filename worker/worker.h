@@ -1,6 +1,9 @@
 /* worker.h - a farm worker: connects to a coordinator, renders the tiles it
  * is given on a pool of threads, sends them back, and reconnects with
- * backoff whenever the coordinator goes away (docs/protocol.md). */
+ * backoff whenever the coordinator goes away (docs/protocol.md).
+ *
+ * Folder worker/: tessera-worker; may include common/job, render, net and the
+ * base, never coordinator/ or cli/ (README "Where things are"). */
 #ifndef TESSERA_WORKER_H
 #define TESSERA_WORKER_H
 

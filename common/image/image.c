@@ -18,8 +18,9 @@
 
 #include "fileio.h"
 #include "image_codecs.h"
+#include "limit.h"
 
-#define IMAGE_MAX_SIDE 32768
+#define IMAGE_MAX_SIDE LIMIT_SIDE
 
 int image_alloc(image *img, int width, int height) {
     img->width = width;

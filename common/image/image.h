@@ -3,7 +3,10 @@
  * An image is 3 floats per pixel, row-major, row 0 at the top. The file
  * format is chosen by the extension: .pfm and .exr (linear float); .ppm,
  * .png, .jpg/.jpeg (tone mapped, sRGB, 8 bits). Writes are atomic: a temporary file in the same
- * folder, renamed into place once complete. */
+ * folder, renamed into place once complete.
+ *
+ * Layer image/: image files, tone mapping, comparison; includes only
+ * common/ (README "Where things are"). */
 #ifndef TESSERA_IMAGE_H
 #define TESSERA_IMAGE_H
 

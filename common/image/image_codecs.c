@@ -1,6 +1,7 @@
 /* image_codecs.c - PNG through libpng's simplified API, JPEG through
  * libjpeg-turbo, OpenEXR through OpenEXRCore; all into memory. */
 #include "image_codecs.h"
+#include "limit.h"
 
 #include <setjmp.h>
 #include <stdio.h> /* before jpeglib.h, which needs FILE */
@@ -324,7 +325,7 @@ int codec_exr_decode(const char *path, int *width, int *height, float **rgb, cha
     }
     if (!rv) rv = exr_get_data_window(ctx, 0, &dw);
     long long w = rv ? 0 : (long long)dw.max.x - dw.min.x + 1, h = rv ? 0 : (long long)dw.max.y - dw.min.y + 1;
-    if (!rv && (w < 1 || h < 1 || w > 32768 || h > 32768)) {
+    if (!rv && (w < 1 || h < 1 || w > LIMIT_SIDE || h > LIMIT_SIDE)) {
         snprintf(why, sizeof why, "data window of %lldx%lld pixels is out of range", w, h);
         rv = EXR_ERR_INVALID_ARGUMENT;
     }

@@ -9,6 +9,7 @@
 
 #include "json_field.h"
 #include "net/wire.h"
+#include "limit.h"
 
 cJSON *proto_job_json(const proto_job *j) {
     char seed[32];
@@ -68,10 +69,10 @@ int proto_job_parse(const cJSON *msg, const char *peer, proto_job *out, char *er
     int nee, mis, adaptive = 0;
     memset(out, 0, sizeof *out);
     if (jf_check_object(&c, msg, "job", keys) || jf_int(&c, msg, "job", "job", 1, 0, 0, UINT32_MAX, &id) ||
-        jf_string(&c, msg, "job", "scene", 1, &hash) || jf_int(&c, msg, "job", "width", 1, 0, 1, 32768, &w) ||
-        jf_int(&c, msg, "job", "height", 1, 0, 1, 32768, &h) ||
-        jf_int(&c, msg, "job", "spp", 1, 0, 1, 1 << 24, &spp) ||
-        jf_int(&c, msg, "job", "max_depth", 1, 0, 1, 1024, &depth) ||
+        jf_string(&c, msg, "job", "scene", 1, &hash) || jf_int(&c, msg, "job", "width", 1, 0, 1, LIMIT_SIDE, &w) ||
+        jf_int(&c, msg, "job", "height", 1, 0, 1, LIMIT_SIDE, &h) ||
+        jf_int(&c, msg, "job", "spp", 1, 0, 1, LIMIT_SPP, &spp) ||
+        jf_int(&c, msg, "job", "max_depth", 1, 0, 1, LIMIT_DEPTH, &depth) ||
         jf_string(&c, msg, "job", "seed", 1, &seed) || jf_bool(&c, msg, "job", "nee", 1, &nee) ||
         jf_bool(&c, msg, "job", "mis", 1, &mis) || jf_string(&c, msg, "job", "sampler", 0, &sampler) ||
         jf_bool(&c, msg, "job", "adaptive", 0, &adaptive))
@@ -124,8 +125,8 @@ int proto_assign_parse(const cJSON *msg, const char *peer, proto_assign *out, ch
     memset(out, 0, sizeof *out);
     if (jf_check_object(&c, msg, "assign", keys) || jf_int(&c, msg, "assign", "job", 1, 0, 0, UINT32_MAX, &job) ||
         jf_int(&c, msg, "assign", "tile", 1, 0, 0, UINT32_MAX, &tile) ||
-        jf_int(&c, msg, "assign", "first", 1, 0, 0, 1 << 24, &first) ||
-        jf_int(&c, msg, "assign", "count", 1, 0, 1, 1 << 24, &count) ||
+        jf_int(&c, msg, "assign", "first", 1, 0, 0, LIMIT_SPP, &first) ||
+        jf_int(&c, msg, "assign", "count", 1, 0, 1, LIMIT_SPP, &count) ||
         jf_string(&c, msg, "assign", "mask", 0, &mask))
         return -1;
     const cJSON *rect = cJSON_GetObjectItemCaseSensitive(msg, "rect");
@@ -135,7 +136,7 @@ int proto_assign_parse(const cJSON *msg, const char *peer, proto_assign *out, ch
     for (int i = 0; i < 4; i++) {
         const cJSON *v = cJSON_GetArrayItem(rect, i);
         if (!cJSON_IsNumber(v) || v->valuedouble != (double)(int)v->valuedouble || v->valuedouble < 0 ||
-            v->valuedouble > 32768)
+            v->valuedouble > LIMIT_SIDE)
             return jf_fail(&c, "assign", "rect", "expected 4 integers from 0 to 32768");
         r[i] = (int)v->valuedouble;
     }
@@ -182,7 +183,7 @@ int proto_tile_parse(const uint8_t *body, size_t len, proto_tile *out, char *err
     out->channels = PROTO_TILE_HEADER_BYTES + px * 12 == len                     ? 3
                     : PROTO_TILE_HEADER_BYTES + px * 4 * ADAPTIVE_CHANNELS == len ? ADAPTIVE_CHANNELS
                                                                                   : 0;
-    if (out->width == 0 || out->height == 0 || out->width > 32768 || out->height > 32768 || !out->channels) {
+    if (out->width == 0 || out->height == 0 || out->width > LIMIT_SIDE || out->height > LIMIT_SIDE || !out->channels) {
         snprintf(err, err_len, "tile %u of job %u: %ux%u pixels do not match the frame's %zu bytes", out->tile,
                  out->job, out->width, out->height, len);
         return -1;

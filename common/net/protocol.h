@@ -2,7 +2,10 @@
  * with a "type" inside wire.h's frames, and the build identity peers compare.
  *
  * net/ carries messages and knows nothing of radiance: what a job, an
- * assignment and a rendered tile contain is job/job.h, one layer up. */
+ * assignment and a rendered tile contain is job/job.h, one layer up.
+ *
+ * Layer net/: frames, messages, connections, auth, addresses; includes only
+ * common/, never render/ (README "Where things are"). */
 #ifndef TESSERA_PROTOCOL_H
 #define TESSERA_PROTOCOL_H
 

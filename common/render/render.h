@@ -6,7 +6,10 @@
  * double, in sample-index order, starting from what the accumulator already
  * holds; so rendering samples [0, 64) in one call, or [0, 16) then [16, 64)
  * into the same accumulator, gives the same bits, and no pixel depends on
- * any other pixel, tile, thread or process. */
+ * any other pixel, tile, thread or process.
+ *
+ * Layer render/ (README "Where things are"): scene, shapes, accel, materials,
+ * lights, camera, samplers, integrator, tiles, film; includes only common/. */
 #ifndef TESSERA_RENDER_H
 #define TESSERA_RENDER_H
 

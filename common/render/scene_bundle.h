@@ -16,8 +16,10 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define SCENE_BUNDLE_MAX_BYTES (512u << 20) /* scene plus meshes */
-#define SCENE_BUNDLE_MAX_FILES 4096
+#include "limit.h"
+
+#define SCENE_BUNDLE_MAX_BYTES LIMIT_BUNDLE_BYTES /* scene plus meshes */
+#define SCENE_BUNDLE_MAX_FILES LIMIT_BUNDLE_FILES
 #define SCENE_BUNDLE_HASH_HEX 65 /* 32-byte BLAKE2b as hex, plus NUL */
 
 typedef struct {

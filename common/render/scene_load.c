@@ -15,10 +15,11 @@
 #include "obj.h"
 #include "scene_bundle.h"
 #include "scene.h"
+#include "limit.h"
 
-#define MAX_RESOLUTION 32768
-#define MAX_SPP (1 << 24)
-#define MAX_DEPTH 1024
+#define MAX_RESOLUTION LIMIT_SIDE
+#define MAX_SPP LIMIT_SPP
+#define MAX_DEPTH LIMIT_DEPTH
 #define BIG 1e30 /* bound for coordinates: anything larger is surely a mistake */
 
 typedef struct {
