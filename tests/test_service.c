@@ -44,7 +44,7 @@ static void service_start(service *s, const char *name) {
                           "--worker-timeout", "2", s->token ? "--token-file" : NULL, s->token, NULL};
     int before = util_file_count(s->log, "listening on");
     s->pid = util_spawn(argv, s->log);
-    for (int i = 0; i < 1000 && util_file_count(s->log, "listening on") == before; i++) util_sleep(0.01);
+    for (int i = 0; i < (int)(LONG * 100) && util_file_count(s->log, "listening on") == before; i++) util_sleep(0.01);
 }
 
 static pid_t worker_start_token(const service *s, const char *name, const char *throttle_ms, const char *token) {
@@ -59,6 +59,20 @@ static pid_t worker_start_token(const service *s, const char *name, const char *
 
 static pid_t worker_start(const service *s, const char *name, const char *throttle_ms) {
     return worker_start_token(s, name, throttle_ms, NULL);
+}
+
+/* A worker that keeps its finished tiles, after the first `after`, while the
+ * file hold exists (util.h); its log is NAME.log under the test folder. */
+static pid_t worker_start_held(const service *s, const char *name, const char *hold, int after) {
+    char path[4096], log[256], lname[64], hold_env[300], after_env[64];
+    snprintf(path, sizeof path, "%s", util_bin("tessera-worker"));
+    snprintf(lname, sizeof lname, "%s.log", name);
+    snprintf(log, sizeof log, "%s", util_temp_path(lname));
+    snprintf(hold_env, sizeof hold_env, "TESSERA_TEST_HOLD_FILE=%s", hold);
+    snprintf(after_env, sizeof after_env, "TESSERA_TEST_HOLD_AFTER=%d", after);
+    const char *argv[] = {path, "--connect", s->addr, "--threads", "1", "--name", name, "--retry-max", "1", NULL};
+    const char *env[] = {hold_env, after_env, NULL};
+    return util_spawn_env(argv, log, env);
 }
 
 /* Run `tessera ARGS` against the service; output in out. */
@@ -135,7 +149,10 @@ TEST(service_submit_wait_fetch_status_workers) {
 TEST(service_queue_priority_and_cancel) {
     service s = {0};
     service_start(&s, "svc-queue");
-    pid_t w = worker_start(&s, "slow", "30");
+    char hold[256];
+    snprintf(hold, sizeof hold, "%s", util_temp_path("svc-queue.hold"));
+    util_touch(hold); /* nothing finishes until every job is queued */
+    pid_t w = worker_start_held(&s, "slow", hold, 0);
     char out[8192];
     int a = job_id((cli(&s, out, sizeof out, "submit " SCENE " --tile-size 8"), out));
     int b = job_id((cli(&s, out, sizeof out, "submit " SCENE " --seed 7 --tile-size 8"), out));
@@ -143,13 +160,9 @@ TEST(service_queue_priority_and_cancel) {
     CHECK(a == 1 && b == 2 && c == 3, "job ids %d %d %d", a, b, c);
     int st = cli(&s, out, sizeof out, "cancel 2");
     CHECK(st == 0 && strstr(out, "job 2 cancelled"), "cancel (%d): %s", st, out);
-    for (int i = 0; i < 1200; i++) { /* wait until 1 and 3 are done */
-        cli(&s, out, sizeof out, "status --json");
-        if (util_file_count(s.log, "job 1 done") && util_file_count(s.log, "job 3 done")) break;
-        util_sleep(0.1);
-    }
-    CHECK(util_file_count(s.log, "job 1 done") && util_file_count(s.log, "job 3 done"), "jobs did not finish; log %s",
-          s.log);
+    unlink(hold);
+    CHECK(util_wait_for_text(s.log, "job 1 done", LONG) == 0 && util_wait_for_text(s.log, "job 3 done", LONG) == 0,
+          "jobs did not finish; log %s", s.log);
     CHECK(util_file_count(s.log, "job 2 cancelled (0 tiles from the journal"), "cancel not logged; log %s", s.log);
     /* priority 5 overtakes job 1, which was submitted first */
     FILE *f = fopen(s.log, "r");
@@ -171,20 +184,25 @@ TEST(service_queue_priority_and_cancel) {
 TEST(service_restart_resumes_without_rerendering) {
     service s = {0};
     service_start(&s, "svc-restart");
-    pid_t w = worker_start(&s, "w", "40");
+    char hold[256];
+    snprintf(hold, sizeof hold, "%s", util_temp_path("svc-restart.hold"));
+    util_touch(hold);
+    pid_t w = worker_start_held(&s, "w", hold, 20); /* 20 tiles, then it keeps them */
     char out[8192], img[256];
     int st = cli(&s, out, sizeof out, "submit " SCENE " --tile-size 8");
     CHECK(st == 0 && job_id(out) == 1, "submit (%d): %s", st, out);
-    for (int i = 0; i < 600; i++) { /* let about a third of the tiles finish */
+    CHECK(util_wait_for_text(util_temp_path("w.log"), UTIL_HOLDING, LONG) == 0, "the worker never held a tile");
+    int done = 0;
+    for (int i = 0; i < (int)(LONG * 20) && done < 20; i++) { /* until the coordinator has journaled all 20 */
         cli(&s, out, sizeof out, "status 1 --json");
-        int done = 0;
         const char *p = strstr(out, "\"tiles_done\":");
         if (p) sscanf(p, "\"tiles_done\":\t%d", &done);
-        if (done >= 20) break;
-        util_sleep(0.05);
+        if (done < 20) util_sleep(0.05);
     }
+    CHECK(done == 20, "%d tiles done before the kill; 20 expected", done);
     kill(s.pid, SIGKILL);
     util_wait(s.pid, LONG, NULL);
+    unlink(hold);
     service_start(&s, "svc-restart");
     int resumed = -1, again = -1, rendered = -1;
     CHECK(util_wait_for_text(s.log, "job 1 resumed: ", LONG) == 0, "no resume; log %s", s.log);
@@ -196,7 +214,7 @@ TEST(service_restart_resumes_without_rerendering) {
         sscanf(line, "tessera-coordinator: job 1 done (%d tiles from the journal, %d rendered", &again, &rendered);
     }
     if (f) fclose(f);
-    CHECK(resumed >= 20 && again == resumed && resumed + rendered == 64,
+    CHECK(resumed == 20 && again == resumed && resumed + rendered == 64,
           "resumed %d, then %d from the journal and %d rendered: finished tiles must not be rendered again", resumed,
           again, rendered);
     snprintf(img, sizeof img, "%s", util_temp_path("svc-restart.pfm"));
@@ -231,10 +249,10 @@ TEST(service_survives_bad_clients_and_reports_errors) {
     while (recv(fd, drain, sizeof drain, 0) > 0) {
     }
     close(fd);
-    util_sleep(0.2);
+    CHECK(util_wait_for_text(s.log, "closed in the middle of a frame", LONG) == 0, "truncated upload not logged; log %s",
+          s.log);
     int st = cli(&s, out, sizeof out, "status");
     CHECK(st == 0 && strstr(out, "0 workers connected"), "service unhealthy after bad clients (%d): %s", st, out);
-    CHECK(util_file_count(s.log, "closed in the middle of a frame"), "truncated upload not logged; log %s", s.log);
     /* An invalid scene: the coordinator's own message, with file and field. */
     const char *bad = util_write_temp("bad-scene.json", "{\"render\": {\"spp\": 0}}");
     st = cli(&s, out, sizeof out, "submit %s", bad);
