@@ -34,6 +34,7 @@
 #include "../common/image.h"
 #include "../common/scene.h"
 #include "../common/wire.h"
+#include "data_lock.h"
 
 #define TILE_MAGIC 0x454c4954u /* "TILE" */
 #define WIRE_KIND_IMAGE 'I'
@@ -763,7 +764,7 @@ int service_run(const service_options *o) {
     if (!s) return 1;
     s->o = *o;
     s->next_id = 1;
-    if (prepare_data_dir(o->data_dir, err, sizeof err)) {
+    if (prepare_data_dir(o->data_dir, err, sizeof err) || data_dir_lock(o->data_dir, err, sizeof err) < 0) {
         fprintf(stderr, "tessera-coordinator: %s\n", err);
         free(s);
         return 1;

@@ -364,3 +364,27 @@ TEST(service_limits_and_a_full_disk_are_reported) {
     worker_stop(w);
     service_stop(&s);
 }
+
+/* Two coordinators on one data dir both accepted job 6 and one was lost
+ * (issue 18): the second now refuses to start, naming the dir and the
+ * holder's PID, and a lock left by a killed coordinator blocks nothing. */
+TEST(service_second_coordinator_on_a_data_dir_is_refused) {
+    service s = {0};
+    service_start(&s, "svc-lock");
+    char cmd[4096], out[8192], want[1024];
+    snprintf(cmd, sizeof cmd, "timeout %d %s --data-dir %s --listen 127.0.0.1:%d", (int)LONG,
+             util_bin("tessera-coordinator"), s.dir, util_free_port());
+    int st = util_run(cmd, out, sizeof out);
+    snprintf(want, sizeof want, "%s: in use by another tessera-coordinator (PID %d, lock %s/lock)", s.dir, (int)s.pid,
+             s.dir);
+    CHECK(st == 1 && strstr(out, want), "second coordinator on %s (%d): %s", s.dir, st, out);
+    st = cli(&s, out, sizeof out, "submit " SCENE);
+    CHECK(st == 0 && job_id(out) == 1, "the first coordinator after the refusal (%d): %s", st, out);
+    kill(s.pid, SIGKILL); /* the kernel drops the lock; the file stays */
+    util_wait(s.pid, LONG, NULL);
+    service_start(&s, "svc-lock");
+    st = cli(&s, out, sizeof out, "status 1");
+    CHECK(st == 0 && strstr(out, "running"), "restart after kill -9 with the lock file left (%d): %s; log %s", st, out,
+          s.log);
+    service_stop(&s);
+}
