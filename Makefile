@@ -25,7 +25,7 @@ BUILD := build/$(VARIANT)
 # Determinism across hosts: no fast-math, no FMA contraction, no -march=native.
 # (Add your own -march with EXTRA_CFLAGS; the bytes may then differ from other hosts.)
 CFLAGS_COMMON := -std=c11 -D_DEFAULT_SOURCE -g -Wall -Wextra -Werror -ffp-contract=off -fno-fast-math \
-                 -MMD -MP -I/usr/include/OpenEXR $(EXTRA_CFLAGS)
+                 -MMD -MP -I/usr/include/OpenEXR -Icommon -Icommon/image $(EXTRA_CFLAGS)
 ifeq ($(VARIANT),asan)
   CFLAGS_OPT := -O1 -fno-omit-frame-pointer -fsanitize=address,undefined -fno-sanitize-recover=all
   LDFLAGS_V := -fsanitize=address,undefined
@@ -40,7 +40,7 @@ CFLAGS := $(CFLAGS_COMMON) $(CFLAGS_OPT) -I$(BUILD)
 LDLIBS := -lcjson -lpng16 -ljpeg -lOpenEXRCore-3_1 -lsodium -luv -lpthread -lm
 LDFLAGS := $(LDFLAGS_V)
 
-COMMON_SRC := $(wildcard common/*.c)
+COMMON_SRC := $(wildcard common/*.c) $(wildcard common/image/*.c)
 COMMON_OBJ := $(COMMON_SRC:%.c=$(BUILD)/%.o)
 TEST_SRC := $(wildcard tests/*.c)
 TEST_OBJ := $(TEST_SRC:%.c=$(BUILD)/%.o)

@@ -14,6 +14,9 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include "../common/fileio.h"
+#include "../common/image.h"
+#include "../common/version.h"
 #include "harness.h"
 #include "util.h"
 
@@ -386,5 +389,169 @@ TEST(service_second_coordinator_on_a_data_dir_is_refused) {
     st = cli(&s, out, sizeof out, "status 1");
     CHECK(st == 0 && strstr(out, "running"), "restart after kill -9 with the lock file left (%d): %s; log %s", st, out,
           s.log);
+    service_stop(&s);
+}
+
+/* The tEXt chunks of a PNG file as "keyword=text\n" lines in out. Returns
+ * how many, or -1 when the file is not a PNG. */
+static int png_text_chunks(const char *path, char *out, size_t cap) {
+    size_t len = 0;
+    char err[256];
+    uint8_t *d = (uint8_t *)file_read_all(path, 1 << 24, &len, err, sizeof err);
+    int n = -1;
+    size_t used = 0;
+    out[0] = '\0';
+    if (d && len > 8 && memcmp(d, "\x89PNG\r\n\x1a\n", 8) == 0) n = 0;
+    for (size_t p = 8; n >= 0 && p + 12 <= len;) {
+        size_t l = (size_t)d[p] << 24 | (size_t)d[p + 1] << 16 | (size_t)d[p + 2] << 8 | d[p + 3];
+        if (p + 12 + l > len) break;
+        if (memcmp(d + p + 4, "tEXt", 4) == 0 && used + l + 2 < cap) {
+            memcpy(out + used, d + p + 8, l);
+            char *nul = memchr(out + used, '\0', l);
+            if (nul) *nul = '=';
+            used += l;
+            out[used++] = '\n';
+            out[used] = '\0';
+            n++;
+        }
+        p += 12 + l;
+    }
+    free(d);
+    return n;
+}
+
+/* `render`, `submit --wait` and `fetch` write the same header: the EXR
+ * files (and PNG files) of one render are the same bytes whichever path
+ * wrote them, and carry tessera:scene, spp, seed and version (issue 18). */
+TEST(service_images_carry_the_render_header_whichever_command_wrote_them) {
+    service s = {0};
+    service_start(&s, "svc-meta");
+    pid_t w = worker_start(&s, "wm", "0");
+    char out[8192], cmd[4096], path[6][256];
+    static const char *const names[6] = {"meta-render.exr", "meta-submit.exr", "meta-fetch.exr",
+                                         "meta-render.png", "meta-submit.png", "meta-fetch.png"};
+    for (int i = 0; i < 6; i++) snprintf(path[i], sizeof path[i], "%s", util_temp_path(names[i]));
+    for (int k = 0; k < 2; k++) { /* EXR, then PNG */
+        snprintf(cmd, sizeof cmd, "%s render " SCENE " --workers 0 --no-progress -o %s", harness_tessera(), path[3 * k]);
+        int st = util_run(cmd, out, sizeof out);
+        CHECK(st == 0, "render (%d): %s", st, out);
+        st = cli(&s, out, sizeof out, "submit " SCENE " --wait -o %s", path[3 * k + 1]);
+        CHECK(st == 0, "submit --wait (%d): %s", st, out);
+        st = cli(&s, out, sizeof out, "fetch %d -o %s", k + 1, path[3 * k + 2]);
+        CHECK(st == 0, "fetch (%d): %s", st, out);
+        CHECK(util_same_file(path[3 * k], path[3 * k + 1]) && util_same_file(path[3 * k], path[3 * k + 2]),
+              "%s, %s and %s differ", path[3 * k], path[3 * k + 1], path[3 * k + 2]);
+    }
+    static const char *const want[] = {"tessera:scene", SCENE, "tessera:spp", "64", "tessera:seed", "1",
+                                       "tessera:version", TESSERA_VERSION};
+    snprintf(cmd, sizeof cmd, "exrheader %s", path[2]);
+    int st = util_run(cmd, out, sizeof out);
+    for (int i = 0; i < 8; i += 2) {
+        char line[256];
+        snprintf(line, sizeof line, "%s (type string): \"%s\"", want[i], want[i + 1]);
+        CHECK(st == 0 && strstr(out, line), "exrheader %s lacks %s: %s", path[2], line, out);
+    }
+    char text[4096];
+    int n = png_text_chunks(path[5], text, sizeof text);
+    for (int i = 0; i < 8; i += 2) {
+        char line[256];
+        snprintf(line, sizeof line, "%s=%s\n", want[i], want[i + 1]);
+        CHECK(n == 4 && strstr(text, line), "%s: %d tEXt chunks, lacking %s: %s", path[5], n, line, text);
+    }
+    snprintf(cmd, sizeof cmd, "iinfo -v %s", path[5]); /* an independent PNG reader sees them too */
+    st = util_run(cmd, out, sizeof out);
+    CHECK(st == 0 && strstr(out, "tessera:spp: \"64\"") && strstr(out, "tessera:scene: \"" SCENE "\""),
+          "iinfo -v %s: %s", path[5], out);
+    worker_stop(w);
+    service_stop(&s);
+}
+
+/* Tiles of an 8-pixel tiling of img that are all zero, as ranges like the
+ * coordinator's warning ("0-3, 9"); returns how many. */
+static int black_tiles(const image *img, const image *ref, int *matching, char *out, size_t cap) {
+    int tiles_x = (img->width + 7) / 8, tiles_y = (img->height + 7) / 8, black = 0, prev = -2, start = -1;
+    size_t used = 0;
+    out[0] = '\0';
+    *matching = 0;
+    for (int t = 0; t <= tiles_x * tiles_y; t++) {
+        int zero = 0, same = 0;
+        if (t < tiles_x * tiles_y) {
+            zero = same = 1;
+            for (int y = (t / tiles_x) * 8; y < (t / tiles_x) * 8 + 8 && y < img->height; y++)
+                for (int x = (t % tiles_x) * 8; x < (t % tiles_x) * 8 + 8 && x < img->width; x++)
+                    for (int c = 0; c < 3; c++) {
+                        size_t i = 3 * ((size_t)y * (size_t)img->width + (size_t)x) + (size_t)c;
+                        zero &= img->rgb[i] == 0.0f;
+                        same &= img->rgb[i] == ref->rgb[i];
+                    }
+            black += zero;
+            *matching += same && !zero;
+        }
+        if (zero && prev != t - 1) start = t;
+        if (!zero && prev == t - 1 && start >= 0) {
+            used += (size_t)snprintf(out + used, cap - used, start == t - 1 ? "%s%d" : "%s%d-%d", used ? ", " : "",
+                                     start, t - 1);
+            start = -1;
+        }
+        if (zero) prev = t;
+    }
+    return black;
+}
+
+/* fetch --partial of a running job, then of the same job cancelled and
+ * after a restart: the 10 tiles journaled so far, the others black and
+ * named in a warning; without --partial, an error that says how. */
+TEST(service_fetch_partial_of_a_running_then_cancelled_job) {
+    service s = {0};
+    service_start(&s, "svc-partial");
+    char hold[256], out[8192], img_path[3][256];
+    snprintf(hold, sizeof hold, "%s", util_temp_path("svc-partial.hold"));
+    util_touch(hold);
+    pid_t w = worker_start_held(&s, "wp", hold, 10); /* 10 tiles, then it keeps them */
+    int st = cli(&s, out, sizeof out, "submit " SCENE " --tile-size 8");
+    CHECK(st == 0 && job_id(out) == 1, "submit (%d): %s", st, out);
+    CHECK(util_wait_for_text(util_temp_path("wp.log"), UTIL_HOLDING, LONG) == 0, "the worker never held a tile");
+    int done = 0;
+    for (int i = 0; i < (int)(LONG * 20) && done < 10; i++) {
+        cli(&s, out, sizeof out, "status 1 --json");
+        const char *p = strstr(out, "\"tiles_done\":");
+        if (p) sscanf(p, "\"tiles_done\":\t%d", &done);
+        if (done < 10) util_sleep(0.05);
+    }
+    CHECK(done == 10, "%d tiles done; 10 expected", done);
+    st = cli(&s, out, sizeof out, "fetch 1 -o %s", util_temp_path("never.pfm"));
+    CHECK(st == 1 && strstr(out, "job 1 is running (10 of 64 tiles); fetch --partial writes what is done so far"),
+          "fetch of a running job without --partial (%d): %s", st, out);
+    image ref, got;
+    char err[512], black_list[1024];
+    CHECK(image_read(reference(), &ref, err, sizeof err) == 0, "%s", err);
+    for (int k = 0; k < 3; k++) {
+        static const char *const names[3] = {"partial-running.pfm", "partial-cancelled.pfm", "partial-restarted.pfm"};
+        snprintf(img_path[k], sizeof img_path[k], "%s", util_temp_path(names[k]));
+        if (k == 1) {
+            st = cli(&s, out, sizeof out, "cancel 1");
+            CHECK(st == 0, "cancel (%d): %s", st, out);
+            CHECK(util_wait_for_text(s.log, "job 1 cancelled", LONG) == 0, "no cancel; log %s", s.log);
+        }
+        if (k == 2) {
+            service_stop(&s);
+            service_start(&s, "svc-partial");
+        }
+        st = cli(&s, out, sizeof out, "fetch 1 --partial -o %s", img_path[k]);
+        CHECK(st == 0, "fetch --partial (%d): %s", st, out);
+        if (st != 0 || image_read(img_path[k], &got, err, sizeof err) != 0) continue;
+        int matching = 0, black = black_tiles(&got, &ref, &matching, black_list, sizeof black_list);
+        CHECK(black == 54 && matching == 10, "%s: %d tiles black, %d as in the full render; 54 and 10 expected",
+              img_path[k], black, matching);
+        char warning[2048];
+        snprintf(warning, sizeof warning,
+                 "warning: job 1 is %s: 54 of 64 tiles are not rendered yet and are black in %s: tiles %s (8x8 pixels",
+                 k == 0 ? "running" : "cancelled", img_path[k], black_list);
+        CHECK(strstr(out, warning), "fetch --partial does not warn \"%s\": %s", warning, out);
+        image_free(&got);
+    }
+    image_free(&ref);
+    unlink(hold);
+    worker_stop(w);
     service_stop(&s);
 }
