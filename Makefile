@@ -180,3 +180,19 @@ fuzz: $(FUZZ_BINS)
 
 -include $(FUZZ_COMMON_OBJ:.o=.d)
 -include $(COMMON_OBJ:.o=.d) $(TEST_OBJ:.o=.d) $(COORD_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(BUILD)/bench/loadgen.d
+
+# ---- make install (issue 18) -------------------------------------------------
+# `make install [PREFIX=/usr/local] [DESTDIR=]` copies tessera and tessera-worker
+# into $(DESTDIR)$(PREFIX)/bin and links tessera-coordinator to tessera there
+# (tessera finds tessera-worker next to itself). INSTALL_FROM=DIR installs
+# binaries already built elsewhere without building (tests/test_install.c).
+PREFIX ?= /usr/local
+INSTALL_FROM ?= $(BUILD)/bin
+.PHONY: install uninstall
+install: $(if $(filter $(BUILD)/bin,$(INSTALL_FROM)),$(TESSERA) $(WORKER))
+	install -d "$(DESTDIR)$(PREFIX)/bin"
+	install -m 755 "$(INSTALL_FROM)/tessera" "$(INSTALL_FROM)/tessera-worker" "$(DESTDIR)$(PREFIX)/bin/"
+	ln -sf tessera "$(DESTDIR)$(PREFIX)/bin/tessera-coordinator"
+uninstall:
+	rm -f "$(DESTDIR)$(PREFIX)/bin/tessera" "$(DESTDIR)$(PREFIX)/bin/tessera-worker" \
+	      "$(DESTDIR)$(PREFIX)/bin/tessera-coordinator"
