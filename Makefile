@@ -1,6 +1,6 @@
 # Tessera - build, test, benchmark.
 #
-#   make            install missing Debian packages, build build/bin/tessera
+#   make            install missing Debian packages, build build/release/bin/tessera (make install: below)
 #   make run        render the Cornell box and print where the image went
 #   make test       build and run every test (ends with "N passed, N failed")
 #   make test-asan  the tests under AddressSanitizer + UndefinedBehaviorSanitizer
