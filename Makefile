@@ -1,6 +1,6 @@
 # Tessera - build, test, benchmark.
 #
-#   make            install missing Debian packages, build build/bin/tessera
+#   make            install missing Debian packages, build build/release/bin/tessera (make install: below)
 #   make run        render the Cornell box and print where the image went
 #   make test       build and run every test (ends with "N passed, N failed")
 #   make test-asan  the tests under AddressSanitizer + UndefinedBehaviorSanitizer
@@ -198,3 +198,19 @@ fuzz: $(FUZZ_BINS)
 
 -include $(FUZZ_COMMON_OBJ:.o=.d)
 -include $(COMMON_OBJ:.o=.d) $(TEST_OBJ:.o=.d) $(COORD_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(BUILD)/bench/loadgen.d
+
+# ---- make install (issue 18) -------------------------------------------------
+# `make install [PREFIX=/usr/local] [DESTDIR=]` copies tessera and tessera-worker
+# into $(DESTDIR)$(PREFIX)/bin and links tessera-coordinator to tessera there
+# (tessera finds tessera-worker next to itself). INSTALL_FROM=DIR installs
+# binaries already built elsewhere without building (tests/test_install.c).
+PREFIX ?= /usr/local
+INSTALL_FROM ?= $(BUILD)/bin
+.PHONY: install uninstall
+install: $(if $(filter $(BUILD)/bin,$(INSTALL_FROM)),$(TESSERA) $(WORKER))
+	install -d "$(DESTDIR)$(PREFIX)/bin"
+	install -m 755 "$(INSTALL_FROM)/tessera" "$(INSTALL_FROM)/tessera-worker" "$(DESTDIR)$(PREFIX)/bin/"
+	ln -sf tessera "$(DESTDIR)$(PREFIX)/bin/tessera-coordinator"
+uninstall:
+	rm -f "$(DESTDIR)$(PREFIX)/bin/tessera" "$(DESTDIR)$(PREFIX)/bin/tessera-worker" \
+	      "$(DESTDIR)$(PREFIX)/bin/tessera-coordinator"

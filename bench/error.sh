@@ -77,7 +77,8 @@ done
 
 if command -v gnuplot > /dev/null; then
   cycles=""
-  [[ $name == cornell-box ]] && cycles=", '-' using 1:2 with linespoints pt 6 lc rgb 'black' title 'Blender Cycles 3.4 (anchors.md)'"
+  # No Cycles curve: Cycles must be measured in the same run as Tessera
+  # (docs/performance.md, "Against Blender Cycles, in one run").
   {
     echo "set terminal pngcairo size 900,600 noenhanced"
     echo "set output '$png'"
@@ -97,7 +98,6 @@ if command -v gnuplot > /dev/null; then
     echo -n ", '$tmp/no-mis.dat' using 1:2 with linespoints pt 4 title 'no MIS'"
     echo -n ", '$tmp/no-nee.dat' using 1:2 with linespoints pt 3 title 'no NEE'"
     echo "$cycles"
-    [[ -n $cycles ]] && printf "2.98,8.6e-3\n10.8,1.84e-3\n41.1,4.2e-4\n153,1.07e-4\ne\n"
     true
   } > "$tmp/plot.gp"
   gnuplot "$tmp/plot.gp" && echo "plot: $png"

@@ -30,6 +30,7 @@
 #include "render/scene_bundle.h"
 #include "net/wire.h"
 #include "limit.h"
+#include "image/image_meta.h"
 
 #define DEFAULT_COORDINATOR "127.0.0.1:7000"
 #define IO_TIMEOUT_MS 30000
@@ -46,6 +47,7 @@ typedef struct {
     const char *token_file;
     int json;
     int wait;
+    int partial; /* fetch: what is done so far of a running or cancelled job */
     const char *out;
     scene_overrides ov;
     int priority, tile_size;
@@ -218,24 +220,43 @@ static void print_json(const cJSON *m) {
     free(t);
 }
 
-/* Fetch a finished job's image and write it to out. Returns 0 or 1. */
-static int fetch_to(cli *c, long job, const char *out, image_write_options *wo) {
+/* Warn that a partial image's missing tiles are black, naming them. */
+static void warn_partial(const cJSON *p, const char *out) {
+    int total = (int)num(p, "tiles_total"), done = (int)num(p, "tiles_done"), ts = (int)num(p, "tile_size");
+    if (done >= total) return;
+    fprintf(stderr,
+            "tessera: warning: job %d is %s: %d of %d tiles are not rendered yet and are black in %s: "
+            "tiles %s (%dx%d pixels each, numbered row by row from the top left)\n",
+            (int)num(p, "job"), str(p, "state"), total - done, total, out, str(p, "missing"), ts, ts);
+}
+
+/* Fetch a job's image (partial: what is done so far, with a warning) and
+ * write it to out. Returns 0 or 1. */
+static int fetch_image(cli *c, long job, const char *out, image_write_options *wo, int partial) {
     cJSON *m = cJSON_CreateObject();
     cJSON_AddStringToObject(m, "type", "fetch");
     cJSON_AddNumberToObject(m, "job", (double)job);
+    if (partial) cJSON_AddTrueToObject(m, "partial");
     if (send_json(c, m)) return 1;
     uint8_t *body;
     size_t len;
     int kind = read_frame(c, &body, &len);
     if (kind < 0) return 1;
-    if (kind == WIRE_KIND_JSON) {
+    while (kind == WIRE_KIND_JSON) {
         char err[256];
         const char *type;
         cJSON *e = proto_parse_json(body, len, &type, err, sizeof err);
+        free(body);
+        if (e && partial && strcmp(type, "partial") == 0) { /* the image follows */
+            warn_partial(e, out);
+            cJSON_Delete(e);
+            if ((kind = read_frame(c, &body, &len)) < 0) return 1;
+            partial = 0;
+            continue;
+        }
         const cJSON *r = cJSON_GetObjectItemCaseSensitive(e, "reason");
         cli_fail("%s", cJSON_IsString(r) ? r->valuestring : "unexpected answer to fetch");
         cJSON_Delete(e);
-        free(body);
         return 1;
     }
     uint32_t w = len >= 8 ? wire_get_u32(body) : 0, h = len >= 8 ? wire_get_u32(body + 4) : 0;
@@ -251,6 +272,19 @@ static int fetch_to(cli *c, long job, const char *out, image_write_options *wo) 
     image_free(&img);
     if (rc) return cli_fail("%s", err);
     return 0;
+}
+
+/* fetch_image with the job's scene, spp and seed in the file's header
+ * (image_meta.h): the same header as `tessera render` writes. */
+static int fetch_to(cli *c, long job, const char *out, image_write_options *wo, int partial) {
+    cJSON *st = request(c, "status", job, "status");
+    if (!st) return 1;
+    const cJSON *j = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(st, "jobs"), 0);
+    image_meta meta;
+    image_meta_apply(&meta, str(j, "name"), (int)num(j, "spp"), strtoull(str(j, "seed"), NULL, 10), wo);
+    int rc = fetch_image(c, job, out, wo, partial);
+    cJSON_Delete(st);
+    return rc;
 }
 
 /* Poll until the job ends; returns its final status object (caller frees)
@@ -349,7 +383,7 @@ static int do_submit(const cli_args *a, const char *scene_path) {
         out = out_default;
     }
     image_write_options wo = a->wo;
-    if (rc == 0) rc = fetch_to(&c, job, out, &wo);
+    if (rc == 0) rc = fetch_to(&c, job, out, &wo, 0);
     if (rc == 0) {
         if (a->json) printf("{\"job\": %ld, \"image\": \"%s\"}\n", job, out);
         else printf("job %ld done, image: %s\n", job, out);
@@ -425,7 +459,7 @@ static int do_fetch(const cli_args *a, long job) {
     cli c;
     if (cli_open(&c, a)) return 1;
     image_write_options wo = a->wo;
-    int rc = fetch_to(&c, job, a->out, &wo);
+    int rc = fetch_to(&c, job, a->out, &wo, a->partial);
     cli_close(&c);
     if (rc == 0) printf(a->json ? "{\"job\": %ld, \"image\": \"%s\"}\n" : "job %ld, image: %s\n", job, a->out);
     return rc;
@@ -441,19 +475,21 @@ static void usage(FILE *f) {
             "       tessera status [JOB]\n"
             "       tessera workers\n"
             "       tessera cancel JOB\n"
-            "       tessera fetch JOB -o OUT [--tonemap NAME] [--exposure S] [--quality Q] [--png16]\n"
+            "       tessera fetch JOB -o OUT [--partial] [--tonemap NAME] [--exposure S] [--quality Q] [--png16]\n"
             "\n"
             "Talk to a running tessera-coordinator. Every command takes --coordinator HOST:PORT\n"
             "(default: $TESSERA_COORDINATOR, else " DEFAULT_COORDINATOR "), --token-file F (default:\n"
             "$TESSERA_TOKEN_FILE) and --json for scripts.\n"
             "submit uploads the scene and its meshes and prints the job id; with --wait it shows\n"
-            "progress and writes the image to OUT on this machine (format from the extension).\n");
+            "progress and writes the image to OUT on this machine (format from the extension).\n"
+            "fetch --partial writes what a running or cancelled job has done so far; the tiles\n"
+            "not yet rendered are black and named in a warning.\n");
 }
 
 static long parse_num(const char *what, const char *s, long lo, long hi) { return args_long("tessera", what, s, lo, hi); }
 
 enum { C_COORD = 300, C_JSON, C_WAIT, C_SPP, C_WIDTH, C_HEIGHT, C_DEPTH, C_SEED, C_PRIORITY, C_TONEMAP, C_EXPOSURE,
-       C_TILE, C_TOKEN, C_QUALITY, C_PNG16 };
+       C_TILE, C_TOKEN, C_QUALITY, C_PNG16, C_PARTIAL };
 
 int client_main(int argc, char **argv) {
     static const struct option opts[] = {
@@ -464,7 +500,8 @@ int client_main(int argc, char **argv) {
         {"priority", required_argument, 0, C_PRIORITY}, {"tonemap", required_argument, 0, C_TONEMAP},
         {"exposure", required_argument, 0, C_EXPOSURE}, {"output", required_argument, 0, 'o'},
         {"tile-size", required_argument, 0, C_TILE}, {"token-file", required_argument, 0, C_TOKEN},
-        {"quality", required_argument, 0, C_QUALITY}, {"png16", no_argument, 0, C_PNG16}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
+        {"quality", required_argument, 0, C_QUALITY}, {"png16", no_argument, 0, C_PNG16}, {"partial", no_argument, 0, C_PARTIAL},
+        {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
     const char *cmd = argv[0];
     cli_args a = {.ov = {-1, -1, -1, -1, 0, 0}, .wo = {.tonemap = {.kind = TONEMAP_REINHARD}}};
     int c;
@@ -493,6 +530,7 @@ int client_main(int argc, char **argv) {
         case C_TOKEN: a.token_file = optarg; break;
         case C_QUALITY: a.wo.jpeg_quality = (int)parse_num("--quality", optarg, 1, 100); break;
         case C_PNG16: a.wo.png16 = 1; break;
+        case C_PARTIAL: a.partial = 1; break;
         case C_TILE: a.tile_size = (int)parse_num("--tile-size", optarg, 1, 4096); break;
         case 'o': a.out = optarg; break;
         case 'h': usage(stdout); return 0;

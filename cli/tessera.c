@@ -21,6 +21,7 @@
 #include "render/accel.h"
 #include "image/image.h"
 #include "image/image_compare.h"
+#include "image/image_meta.h"
 #include "render/render.h"
 #include "render/scene.h"
 #include "version.h"
@@ -325,14 +326,10 @@ static int render_on_farm(render_args *a, const scene *s, const scene_bundle *b,
 
 static int save_image(const render_args *a, const scene *s, const image *img) {
     /* No time or host in the file: the same render gives the same bytes. */
-    char spp[32], seed[32], err[1024];
-    snprintf(spp, sizeof spp, "%d", s->settings.spp);
-    snprintf(seed, sizeof seed, "%llu", (unsigned long long)s->settings.seed);
-    codec_attribute attrs[] = {{"tessera:scene", a->scene_path}, {"tessera:spp", spp}, {"tessera:seed", seed},
-                               {"tessera:version", TESSERA_VERSION}};
+    char err[1024];
     image_write_options wo = {.tonemap = a->tm, .jpeg_quality = a->jpeg_quality, .png16 = a->png16, .exr = a->exr};
-    wo.exr.attrs = attrs;
-    wo.exr.attr_count = 4;
+    image_meta meta;
+    image_meta_apply(&meta, a->scene_path, s->settings.spp, s->settings.seed, &wo);
     if (image_write(a->out_path, img, &wo, err, sizeof err) == 0) return 0;
     fprintf(stderr, "tessera: %s\n", err);
     return -1;

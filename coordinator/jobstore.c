@@ -132,7 +132,7 @@ void store_on_job_event(void *ctx, const farm_report *r, int done) {
     svc_log("job %u %s (%d tiles from the journal, %d rendered in this run)%s%s", j->desc.id, state_names[j->state],
             j->tiles_resumed, j->tiles_done - j->tiles_resumed, j->error[0] ? ": " : "", j->error);
     store_job_path(s, j->desc.id, "tiles", path, sizeof path);
-    unlink(path); /* done: the image has it; failed or cancelled: never resumed */
+    if (j->state != SJOB_CANCELLED) unlink(path); /* done: the image has it; failed: never resumed */
     store_job_release(j);
     farm_forget(s->f, j->desc.id);
 }

@@ -127,6 +127,9 @@ static cJSON *job_status_json(const sjob *j) {
     cJSON_AddNumberToObject(o, "width", j->desc.width);
     cJSON_AddNumberToObject(o, "height", j->desc.height);
     cJSON_AddNumberToObject(o, "spp", j->desc.spp);
+    char seed[24];
+    snprintf(seed, sizeof seed, "%" PRIu64, j->desc.seed);
+    cJSON_AddStringToObject(o, "seed", seed); /* for the header of fetched images */
     cJSON_AddNumberToObject(o, "tiles_done", j->state == SJOB_DONE ? j->tile_count : j->tiles_done);
     cJSON_AddNumberToObject(o, "tiles_total", j->tile_count);
     cJSON_AddNumberToObject(o, "tiles_resumed", j->tiles_resumed);
@@ -200,12 +203,54 @@ static void on_cancel(client *cl, const cJSON *m) {
     client_send_json(cl, r);
 }
 
+/* fetch with "partial": the tiles journaled so far of a running or
+ * cancelled job (the others black): a "partial" message naming the missing
+ * tiles, then the I frame. */
+static void fetch_partial(client *cl, sjob *j) {
+    char path[4096], err[600], missing[1024];
+    image img;
+    uint8_t *done = malloc((size_t)j->tile_count);
+    store_job_path(cl->svc, j->desc.id, "tiles", path, sizeof path);
+    int n = done ? journal_read_partial(path, j->desc.width, j->desc.height, j->tile_size, j->tile_count, &img, done,
+                                        err, sizeof err)
+                 : -1;
+    if (n < 0) {
+        free(done);
+        return client_error(cl, "%s", done ? err : "out of memory");
+    }
+    journal_missing_ranges(done, j->tile_count, missing, sizeof missing);
+    free(done);
+    cJSON *r = cJSON_CreateObject();
+    cJSON_AddStringToObject(r, "type", "partial");
+    cJSON_AddNumberToObject(r, "job", j->desc.id);
+    cJSON_AddStringToObject(r, "state", state_names[j->state]);
+    cJSON_AddNumberToObject(r, "tiles_done", n);
+    cJSON_AddNumberToObject(r, "tiles_total", j->tile_count);
+    cJSON_AddNumberToObject(r, "tile_size", j->tile_size);
+    cJSON_AddStringToObject(r, "missing", missing);
+    client_send_json(cl, r);
+    size_t px = (size_t)img.width * (size_t)img.height * 3, len;
+    uint8_t *f = wire_frame_new(WIRE_KIND_IMAGE, 8 + 4 * px, &len);
+    if (f) {
+        wire_put_u32(f + WIRE_HEADER_BYTES, (uint32_t)img.width);
+        wire_put_u32(f + WIRE_HEADER_BYTES + 4, (uint32_t)img.height);
+        for (size_t i = 0; i < px; i++) wire_put_f32(f + WIRE_HEADER_BYTES + 8 + 4 * i, img.rgb[i]);
+        conn_send(cl->c, f, len);
+    } else {
+        client_error(cl, "out of memory");
+    }
+    image_free(&img);
+}
+
 static void on_fetch(client *cl, const cJSON *m) {
     sjob *j = request_job(cl, m, "fetch");
     if (!j) return;
+    int unfinished = j->state == SJOB_RUNNING || j->state == SJOB_CANCELLED;
+    if (unfinished && cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(m, "partial"))) return fetch_partial(cl, j);
     if (j->state != SJOB_DONE)
-        return client_error(cl, "job %u is %s (%d of %d tiles)%s%s", j->desc.id, state_names[j->state], j->tiles_done,
-                            j->tile_count, j->error[0] ? ": " : "", j->error);
+        return client_error(cl, "job %u is %s (%d of %d tiles)%s%s%s", j->desc.id, state_names[j->state], j->tiles_done,
+                            j->tile_count, j->error[0] ? ": " : "", j->error,
+                            unfinished ? "; fetch --partial writes what is done so far" : "");
     char path[4096], err[600];
     image img;
     store_job_path(cl->svc, j->desc.id, "pfm", path, sizeof path);
@@ -342,7 +387,7 @@ int service_run(const service_options *o) {
     if (!s) return 1;
     s->o = *o;
     s->next_id = 1;
-    if (prepare_data_dir(o->data_dir, err, sizeof err)) {
+    if (prepare_data_dir(o->data_dir, err, sizeof err) || data_dir_lock(o->data_dir, err, sizeof err) < 0) {
         fprintf(stderr, "tessera-coordinator: %s\n", err);
         free(s);
         return 1;

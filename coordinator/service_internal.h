@@ -40,6 +40,8 @@
 #include "net/conn.h"
 #include "net/wire.h"
 #include "render/scene.h"
+#include "data_lock.h"
+#include "journal_partial.h"
 #include "service.h"
 
 #define TILE_MAGIC 0x454c4954u /* "TILE" */

@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "render/adaptive.h"
 #include "fileio.h"
@@ -159,18 +160,23 @@ TEST(adaptive_farm_survives_a_killed_worker) {
         if (sscanf(line, "tessera: coordinator listening on 127.0.0.1:%d", &port) == 1) break;
     if (f) fclose(f);
     snprintf(connect, sizeof connect, "127.0.0.1:%d", port);
-    /* Both throttled to 40 ms a tile: about 3 s of rounds, so the kill
-     * lands in the middle. */
-    const char *vargv[] = {util_bin("tessera-worker"), "--connect", connect, "--threads", "1", "--name", "victim",
-                           "--throttle-ms", "40", NULL};
+    /* Both keep their finished tiles while the hold file exists (util.h), so
+     * the kill lands mid-render whatever the machine's speed. */
+    char hold[300];
+    snprintf(hold, sizeof hold, "TESSERA_TEST_HOLD_FILE=%s", util_temp_path("ad-kill.hold"));
+    util_touch(hold + strlen("TESSERA_TEST_HOLD_FILE="));
+    const char *env[] = {hold, NULL};
+    const char *vargv[] = {util_bin("tessera-worker"), "--connect", connect, "--threads", "1", "--name", "victim", NULL};
     const char *sargv[] = {util_bin("tessera-worker"), "--connect", connect, "--threads", "1", "--name", "survivor",
-                           "--throttle-ms", "40", "--once", NULL};
-    pid_t victim = util_spawn(vargv, wlog);
-    CHECK(util_wait_for_text(log, "worker victim (", 120) == 0, "victim never joined; log %s", log);
-    pid_t survivor = util_spawn(sargv, slog);
-    util_sleep(0.5);
+                           "--once", NULL};
+    pid_t victim = util_spawn_env(vargv, wlog, env);
+    CHECK(util_wait_for_text(wlog, UTIL_HOLDING, 120) == 0, "victim never held a tile; log %s", wlog);
+    pid_t survivor = util_spawn_env(sargv, slog, env);
+    CHECK(util_wait_for_text(slog, UTIL_HOLDING, 120) == 0, "survivor never held a tile; log %s", slog);
     kill(victim, SIGKILL);
     util_wait(victim, 120, NULL);
+    CHECK(util_wait_for_text(log, "go back to the queue", 120) == 0, "the victim's death went unnoticed; log %s", log);
+    unlink(hold + strlen("TESSERA_TEST_HOLD_FILE="));
     CHECK(util_wait(coord, 120, NULL) == 0, "coordinator failed; log %s", log);
     CHECK(util_file_count(log, "go back to the queue"), "the victim held no tiles when killed; log %s", log);
     CHECK(util_same_file(img, ref), "image differs after a worker was killed; log %s", log);

@@ -4,8 +4,10 @@
  * Every test checks that the image is bit-for-bit the single-process one,
  * whatever was done to the workers on the way: killed, stopped, joined late,
  * told to leave, outrun by a backup, or mixed with peers that send garbage.
- * Workers are slowed with --throttle-ms so that "mid-render" is a fact, not
- * a race; timeouts are generous so the ASan build passes on a busy machine. */
+ * "Mid-render" is an event, not a race: workers keep their finished tiles
+ * while a hold file exists (TESSERA_TEST_HOLD_FILE, util.h) and the tests
+ * act once a worker says it is holding; timeouts are generous and only hit
+ * when something is broken. */
 #include <arpa/inet.h>
 #include <math.h>
 #include <netinet/in.h>
@@ -75,12 +77,22 @@ static pid_t start_coordinator(const char *log, const char *out, int port, const
     return pid;
 }
 
-static pid_t start_worker(const char *log, int port, const char *name, const char *throttle_ms) {
-    char connect[64];
+/* A worker that keeps its finished tiles (after the first `after`) while
+ * the file hold exists (no hold: NULL). */
+static pid_t start_worker_held(const char *log, int port, const char *name, const char *throttle_ms, const char *hold,
+                               int after) {
+    char connect[64], hold_env[300], after_env[64];
     snprintf(connect, sizeof connect, "127.0.0.1:%d", port);
+    snprintf(hold_env, sizeof hold_env, "TESSERA_TEST_HOLD_FILE=%s", hold ? hold : "");
+    snprintf(after_env, sizeof after_env, "TESSERA_TEST_HOLD_AFTER=%d", after);
     const char *argv[] = {util_bin("tessera-worker"), "--connect", connect, "--threads", "1", "--name", name,
                           "--retry-max", "1", "--throttle-ms", throttle_ms, NULL};
-    return util_spawn(argv, log);
+    const char *env[] = {hold_env, after_env, NULL};
+    return util_spawn_env(argv, log, hold ? env : NULL);
+}
+
+static pid_t start_worker(const char *log, int port, const char *name, const char *throttle_ms) {
+    return start_worker_held(log, port, name, throttle_ms, NULL, 0);
 }
 
 /* Number of tiles the coordinator's -v table credits to worker name. */
@@ -132,39 +144,45 @@ TEST(farm_thread_same_image_any_workers_and_tiles) {
 
 TEST(farm_kill9_worker_mid_render) {
     tpath clog = temp("kill9-coord.log"), alog = temp("kill9-a.log"), blog = temp("kill9-b.log"),
-          img = temp("kill9.pfm");
+          img = temp("kill9.pfm"), hold = temp("kill9.hold");
     int port;
     pid_t coord = start_coordinator(clog.path, img.path, 0, NULL, &port);
     CHECK(port > 0, "coordinator did not start; log %s", clog.path);
-    pid_t a = start_worker(alog.path, port, "A", "40");
-    pid_t b = start_worker(blog.path, port, "B", "40");
-    CHECK(util_wait_for_text(clog.path, "worker B (", LONG) == 0, "B never joined");
-    util_sleep(0.5); /* B holds tiles now (it asks for two at once) */
-    kill(b, SIGKILL);
+    util_touch(hold.path); /* both keep their tiles: the render cannot end */
+    pid_t a = start_worker_held(alog.path, port, "A", "0", hold.path, 0);
+    pid_t b = start_worker_held(blog.path, port, "B", "0", hold.path, 0);
+    CHECK(util_wait_for_text(blog.path, UTIL_HOLDING, LONG) == 0, "B never held a tile; log %s", blog.path);
+    kill(b, SIGKILL); /* B holds tiles now */
     util_wait(b, LONG, NULL);
-    coordinator_done(coord, clog.path, NULL);
-    CHECK(util_file_count(clog.path, "worker B (127.0.0.1:") && util_file_count(clog.path, "go back to the queue"),
+    CHECK(util_wait_for_text(clog.path, "go back to the queue", LONG) == 0 &&
+              util_file_count(clog.path, "worker B (127.0.0.1:"),
           "the coordinator did not notice B's death; log %s", clog.path);
+    unlink(hold.path);
+    coordinator_done(coord, clog.path, NULL);
     CHECK(util_same_file(img.path, reference("pfm")), "image differs after kill -9; log %s", clog.path);
     stop_worker(a, alog.path);
 }
 
 TEST(farm_sigstop_worker_lease_expires) {
-    tpath clog = temp("stop-coord.log"), alog = temp("stop-a.log"), blog = temp("stop-b.log"), img = temp("stop.pfm");
+    tpath clog = temp("stop-coord.log"), alog = temp("stop-a.log"), blog = temp("stop-b.log"), img = temp("stop.pfm"),
+          hold_a = temp("stop-a.hold"), hold_b = temp("stop-b.hold");
     const char *extra[] = {"--heartbeat", "0.1", "--worker-timeout", "0.6", NULL};
     int port;
     pid_t coord = start_coordinator(clog.path, img.path, 0, extra, &port);
     CHECK(port > 0, "coordinator did not start; log %s", clog.path);
-    pid_t a = start_worker(alog.path, port, "A", "40");
-    pid_t b = start_worker(blog.path, port, "B", "40");
-    CHECK(util_wait_for_text(clog.path, "worker B (", LONG) == 0, "B never joined");
-    util_sleep(0.4);
-    kill(b, SIGSTOP);
-    CHECK(util_wait_for_text(clog.path, "(127.0.0.1", LONG) == 0 &&
-              util_wait_for_text(clog.path, "silent for", LONG) == 0,
-          "B's stall was not noticed; log %s", clog.path);
-    util_sleep(0.3);
+    util_touch(hold_a.path);
+    util_touch(hold_b.path);
+    pid_t a = start_worker_held(alog.path, port, "A", "0", hold_a.path, 0);
+    pid_t b = start_worker_held(blog.path, port, "B", "0", hold_b.path, 0);
+    CHECK(util_wait_for_text(alog.path, UTIL_HOLDING, LONG) == 0 && util_wait_for_text(blog.path, UTIL_HOLDING, LONG) == 0,
+          "A and B never held tiles; logs %s %s", alog.path, blog.path);
+    kill(b, SIGSTOP); /* B holds a finished tile and is stopped */
+    CHECK(util_wait_for_text(clog.path, "silent for", LONG) == 0, "B's stall was not noticed; log %s", clog.path);
     kill(b, SIGCONT); /* its late results must be ignored or used, never harmful */
+    CHECK(util_wait_for_text(clog.path, "is responding again", LONG) == 0, "B's return not noticed; log %s", clog.path);
+    unlink(hold_b.path); /* B sends the tile it kept; A still holds, so nobody else has finished it */
+    CHECK(util_wait_for_text(clog.path, "late result for", LONG) == 0, "B's late result not used; log %s", clog.path);
+    unlink(hold_a.path);
     coordinator_done(coord, clog.path, NULL);
     CHECK(util_file_count(clog.path, "worker B") && util_file_count(clog.path, "tiles go back to the queue"),
           "no requeue after the stall; log %s", clog.path);
@@ -178,18 +196,21 @@ TEST(farm_sigstop_worker_lease_expires) {
 }
 
 TEST(farm_worker_joins_mid_render_and_one_leaves) {
-    tpath clog = temp("join-coord.log"), alog = temp("join-a.log"), blog = temp("join-b.log"), img = temp("join.pfm");
+    tpath clog = temp("join-coord.log"), alog = temp("join-a.log"), blog = temp("join-b.log"), img = temp("join.pfm"),
+          hold_a = temp("join-a.hold"), hold_b = temp("join-b.hold");
     int port;
     pid_t coord = start_coordinator(clog.path, img.path, 0, NULL, &port);
     CHECK(port > 0, "coordinator did not start; log %s", clog.path);
-    pid_t a = start_worker(alog.path, port, "A", "30");
-    CHECK(util_wait_for_text(clog.path, "worker A (", LONG) == 0, "A never joined");
-    util_sleep(0.5);
-    pid_t b = start_worker(blog.path, port, "B", "0");
-    CHECK(util_wait_for_text(clog.path, "worker B (", LONG) == 0, "B never joined");
-    util_sleep(0.2);
+    util_touch(hold_a.path);
+    util_touch(hold_b.path);
+    pid_t a = start_worker_held(alog.path, port, "A", "0", hold_a.path, 3); /* 3 tiles, then it keeps them */
+    CHECK(util_wait_for_text(alog.path, UTIL_HOLDING, LONG) == 0, "A never held a tile; log %s", alog.path);
+    pid_t b = start_worker_held(blog.path, port, "B", "0", hold_b.path, 0); /* joins mid-render */
+    CHECK(util_wait_for_text(blog.path, UTIL_HOLDING, LONG) == 0, "B never got work; log %s", blog.path);
     kill(a, SIGTERM); /* A gives its tiles back and leaves */
     CHECK(util_wait(a, LONG, NULL) == 0, "A did not exit cleanly on SIGTERM; log %s", alog.path);
+    CHECK(util_wait_for_text(clog.path, "left: worker left", LONG) == 0, "A's departure not logged; log %s", clog.path);
+    unlink(hold_b.path); /* B finishes the render */
     coordinator_done(coord, clog.path, NULL);
     CHECK(tiles_of(clog.path, "A") > 0 && tiles_of(clog.path, "B") > 0, "tiles: A %d, B %d; log %s",
           tiles_of(clog.path, "A"), tiles_of(clog.path, "B"), clog.path);
@@ -201,13 +222,14 @@ TEST(farm_worker_joins_mid_render_and_one_leaves) {
 
 TEST(farm_backup_tasks_beat_a_slow_worker) {
     tpath clog = temp("backup-coord.log"), alog = temp("backup-a.log"), blog = temp("backup-b.log"),
-          img = temp("backup.pfm");
+          img = temp("backup.pfm"), hold = temp("backup.hold");
     const char *extra[] = {"--tile-size", "16", NULL};
     int port;
     pid_t coord = start_coordinator(clog.path, img.path, 0, extra, &port);
     CHECK(port > 0, "coordinator did not start; log %s", clog.path);
-    pid_t b = start_worker(blog.path, port, "slow", "4000"); /* 4 s per tile */
-    CHECK(util_wait_for_text(clog.path, "worker slow (", LONG) == 0, "slow never joined");
+    util_touch(hold.path); /* "slow" never returns a tile while the render lasts */
+    pid_t b = start_worker_held(blog.path, port, "slow", "0", hold.path, 0);
+    CHECK(util_wait_for_text(blog.path, UTIL_HOLDING, LONG) == 0, "slow never got a tile; log %s", blog.path);
     pid_t a = start_worker(alog.path, port, "fast", "0");
     coordinator_done(coord, clog.path, NULL);
     int backups = 0;
@@ -224,22 +246,24 @@ TEST(farm_backup_tasks_beat_a_slow_worker) {
     CHECK(util_same_file(img.path, reference("pfm")), "image differs; log %s", clog.path);
     stop_worker(a, alog.path);
     stop_worker(b, blog.path);
+    unlink(hold.path);
 }
 
 TEST(farm_workers_wait_for_and_survive_a_coordinator) {
     tpath c1 = temp("restart-coord1.log"), c2 = temp("restart-coord2.log"), wlog = temp("restart-w.log"),
-          img1 = temp("restart1.pfm"), img2 = temp("restart2.pfm");
+          img1 = temp("restart1.pfm"), img2 = temp("restart2.pfm"), hold = temp("restart.hold");
     int port = util_free_port(), got;
-    pid_t w = start_worker(wlog.path, port, "W", "20"); /* nothing listens yet */
+    util_touch(hold.path);
+    pid_t w = start_worker_held(wlog.path, port, "W", "0", hold.path, 0); /* nothing listens yet */
     CHECK(util_wait_for_text(wlog.path, "retrying", LONG) == 0, "worker does not say it retries; log %s", wlog.path);
     pid_t coord = start_coordinator(c1.path, img1.path, port, NULL, &got);
     CHECK(got == port, "coordinator 1 did not listen on %d; log %s", port, c1.path);
-    CHECK(util_wait_for_text(c1.path, "worker W (", LONG) == 0, "W never joined coordinator 1");
-    util_sleep(0.3);
+    CHECK(util_wait_for_text(wlog.path, UTIL_HOLDING, LONG) == 0, "W never got a tile from coordinator 1");
     kill(coord, SIGKILL); /* the coordinator dies mid-render */
     util_wait(coord, LONG, NULL);
     CHECK(util_wait_for_text(wlog.path, "lost the coordinator", LONG) == 0, "worker did not notice; log %s",
           wlog.path);
+    unlink(hold.path);
     coord = start_coordinator(c2.path, img2.path, port, NULL, &got);
     CHECK(got == port, "coordinator 2 did not listen on %d; log %s", port, c2.path);
     coordinator_done(coord, c2.path, NULL);
@@ -286,12 +310,13 @@ static void send_hello(int fd, const char *name, int protocol) {
     send_json_text(fd, text);
 }
 
-/* Read exactly want bytes, waiting up to 2 s for each piece. */
+/* Read exactly want bytes, waiting up to 60 s for each piece (only a broken
+ * coordinator takes that long). */
 static int read_exact(int fd, uint8_t *dst, size_t want) {
     size_t have = 0;
     while (have < want) {
         struct pollfd p = {fd, POLLIN, 0};
-        if (poll(&p, 1, 2000) <= 0) return -1;
+        if (poll(&p, 1, 60000) <= 0) return -1;
         ssize_t n = recv(fd, dst + have, want - have, 0);
         if (n <= 0) return -1;
         have += (size_t)n;
@@ -309,10 +334,10 @@ static int read_frame(int fd, uint8_t *buf, size_t cap, size_t *len) {
     return hdr[4];
 }
 
-/* Whether the coordinator closed fd (EOF within 5 s). */
+/* Whether the coordinator closed fd (EOF within 60 s). */
 static int closed_by_peer(int fd) {
     char b[4096];
-    for (int i = 0; i < 50; i++) {
+    for (int i = 0; i < 600; i++) {
         struct pollfd p = {fd, POLLIN, 0};
         if (poll(&p, 1, 100) > 0) {
             ssize_t n = recv(fd, b, sizeof b, 0);
@@ -328,7 +353,7 @@ static int fake_get_tile(int fd, const char *name, proto_assign *a) {
     size_t len;
     send_hello(fd, name, PROTOCOL_VERSION);
     send_json_text(fd, "{\"type\":\"ready\",\"slots\":1}");
-    for (int i = 0; i < 10; i++) {
+    for (int i = 0; i < 1000; i++) { /* heartbeats may come first */
         int kind = read_frame(fd, buf, sizeof buf, &len);
         if (kind < 0) return -1;
         if (kind != WIRE_KIND_JSON) continue; /* the scene */

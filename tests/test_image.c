@@ -24,14 +24,14 @@ TEST(image_pfm_round_trip_bit_exact) {
     CHECK(image_alloc(&a, 7, 5) == 0, "alloc");
     fill_test_image(&a);
     image_write_options wo = {0};
-    CHECK(image_write("/tmp/tessera-rt.pfm", &a, &wo, err, sizeof err) == 0, "%s", err);
-    CHECK(image_read("/tmp/tessera-rt.pfm", &b, err, sizeof err) == 0, "%s", err);
+    CHECK(image_write(util_temp_path("rt.pfm"), &a, &wo, err, sizeof err) == 0, "%s", err);
+    CHECK(image_read(util_temp_path("rt.pfm"), &b, err, sizeof err) == 0, "%s", err);
     if (b.rgb) {
         CHECK(b.width == 7 && b.height == 5, "size %dx%d", b.width, b.height);
         CHECK(memcmp(a.rgb, b.rgb, sizeof(float) * 3 * 35) == 0, "pixels differ");
     }
     /* The file stores rows bottom-up: the last row in the file is our row 0. */
-    FILE *f = fopen("/tmp/tessera-rt.pfm", "rb");
+    FILE *f = fopen(util_temp_path("rt.pfm"), "rb");
     fseek(f, -7 * 12, SEEK_END);
     float first;
     CHECK(fread(&first, 4, 1, f) == 1 && first == 5.0f, "row 0 is not stored last");
@@ -46,8 +46,8 @@ TEST(image_ppm_round_trip) {
     image_alloc(&a, 4, 3);
     for (int i = 0; i < 36; i++) a.rgb[i] = (float)i / 40.0f;
     image_write_options wo = {.tonemap = {.kind = TONEMAP_CLAMP}};
-    CHECK(image_write("/tmp/tessera-rt.ppm", &a, &wo, err, sizeof err) == 0, "%s", err);
-    CHECK(image_read("/tmp/tessera-rt.ppm", &b, err, sizeof err) == 0, "%s", err);
+    CHECK(image_write(util_temp_path("rt.ppm"), &a, &wo, err, sizeof err) == 0, "%s", err);
+    CHECK(image_read(util_temp_path("rt.ppm"), &b, err, sizeof err) == 0, "%s", err);
     for (int i = 0; b.rgb && i < 36; i++)
         CHECK(fabsf(a.rgb[i] - b.rgb[i]) < 0.01f, "pixel value %d: %g vs %g", i, a.rgb[i], b.rgb[i]);
     image_free(&a);
@@ -111,11 +111,11 @@ TEST(image_png_and_jpeg_decode) {
             p[0] = 1e6f, p[1] = 0, p[2] = 0;
         }
     image_write_options wo = {.tonemap = {.kind = TONEMAP_CLAMP}};
-    CHECK(image_write("/tmp/tessera-t.png", &a, &wo, err, sizeof err) == 0, "%s", err);
+    CHECK(image_write(util_temp_path("t.png"), &a, &wo, err, sizeof err) == 0, "%s", err);
     png_image pi;
     memset(&pi, 0, sizeof pi);
     pi.version = PNG_IMAGE_VERSION;
-    CHECK(png_image_begin_read_from_file(&pi, "/tmp/tessera-t.png"), "libpng cannot read it");
+    CHECK(png_image_begin_read_from_file(&pi, util_temp_path("t.png")), "libpng cannot read it");
     pi.format = PNG_FORMAT_RGB;
     uint8_t *buf = malloc(PNG_IMAGE_SIZE(pi));
     CHECK(png_image_finish_read(&pi, NULL, buf, 0, NULL), "libpng decode failed");
@@ -127,8 +127,8 @@ TEST(image_png_and_jpeg_decode) {
     free(buf);
 
     wo.jpeg_quality = 95;
-    CHECK(image_write("/tmp/tessera-t.jpg", &a, &wo, err, sizeof err) == 0, "%s", err);
-    FILE *f = fopen("/tmp/tessera-t.jpg", "rb");
+    CHECK(image_write(util_temp_path("t.jpg"), &a, &wo, err, sizeof err) == 0, "%s", err);
+    FILE *f = fopen(util_temp_path("t.jpg"), "rb");
     struct jpeg_decompress_struct d;
     struct jpeg_error_mgr jerr;
     d.err = jpeg_std_error(&jerr);
@@ -160,8 +160,10 @@ TEST(image_exr_header_read_by_exrheader) {
     const char *names[] = {"zip", "piz", "none"};
     for (int c = 0; c < 3; c++) {
         image_write_options wo = {.exr = {.compression = (codec_exr_compression)c, .attrs = attrs, .attr_count = 2}};
-        CHECK(image_write("/tmp/tessera-t.exr", &a, &wo, err, sizeof err) == 0, "%s", err);
-        FILE *p = popen("exrheader /tmp/tessera-t.exr 2>&1", "r");
+        CHECK(image_write(util_temp_path("t.exr"), &a, &wo, err, sizeof err) == 0, "%s", err);
+        char hdr_cmd[600];
+        snprintf(hdr_cmd, sizeof hdr_cmd, "exrheader %s 2>&1", util_temp_path("t.exr"));
+        FILE *p = popen(hdr_cmd, "r");
         size_t n = p ? fread(out, 1, sizeof out - 1, p) : 0;
         out[n] = '\0';
         int st = p ? pclose(p) : -1;
@@ -210,18 +212,23 @@ TEST(tonemap_photographic_auto_exposure) {
 }
 
 TEST(cli_tonemap_matches_render) {
-    char cmd[1024], out[4096];
+    /* PPM: the pixels alone (PNG also carries the render's tessera:* text
+     * chunks, which a PFM cannot hand on) */
+    char cmd[4096], out[4096], pfm[512], a[512], b[512];
     const char *t = harness_tessera();
+    snprintf(pfm, sizeof pfm, "%s", util_temp_path("tm.pfm"));
+    snprintf(a, sizeof a, "%s", util_temp_path("tm1.ppm"));
+    snprintf(b, sizeof b, "%s", util_temp_path("tm2.ppm"));
     snprintf(cmd, sizeof cmd,
-             "%s render tests/scenes/cornell-small.json --spp 2 -o /tmp/tessera-tm.pfm && "
-             "%s render tests/scenes/cornell-small.json --spp 2 --tonemap photographic -o /tmp/tessera-tm1.png && "
-             "%s tonemap /tmp/tessera-tm.pfm --tonemap photographic -o /tmp/tessera-tm2.png && "
-             "cmp /tmp/tessera-tm1.png /tmp/tessera-tm2.png", t, t, t);
+             "%s render tests/scenes/cornell-small.json --spp 2 -o %s && "
+             "%s render tests/scenes/cornell-small.json --spp 2 --tonemap photographic -o %s && "
+             "%s tonemap %s --tonemap photographic -o %s && cmp %s %s", t, pfm, t, a, t, pfm, b, a, b);
     CHECK(util_run(cmd, out, sizeof out) == 0, "re-tone-mapping differs from rendering: %s", out);
-    snprintf(cmd, sizeof cmd, "%s tonemap /tmp/tessera-tm.pfm --tonemap sepia -o /tmp/x.png", t);
+    snprintf(cmd, sizeof cmd, "%s tonemap %s --tonemap sepia -o %s", t, pfm, b);
     CHECK(util_run(cmd, out, sizeof out) == 2 && strstr(out, "unknown operator \"sepia\""), "bad operator: %s", out);
-    snprintf(cmd, sizeof cmd, "%s tonemap /tmp/nothing.pfm -o /tmp/x.png", t);
-    CHECK(util_run(cmd, out, sizeof out) == 1 && strstr(out, "/tmp/nothing.pfm: cannot open"), "missing input: %s", out);
+    snprintf(cmd, sizeof cmd, "%s tonemap /tmp/nothing-tessera.pfm -o %s", t, b);
+    CHECK(util_run(cmd, out, sizeof out) == 1 && strstr(out, "/tmp/nothing-tessera.pfm: cannot open"),
+          "missing input: %s", out);
 }
 
 /* EXR: every compression round-trips bit for bit through our reader;
@@ -235,17 +242,17 @@ TEST(image_exr_round_trip_bit_exact) {
     a.rgb[8] = 3e38f;
     for (int c = 0; c < 3; c++) {
         image_write_options wo = {.exr = {.compression = (codec_exr_compression)c}};
-        CHECK(image_write("/tmp/tessera-rt.exr", &a, &wo, err, sizeof err) == 0, "%s", err);
-        CHECK(image_read("/tmp/tessera-rt.exr", &b, err, sizeof err) == 0, "compression %d: %s", c, err);
+        CHECK(image_write(util_temp_path("rt.exr"), &a, &wo, err, sizeof err) == 0, "%s", err);
+        CHECK(image_read(util_temp_path("rt.exr"), &b, err, sizeof err) == 0, "compression %d: %s", c, err);
         if (!b.rgb) continue;
         CHECK(b.width == 37 && b.height == 23, "size %dx%d", b.width, b.height);
         CHECK(memcmp(a.rgb, b.rgb, sizeof(float) * 3 * 37 * 23) == 0, "compression %d: pixels differ", c);
         image_free(&b);
     }
-    FILE *f = fopen("/tmp/tessera-bad.exr", "w");
+    FILE *f = fopen(util_temp_path("bad.exr"), "w");
     fputs("this is not an EXR file", f);
     fclose(f);
-    CHECK(image_read("/tmp/tessera-bad.exr", &b, err, sizeof err) != 0 && strstr(err, "/tmp/tessera-bad.exr: not a readable OpenEXR"),
+    CHECK(image_read(util_temp_path("bad.exr"), &b, err, sizeof err) != 0 && strstr(err, "bad.exr: not a readable OpenEXR"),
           "garbage accepted or unclear: %s", err);
     image_free(&a);
 }
@@ -257,11 +264,13 @@ TEST(image_exr_half_and_alpha) {
     image_alloc(&a, 16, 9);
     fill_test_image(&a);
     image_write_options wo = {.exr = {.half = 1, .alpha = 1}};
-    CHECK(image_write("/tmp/tessera-half.exr", &a, &wo, err, sizeof err) == 0, "%s", err);
-    CHECK(image_read("/tmp/tessera-half.exr", &b, err, sizeof err) == 0, "%s", err);
+    CHECK(image_write(util_temp_path("half.exr"), &a, &wo, err, sizeof err) == 0, "%s", err);
+    CHECK(image_read(util_temp_path("half.exr"), &b, err, sizeof err) == 0, "%s", err);
     for (int i = 0; b.rgb && i < 16 * 9 * 3; i++)
         CHECK(fabsf(a.rgb[i] - b.rgb[i]) <= fabsf(a.rgb[i]) * 0x1p-11f + 1e-7f, "pixel value %d: %g vs %g", i, a.rgb[i], b.rgb[i]);
-    CHECK(util_run("exrheader /tmp/tessera-half.exr", out, sizeof out) == 0 && strstr(out, "A, 16-bit floating-point") &&
+    char hdr_cmd[600];
+    snprintf(hdr_cmd, sizeof hdr_cmd, "exrheader %s", util_temp_path("half.exr"));
+    CHECK(util_run(hdr_cmd, out, sizeof out) == 0 && strstr(out, "A, 16-bit floating-point") &&
               strstr(out, "R, 16-bit floating-point"), "channels: %s", out);
     image_free(&a);
     image_free(&b);

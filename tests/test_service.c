@@ -14,6 +14,9 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include "fileio.h"
+#include "image/image.h"
+#include "version.h"
 #include "harness.h"
 #include "util.h"
 
@@ -44,7 +47,7 @@ static void service_start(service *s, const char *name) {
                           "--worker-timeout", "2", s->token ? "--token-file" : NULL, s->token, NULL};
     int before = util_file_count(s->log, "listening on");
     s->pid = util_spawn(argv, s->log);
-    for (int i = 0; i < 1000 && util_file_count(s->log, "listening on") == before; i++) util_sleep(0.01);
+    for (int i = 0; i < (int)(LONG * 100) && util_file_count(s->log, "listening on") == before; i++) util_sleep(0.01);
 }
 
 static pid_t worker_start_token(const service *s, const char *name, const char *throttle_ms, const char *token) {
@@ -59,6 +62,20 @@ static pid_t worker_start_token(const service *s, const char *name, const char *
 
 static pid_t worker_start(const service *s, const char *name, const char *throttle_ms) {
     return worker_start_token(s, name, throttle_ms, NULL);
+}
+
+/* A worker that keeps its finished tiles, after the first `after`, while the
+ * file hold exists (util.h); its log is NAME.log under the test folder. */
+static pid_t worker_start_held(const service *s, const char *name, const char *hold, int after) {
+    char path[4096], log[256], lname[64], hold_env[300], after_env[64];
+    snprintf(path, sizeof path, "%s", util_bin("tessera-worker"));
+    snprintf(lname, sizeof lname, "%s.log", name);
+    snprintf(log, sizeof log, "%s", util_temp_path(lname));
+    snprintf(hold_env, sizeof hold_env, "TESSERA_TEST_HOLD_FILE=%s", hold);
+    snprintf(after_env, sizeof after_env, "TESSERA_TEST_HOLD_AFTER=%d", after);
+    const char *argv[] = {path, "--connect", s->addr, "--threads", "1", "--name", name, "--retry-max", "1", NULL};
+    const char *env[] = {hold_env, after_env, NULL};
+    return util_spawn_env(argv, log, env);
 }
 
 /* Run `tessera ARGS` against the service; output in out. */
@@ -135,7 +152,10 @@ TEST(service_submit_wait_fetch_status_workers) {
 TEST(service_queue_priority_and_cancel) {
     service s = {0};
     service_start(&s, "svc-queue");
-    pid_t w = worker_start(&s, "slow", "30");
+    char hold[256];
+    snprintf(hold, sizeof hold, "%s", util_temp_path("svc-queue.hold"));
+    util_touch(hold); /* nothing finishes until every job is queued */
+    pid_t w = worker_start_held(&s, "slow", hold, 0);
     char out[8192];
     int a = job_id((cli(&s, out, sizeof out, "submit " SCENE " --tile-size 8"), out));
     int b = job_id((cli(&s, out, sizeof out, "submit " SCENE " --seed 7 --tile-size 8"), out));
@@ -143,13 +163,9 @@ TEST(service_queue_priority_and_cancel) {
     CHECK(a == 1 && b == 2 && c == 3, "job ids %d %d %d", a, b, c);
     int st = cli(&s, out, sizeof out, "cancel 2");
     CHECK(st == 0 && strstr(out, "job 2 cancelled"), "cancel (%d): %s", st, out);
-    for (int i = 0; i < 1200; i++) { /* wait until 1 and 3 are done */
-        cli(&s, out, sizeof out, "status --json");
-        if (util_file_count(s.log, "job 1 done") && util_file_count(s.log, "job 3 done")) break;
-        util_sleep(0.1);
-    }
-    CHECK(util_file_count(s.log, "job 1 done") && util_file_count(s.log, "job 3 done"), "jobs did not finish; log %s",
-          s.log);
+    unlink(hold);
+    CHECK(util_wait_for_text(s.log, "job 1 done", LONG) == 0 && util_wait_for_text(s.log, "job 3 done", LONG) == 0,
+          "jobs did not finish; log %s", s.log);
     CHECK(util_file_count(s.log, "job 2 cancelled (0 tiles from the journal"), "cancel not logged; log %s", s.log);
     /* priority 5 overtakes job 1, which was submitted first */
     FILE *f = fopen(s.log, "r");
@@ -171,20 +187,25 @@ TEST(service_queue_priority_and_cancel) {
 TEST(service_restart_resumes_without_rerendering) {
     service s = {0};
     service_start(&s, "svc-restart");
-    pid_t w = worker_start(&s, "w", "40");
+    char hold[256];
+    snprintf(hold, sizeof hold, "%s", util_temp_path("svc-restart.hold"));
+    util_touch(hold);
+    pid_t w = worker_start_held(&s, "w", hold, 20); /* 20 tiles, then it keeps them */
     char out[8192], img[256];
     int st = cli(&s, out, sizeof out, "submit " SCENE " --tile-size 8");
     CHECK(st == 0 && job_id(out) == 1, "submit (%d): %s", st, out);
-    for (int i = 0; i < 600; i++) { /* let about a third of the tiles finish */
+    CHECK(util_wait_for_text(util_temp_path("w.log"), UTIL_HOLDING, LONG) == 0, "the worker never held a tile");
+    int done = 0;
+    for (int i = 0; i < (int)(LONG * 20) && done < 20; i++) { /* until the coordinator has journaled all 20 */
         cli(&s, out, sizeof out, "status 1 --json");
-        int done = 0;
         const char *p = strstr(out, "\"tiles_done\":");
         if (p) sscanf(p, "\"tiles_done\":\t%d", &done);
-        if (done >= 20) break;
-        util_sleep(0.05);
+        if (done < 20) util_sleep(0.05);
     }
+    CHECK(done == 20, "%d tiles done before the kill; 20 expected", done);
     kill(s.pid, SIGKILL);
     util_wait(s.pid, LONG, NULL);
+    unlink(hold);
     service_start(&s, "svc-restart");
     int resumed = -1, again = -1, rendered = -1;
     CHECK(util_wait_for_text(s.log, "job 1 resumed: ", LONG) == 0, "no resume; log %s", s.log);
@@ -198,7 +219,7 @@ TEST(service_restart_resumes_without_rerendering) {
         sscanf(msg, "job 1 done (%d tiles from the journal, %d rendered", &again, &rendered);
     }
     if (f) fclose(f);
-    CHECK(resumed >= 20 && again == resumed && resumed + rendered == 64,
+    CHECK(resumed == 20 && again == resumed && resumed + rendered == 64,
           "resumed %d, then %d from the journal and %d rendered: finished tiles must not be rendered again", resumed,
           again, rendered);
     snprintf(img, sizeof img, "%s", util_temp_path("svc-restart.pfm"));
@@ -233,10 +254,10 @@ TEST(service_survives_bad_clients_and_reports_errors) {
     while (recv(fd, drain, sizeof drain, 0) > 0) {
     }
     close(fd);
-    util_sleep(0.2);
+    CHECK(util_wait_for_text(s.log, "closed in the middle of a frame", LONG) == 0, "truncated upload not logged; log %s",
+          s.log);
     int st = cli(&s, out, sizeof out, "status");
     CHECK(st == 0 && strstr(out, "0 workers connected"), "service unhealthy after bad clients (%d): %s", st, out);
-    CHECK(util_file_count(s.log, "closed in the middle of a frame"), "truncated upload not logged; log %s", s.log);
     /* An invalid scene: the coordinator's own message, with file and field. */
     const char *bad = util_write_temp("bad-scene.json", "{\"render\": {\"spp\": 0}}");
     st = cli(&s, out, sizeof out, "submit %s", bad);
@@ -345,6 +366,194 @@ TEST(service_limits_and_a_full_disk_are_reported) {
           "status after a full disk (%d): %s", st, out);
     st = cli(&s, out, sizeof out, "fetch 1 -o %s", util_temp_path("never.png"));
     CHECK(st == 1 && strstr(out, "job 1 is failed"), "fetch of a failed job (%d): %s", st, out);
+    worker_stop(w);
+    service_stop(&s);
+}
+
+/* Two coordinators on one data dir both accepted job 6 and one was lost
+ * (issue 18): the second now refuses to start, naming the dir and the
+ * holder's PID, and a lock left by a killed coordinator blocks nothing. */
+TEST(service_second_coordinator_on_a_data_dir_is_refused) {
+    service s = {0};
+    service_start(&s, "svc-lock");
+    char cmd[4096], out[8192], want[1024];
+    snprintf(cmd, sizeof cmd, "timeout %d %s --data-dir %s --listen 127.0.0.1:%d", (int)LONG,
+             util_bin("tessera-coordinator"), s.dir, util_free_port());
+    int st = util_run(cmd, out, sizeof out);
+    snprintf(want, sizeof want, "%s: in use by another tessera-coordinator (PID %d, lock %s/lock)", s.dir, (int)s.pid,
+             s.dir);
+    CHECK(st == 1 && strstr(out, want), "second coordinator on %s (%d): %s", s.dir, st, out);
+    st = cli(&s, out, sizeof out, "submit " SCENE);
+    CHECK(st == 0 && job_id(out) == 1, "the first coordinator after the refusal (%d): %s", st, out);
+    kill(s.pid, SIGKILL); /* the kernel drops the lock; the file stays */
+    util_wait(s.pid, LONG, NULL);
+    service_start(&s, "svc-lock");
+    st = cli(&s, out, sizeof out, "status 1");
+    CHECK(st == 0 && strstr(out, "running"), "restart after kill -9 with the lock file left (%d): %s; log %s", st, out,
+          s.log);
+    service_stop(&s);
+}
+
+/* The tEXt chunks of a PNG file as "keyword=text\n" lines in out. Returns
+ * how many, or -1 when the file is not a PNG. */
+static int png_text_chunks(const char *path, char *out, size_t cap) {
+    size_t len = 0;
+    char err[256];
+    uint8_t *d = (uint8_t *)file_read_all(path, 1 << 24, &len, err, sizeof err);
+    int n = -1;
+    size_t used = 0;
+    out[0] = '\0';
+    if (d && len > 8 && memcmp(d, "\x89PNG\r\n\x1a\n", 8) == 0) n = 0;
+    for (size_t p = 8; n >= 0 && p + 12 <= len;) {
+        size_t l = (size_t)d[p] << 24 | (size_t)d[p + 1] << 16 | (size_t)d[p + 2] << 8 | d[p + 3];
+        if (p + 12 + l > len) break;
+        if (memcmp(d + p + 4, "tEXt", 4) == 0 && used + l + 2 < cap) {
+            memcpy(out + used, d + p + 8, l);
+            char *nul = memchr(out + used, '\0', l);
+            if (nul) *nul = '=';
+            used += l;
+            out[used++] = '\n';
+            out[used] = '\0';
+            n++;
+        }
+        p += 12 + l;
+    }
+    free(d);
+    return n;
+}
+
+/* `render`, `submit --wait` and `fetch` write the same header: the EXR
+ * files (and PNG files) of one render are the same bytes whichever path
+ * wrote them, and carry tessera:scene, spp, seed and version (issue 18). */
+TEST(service_images_carry_the_render_header_whichever_command_wrote_them) {
+    service s = {0};
+    service_start(&s, "svc-meta");
+    pid_t w = worker_start(&s, "wm", "0");
+    char out[8192], cmd[4096], path[6][256];
+    static const char *const names[6] = {"meta-render.exr", "meta-submit.exr", "meta-fetch.exr",
+                                         "meta-render.png", "meta-submit.png", "meta-fetch.png"};
+    for (int i = 0; i < 6; i++) snprintf(path[i], sizeof path[i], "%s", util_temp_path(names[i]));
+    for (int k = 0; k < 2; k++) { /* EXR, then PNG */
+        snprintf(cmd, sizeof cmd, "%s render " SCENE " --workers 0 --no-progress -o %s", harness_tessera(), path[3 * k]);
+        int st = util_run(cmd, out, sizeof out);
+        CHECK(st == 0, "render (%d): %s", st, out);
+        st = cli(&s, out, sizeof out, "submit " SCENE " --wait -o %s", path[3 * k + 1]);
+        CHECK(st == 0, "submit --wait (%d): %s", st, out);
+        st = cli(&s, out, sizeof out, "fetch %d -o %s", k + 1, path[3 * k + 2]);
+        CHECK(st == 0, "fetch (%d): %s", st, out);
+        CHECK(util_same_file(path[3 * k], path[3 * k + 1]) && util_same_file(path[3 * k], path[3 * k + 2]),
+              "%s, %s and %s differ", path[3 * k], path[3 * k + 1], path[3 * k + 2]);
+    }
+    static const char *const want[] = {"tessera:scene", SCENE, "tessera:spp", "64", "tessera:seed", "1",
+                                       "tessera:version", TESSERA_VERSION};
+    snprintf(cmd, sizeof cmd, "exrheader %s", path[2]);
+    int st = util_run(cmd, out, sizeof out);
+    for (int i = 0; i < 8; i += 2) {
+        char line[256];
+        snprintf(line, sizeof line, "%s (type string): \"%s\"", want[i], want[i + 1]);
+        CHECK(st == 0 && strstr(out, line), "exrheader %s lacks %s: %s", path[2], line, out);
+    }
+    char text[4096];
+    int n = png_text_chunks(path[5], text, sizeof text);
+    for (int i = 0; i < 8; i += 2) {
+        char line[256];
+        snprintf(line, sizeof line, "%s=%s\n", want[i], want[i + 1]);
+        CHECK(n == 4 && strstr(text, line), "%s: %d tEXt chunks, lacking %s: %s", path[5], n, line, text);
+    }
+    snprintf(cmd, sizeof cmd, "iinfo -v %s", path[5]); /* an independent PNG reader sees them too */
+    st = util_run(cmd, out, sizeof out);
+    CHECK(st == 0 && strstr(out, "tessera:spp: \"64\"") && strstr(out, "tessera:scene: \"" SCENE "\""),
+          "iinfo -v %s: %s", path[5], out);
+    worker_stop(w);
+    service_stop(&s);
+}
+
+/* Tiles of an 8-pixel tiling of img that are all zero, as ranges like the
+ * coordinator's warning ("0-3, 9"); returns how many. */
+static int black_tiles(const image *img, const image *ref, int *matching, char *out, size_t cap) {
+    int tiles_x = (img->width + 7) / 8, tiles_y = (img->height + 7) / 8, black = 0, prev = -2, start = -1;
+    size_t used = 0;
+    out[0] = '\0';
+    *matching = 0;
+    for (int t = 0; t <= tiles_x * tiles_y; t++) {
+        int zero = 0, same = 0;
+        if (t < tiles_x * tiles_y) {
+            zero = same = 1;
+            for (int y = (t / tiles_x) * 8; y < (t / tiles_x) * 8 + 8 && y < img->height; y++)
+                for (int x = (t % tiles_x) * 8; x < (t % tiles_x) * 8 + 8 && x < img->width; x++)
+                    for (int c = 0; c < 3; c++) {
+                        size_t i = 3 * ((size_t)y * (size_t)img->width + (size_t)x) + (size_t)c;
+                        zero &= img->rgb[i] == 0.0f;
+                        same &= img->rgb[i] == ref->rgb[i];
+                    }
+            black += zero;
+            *matching += same && !zero;
+        }
+        if (zero && prev != t - 1) start = t;
+        if (!zero && prev == t - 1 && start >= 0) {
+            used += (size_t)snprintf(out + used, cap - used, start == t - 1 ? "%s%d" : "%s%d-%d", used ? ", " : "",
+                                     start, t - 1);
+            start = -1;
+        }
+        if (zero) prev = t;
+    }
+    return black;
+}
+
+/* fetch --partial of a running job, then of the same job cancelled and
+ * after a restart: the 10 tiles journaled so far, the others black and
+ * named in a warning; without --partial, an error that says how. */
+TEST(service_fetch_partial_of_a_running_then_cancelled_job) {
+    service s = {0};
+    service_start(&s, "svc-partial");
+    char hold[256], out[8192], img_path[3][256];
+    snprintf(hold, sizeof hold, "%s", util_temp_path("svc-partial.hold"));
+    util_touch(hold);
+    pid_t w = worker_start_held(&s, "wp", hold, 10); /* 10 tiles, then it keeps them */
+    int st = cli(&s, out, sizeof out, "submit " SCENE " --tile-size 8");
+    CHECK(st == 0 && job_id(out) == 1, "submit (%d): %s", st, out);
+    CHECK(util_wait_for_text(util_temp_path("wp.log"), UTIL_HOLDING, LONG) == 0, "the worker never held a tile");
+    int done = 0;
+    for (int i = 0; i < (int)(LONG * 20) && done < 10; i++) {
+        cli(&s, out, sizeof out, "status 1 --json");
+        const char *p = strstr(out, "\"tiles_done\":");
+        if (p) sscanf(p, "\"tiles_done\":\t%d", &done);
+        if (done < 10) util_sleep(0.05);
+    }
+    CHECK(done == 10, "%d tiles done; 10 expected", done);
+    st = cli(&s, out, sizeof out, "fetch 1 -o %s", util_temp_path("never.pfm"));
+    CHECK(st == 1 && strstr(out, "job 1 is running (10 of 64 tiles); fetch --partial writes what is done so far"),
+          "fetch of a running job without --partial (%d): %s", st, out);
+    image ref, got;
+    char err[512], black_list[1024];
+    CHECK(image_read(reference(), &ref, err, sizeof err) == 0, "%s", err);
+    for (int k = 0; k < 3; k++) {
+        static const char *const names[3] = {"partial-running.pfm", "partial-cancelled.pfm", "partial-restarted.pfm"};
+        snprintf(img_path[k], sizeof img_path[k], "%s", util_temp_path(names[k]));
+        if (k == 1) {
+            st = cli(&s, out, sizeof out, "cancel 1");
+            CHECK(st == 0, "cancel (%d): %s", st, out);
+            CHECK(util_wait_for_text(s.log, "job 1 cancelled", LONG) == 0, "no cancel; log %s", s.log);
+        }
+        if (k == 2) {
+            service_stop(&s);
+            service_start(&s, "svc-partial");
+        }
+        st = cli(&s, out, sizeof out, "fetch 1 --partial -o %s", img_path[k]);
+        CHECK(st == 0, "fetch --partial (%d): %s", st, out);
+        if (st != 0 || image_read(img_path[k], &got, err, sizeof err) != 0) continue;
+        int matching = 0, black = black_tiles(&got, &ref, &matching, black_list, sizeof black_list);
+        CHECK(black == 54 && matching == 10, "%s: %d tiles black, %d as in the full render; 54 and 10 expected",
+              img_path[k], black, matching);
+        char warning[2048];
+        snprintf(warning, sizeof warning,
+                 "warning: job 1 is %s: 54 of 64 tiles are not rendered yet and are black in %s: tiles %s (8x8 pixels",
+                 k == 0 ? "running" : "cancelled", img_path[k], black_list);
+        CHECK(strstr(out, warning), "fetch --partial does not warn \"%s\": %s", warning, out);
+        image_free(&got);
+    }
+    image_free(&ref);
+    unlink(hold);
     worker_stop(w);
     service_stop(&s);
 }

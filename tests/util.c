@@ -70,10 +70,13 @@ const char *util_bin(const char *name) {
     return path;
 }
 
-pid_t util_spawn(const char *const *argv, const char *log_path) {
+pid_t util_spawn(const char *const *argv, const char *log_path) { return util_spawn_env(argv, log_path, NULL); }
+
+pid_t util_spawn_env(const char *const *argv, const char *log_path, const char *const *env) {
     fflush(NULL);
     pid_t pid = fork();
     if (pid != 0) return pid;
+    for (int i = 0; env && env[i]; i++) putenv((char *)env[i]);
     int in = open("/dev/null", O_RDONLY);
     int out = open(log_path, O_WRONLY | O_CREAT | O_APPEND, 0644);
     if (in < 0 || out < 0) _exit(127);
@@ -82,6 +85,11 @@ pid_t util_spawn(const char *const *argv, const char *log_path) {
     dup2(out, 2);
     execv(argv[0], (char *const *)argv);
     _exit(127);
+}
+
+int util_touch(const char *path) {
+    FILE *f = fopen(path, "w");
+    return f && fclose(f) == 0 ? 0 : -1;
 }
 
 void util_sleep(double s) {

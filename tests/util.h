@@ -38,6 +38,21 @@ const char *util_bin(const char *name);
  * and stdin from /dev/null. Returns the pid, or -1. */
 pid_t util_spawn(const char *const *argv, const char *log_path);
 
+/* util_spawn with extra environment variables ("NAME=VALUE", NULL-terminated)
+ * set in the child only. */
+pid_t util_spawn_env(const char *const *argv, const char *log_path, const char *const *env);
+
+/* A worker process started with util_spawn_env and
+ * {"TESSERA_TEST_HOLD_FILE=" hold, ...} keeps every finished tile (after
+ * its first $TESSERA_TEST_HOLD_AFTER) while the file hold exists, and logs
+ * this text when it starts keeping one (worker/pool.c, test_hold). Tests
+ * create the file, wait for the text, act, then remove the file: events,
+ * not the machine's speed, decide what is "mid-render". */
+#define UTIL_HOLDING "test hold: keeping tile"
+
+/* Create an empty file at path (0, or -1). */
+int util_touch(const char *path);
+
 /* Wait up to timeout_s for pid to exit. Returns its exit status (128 + the
  * signal if killed); on timeout kills it with SIGKILL and returns -1.
  * maxrss_kb, if not NULL, receives its peak resident memory. */

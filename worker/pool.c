@@ -11,6 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <unistd.h>
 
 #include "render/scene.h"
 
@@ -37,6 +38,8 @@ struct pool {
     int thread_count;
     int stopping;
     int throttle_ms;
+    const char *hold_path; /* test hook, see test_hold(); NULL unless set */
+    long hold_after, hold_seen;
     void (*wake)(void *);
     void *ctx;
 };
@@ -86,6 +89,32 @@ static void sleep_ms(int ms) {
     nanosleep(&ts, NULL);
 }
 
+/* Test hook, inert unless $TESSERA_TEST_HOLD_FILE is set (read once, in
+ * pool_new): a finished tile is kept, not handed back, while that file
+ * exists, except the first $TESSERA_TEST_HOLD_AFTER (default 0) tiles this
+ * process finishes. The first wait for a tile is logged ("test hold:
+ * keeping tile T of job J"); it ends when the file goes, or as cancelled
+ * when the tile is cancelled or the worker stops. Tests use it to hold a
+ * worker mid-render until they say so, whatever the machine's speed.
+ * Called on a render thread. */
+static void test_hold(pool *p, pool_task *t) {
+    pthread_mutex_lock(&p->lock);
+    int exempt = ++p->hold_seen <= p->hold_after;
+    pthread_mutex_unlock(&p->lock);
+    for (int waited = 0; !exempt && access(p->hold_path, F_OK) == 0; waited++) {
+        if (atomic_load(&t->cancel)) {
+            free(t->frame);
+            t->frame = NULL;
+            t->status = TASK_CANCELLED;
+            return;
+        }
+        if (!waited)
+            fprintf(stderr, "tessera-worker: test hold: keeping tile %u of job %u while %s exists\n", t->assign.tile,
+                    t->assign.job, p->hold_path);
+        sleep_ms(5);
+    }
+}
+
 /* Render one task, setting its status and frame or error. */
 static void task_render(pool *p, pool_task *t) {
     pool_job *j = t->job;
@@ -123,6 +152,7 @@ static void task_render(pool *p, pool_task *t) {
         } else if ((t->frame = proto_tile_frame(&hdr, rgb, &t->frame_len)) != NULL) {
             t->status = TASK_DONE;
             if (p->throttle_ms > 0) sleep_ms(p->throttle_ms);
+            if (p->hold_path) test_hold(p, t);
         }
     }
     free(accum);
@@ -173,6 +203,9 @@ pool *pool_new(int threads, int throttle_ms, void (*wake)(void *), void *ctx) {
     p->running = calloc((size_t)threads, sizeof *p->running);
     p->threads = calloc((size_t)threads, sizeof *p->threads);
     p->throttle_ms = throttle_ms;
+    p->hold_path = getenv("TESSERA_TEST_HOLD_FILE");
+    if (p->hold_path && !*p->hold_path) p->hold_path = NULL;
+    if (p->hold_path && getenv("TESSERA_TEST_HOLD_AFTER")) p->hold_after = atol(getenv("TESSERA_TEST_HOLD_AFTER"));
     p->wake = wake;
     p->ctx = ctx;
     pthread_mutex_init(&p->lock, NULL);

@@ -19,6 +19,7 @@
 #include "fileio.h"
 #include "image_codecs.h"
 #include "limit.h"
+#include "png_text.h"
 
 #define IMAGE_MAX_SIDE LIMIT_SIDE
 
@@ -143,6 +144,8 @@ int image_write(const char *path, const image *img, image_write_options *opt, ch
         snprintf(err, err_len, "%s: unknown image format \"%s\" (known: .pfm .exr .ppm .png .jpg .jpeg)", path, ext);
         return -1;
     }
+    if (buf && strcasecmp(ext, "png") == 0) /* the EXR attributes, as tEXt chunks */
+        buf = png_text_insert(buf, &len, opt->exr.attrs, opt->exr.attr_count, why, sizeof why);
     if (!buf) {
         snprintf(err, err_len, "%s: cannot encode the image: %s", path, why);
         return -1;

@@ -30,7 +30,7 @@ typedef struct {
     tonemap_options tonemap; /* for 8-bit formats */
     int jpeg_quality;        /* 1..100; 0 means the default, 92 */
     int png16;               /* 16-bit PNG instead of 8 */
-    codec_exr_options exr;   /* compression (default ZIP), half, alpha, attributes */
+    codec_exr_options exr;   /* compression (default ZIP), half, alpha, attributes (PNG: tEXt) */
     size_t bad_pixels;       /* out: NaN/Inf pixels written black */
 } image_write_options;
 
