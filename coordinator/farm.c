@@ -27,6 +27,8 @@ farm *farm_new(uv_loop_t *loop, const farm_options *o, char *err, size_t err_len
     }
     f->loop = loop;
     f->opt = *o;
+    LIST_INIT(&f->peers);
+    TAILQ_INIT(&f->jobs);
     struct sockaddr_storage addr;
     int rc = uv_ip4_addr(o->host, o->port, (struct sockaddr_in *)&addr);
     if (rc) rc = uv_ip6_addr(o->host, o->port, (struct sockaddr_in6 *)&addr);
@@ -67,10 +69,8 @@ void farm_close(farm *f, void (*cb)(void *ctx), void *ctx) {
     f->closing = 1;
     f->closed_cb = cb;
     f->closed_ctx = ctx;
-    for (peer *p = f->peers, *next; p; p = next) {
-        next = p->next;
-        conn_close(p->c, "the coordinator is done", 1);
-    }
+    peer *p, *next;
+    LIST_FOREACH_SAFE(p, &f->peers, link, next) conn_close(p->c, "the coordinator is done", 1);
     f->open_handles = 2;
     uv_close((uv_handle_t *)&f->listener, on_handle_closed);
     uv_close((uv_handle_t *)&f->tick, on_handle_closed);
@@ -78,11 +78,8 @@ void farm_close(farm *f, void (*cb)(void *ctx), void *ctx) {
 
 void farm_free(farm *f) {
     if (!f) return;
-    while (f->jobs) {
-        job *j = f->jobs;
-        f->jobs = j->next;
-        farm_job_free(j);
-    }
+    job *j, *next;
+    TAILQ_FOREACH_SAFE(j, &f->jobs, link, next) farm_job_free(j);
     free(f->departed);
     free(f);
 }

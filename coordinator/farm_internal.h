@@ -25,6 +25,7 @@
 #include <string.h>
 
 #include "farm.h"
+#include "list.h"
 #include "log.h"
 #include "net/conn.h"
 #include "net/wire.h"
@@ -53,7 +54,7 @@ typedef struct lease {
     uint32_t tile;
     double start;
     int live; /* counts as a holder of the tile */
-    struct lease *next;
+    LIST_ENTRY(lease) link; /* on its peer's leases */
 } lease;
 
 struct job {
@@ -77,7 +78,7 @@ struct job {
     double tile_seconds; /* sum of assign-to-result times, for the mean */
     int reported;        /* tiles_done at the last progress callback */
     int finished;
-    job *next;
+    TAILQ_ENTRY(job) link; /* on the farm's jobs, by priority then age */
 };
 
 enum { PEER_HELLO, PEER_ACTIVE, PEER_STALLED };
@@ -99,7 +100,7 @@ struct peer {
     int credits;
     int failures;
     double joined, last_heard, last_sent;
-    lease *leases;
+    LIST_HEAD(lease_list, lease) leases;
     char (*scenes)[SCENE_BUNDLE_HASH_HEX];
     int scene_count;
     uint32_t *jobs;
@@ -107,7 +108,7 @@ struct peer {
     peer_record rec;
     char nonce[AUTH_HEX]; /* the challenge this connection must answer */
     char label[200]; /* "worker NAME (ADDR)" */
-    peer *next;
+    LIST_ENTRY(peer) link; /* on the farm's peers */
 };
 
 struct farm {
@@ -116,8 +117,8 @@ struct farm {
     uv_tcp_t listener;
     uv_timer_t tick;
     int port;
-    peer *peers;
-    job *jobs;
+    LIST_HEAD(peer_list, peer) peers;
+    TAILQ_HEAD(job_list, job) jobs;
     peer_record *departed;
     int departed_count, departed_cap;
     uint64_t closed_bytes_in, closed_bytes_out;
@@ -163,7 +164,7 @@ void farm_job_fail(farm *f, job *j, const char *fmt, ...) __attribute__((format(
 
 int peer_told_job(const peer *p, uint32_t id);
 
-lease *peer_find_lease(peer *p, uint32_t job_id, uint32_t tile, lease ***link);
+lease *peer_find_lease(peer *p, uint32_t job_id, uint32_t tile);
 
 /* Use p's credits on queued tiles, then on backups. */
 void peer_schedule(peer *p);

@@ -46,11 +46,8 @@ int peer_violation(peer *p, const char *fmt, ...) {
 }
 
 static void peer_unlink(farm *f, peer *p) {
-    for (peer **pp = &f->peers; *pp; pp = &(*pp)->next)
-        if (*pp == p) {
-            *pp = p->next;
-            break;
-        }
+    (void)f;
+    LIST_REMOVE(p, link);
 }
 
 /* Give a client's connection to opt.on_client and forget the peer. */
@@ -149,10 +146,10 @@ static int on_give_back(peer *p, const cJSON *m, int failed) {
     farm *f = p->f;
     uint32_t job_id, tile;
     if (read_tile_ids(p, m, failed ? "failed" : "cancelled", &job_id, &tile)) return 1;
-    lease **link, *l = peer_find_lease(p, job_id, tile, &link);
+    lease *l = peer_find_lease(p, job_id, tile);
     if (!l) return 0; /* its result or an earlier answer already settled it */
     job *j = l->job;
-    *link = l->next;
+    LIST_REMOVE(l, link);
     if (failed) {
         const cJSON *r = cJSON_GetObjectItemCaseSensitive(m, "reason");
         const char *why = cJSON_IsString(r) ? r->valuestring : "no reason given";
@@ -237,9 +234,9 @@ static void on_conn_close(conn *c, const char *reason) {
     peer *p = conn_data(c);
     farm *f = p->f;
     int requeued = 0;
-    while (p->leases) {
-        lease *l = p->leases;
-        p->leases = l->next;
+    while (!LIST_EMPTY(&p->leases)) {
+        lease *l = LIST_FIRST(&p->leases);
+        LIST_REMOVE(l, link);
         requeued += l->live;
         farm_lease_release(l);
         free(l);
@@ -279,16 +276,14 @@ void farm_on_connection(uv_stream_t *server, int status) {
     p->rec.joined = p->joined;
     if (uv_accept(server, (uv_stream_t *)conn_tcp(c)) != 0 || conn_start(c) != 0) {
         snprintf(p->label, sizeof p->label, "connection");
-        p->next = f->peers;
-        f->peers = p;
+        LIST_INSERT_HEAD(&f->peers, p, link);
         conn_close(c, "accept failed", 0);
         return;
     }
     uv_tcp_nodelay(conn_tcp(c), 1);
     conn_peer_address(c, p->rec.addr, sizeof p->rec.addr);
     snprintf(p->label, sizeof p->label, "peer %s", p->rec.addr);
-    p->next = f->peers;
-    f->peers = p;
+    LIST_INSERT_HEAD(&f->peers, p, link);
     auth_nonce(p->nonce);
     cJSON *ch = cJSON_CreateObject();
     cJSON_AddStringToObject(ch, "type", "challenge");
@@ -299,7 +294,8 @@ void farm_on_connection(uv_stream_t *server, int status) {
 static void peer_stall(peer *p, double silent) {
     p->state = PEER_STALLED;
     int n = 0;
-    for (lease *l = p->leases; l; l = l->next) {
+    lease *l;
+    LIST_FOREACH(l, &p->leases, link) {
         n += l->live;
         farm_lease_release(l);
     }
@@ -321,7 +317,8 @@ static void peer_check(peer *p, double now) {
         return;
     }
     if (p->state == PEER_ACTIVE && silent > f->opt.timeout_s) peer_stall(p, silent);
-    for (lease *l = p->leases; l; l = l->next)
+    lease *l;
+    LIST_FOREACH(l, &p->leases, link)
         if (l->live && now - l->start > f->opt.lease_s) {
             farm_log(f, "%s held tile %u of job %u for %.0f s, past its lease; it goes back to the queue", p->label,
                      l->tile, l->job->desc.id, now - l->start);
@@ -337,12 +334,12 @@ static void peer_check(peer *p, double now) {
 void farm_on_tick(uv_timer_t *t) {
     farm *f = t->data;
     double now = farm_now(f);
-    for (peer *p = f->peers, *next; p; p = next) {
-        next = p->next; /* p may be closed (but is freed only later) */
+    peer *p, *next;
+    LIST_FOREACH_SAFE(p, &f->peers, link, next) /* p may be closed (but is freed only later) */
         if (!conn_is_closing(p->c)) peer_check(p, now);
-    }
     farm_schedule_all(f);
-    for (job *j = f->jobs; j; j = j->next)
+    job *j;
+    TAILQ_FOREACH(j, &f->jobs, link)
         if (!j->finished && j->cb && j->reported != j->rep.tiles_done) {
             farm_report r;
             farm_report_fill(f, j, &r);
@@ -354,7 +351,8 @@ void farm_on_tick(uv_timer_t *t) {
 int farm_list_workers(const farm *f, farm_worker_info *out, int max) {
     int n = 0;
     double now = farm_now(f);
-    for (const peer *p = f->peers; p; p = p->next) {
+    peer *p;
+    LIST_FOREACH(p, &f->peers, link) {
         if (p->state == PEER_HELLO) continue;
         if (n < max) {
             farm_worker_info *w = &out[n];
@@ -380,7 +378,8 @@ static void print_record(FILE *out, const peer_record *r, const char *state, uin
 }
 
 void farm_print_workers(const farm *f, FILE *out) {
-    for (const peer *p = f->peers; p; p = p->next)
+    peer *p;
+    LIST_FOREACH(p, &f->peers, link)
         if (p->state != PEER_HELLO)
             print_record(out, &p->rec, p->state == PEER_STALLED ? "stalled" : "connected", conn_bytes_in(p->c),
                          conn_bytes_out(p->c));

@@ -38,7 +38,8 @@ void farm_lease_release(lease *l) {
 }
 
 job *farm_find_job(const farm *f, uint32_t id) {
-    for (job *j = f->jobs; j; j = j->next)
+    job *j;
+    TAILQ_FOREACH(j, &f->jobs, link)
         if (j->desc.id == id) return j;
     return NULL;
 }
@@ -61,7 +62,8 @@ void farm_report_fill(const farm *f, const job *j, farm_report *r) {
     r->workers = 0;
     r->bytes_in = f->closed_bytes_in;
     r->bytes_out = f->closed_bytes_out;
-    for (const peer *p = f->peers; p; p = p->next) {
+    peer *p;
+    LIST_FOREACH(p, &f->peers, link) {
         if (p->state == PEER_ACTIVE && !p->blocked) r->workers++;
         r->bytes_in += conn_bytes_in(p->c);
         r->bytes_out += conn_bytes_out(p->c);
@@ -71,7 +73,8 @@ void farm_report_fill(const farm *f, const job *j, farm_report *r) {
 /* The job is complete or has failed: tell its workers and the caller. */
 void farm_job_finish(farm *f, job *j) {
     j->finished = 1;
-    for (peer *p = f->peers; p; p = p->next)
+    peer *p;
+    LIST_FOREACH(p, &f->peers, link)
         for (int i = 0; i < p->job_count; i++)
             if (p->jobs[i] == j->desc.id && !conn_is_closing(p->c)) peer_send_ids(p, "job_end", j->desc.id, -1);
     farm_report r;
@@ -117,12 +120,10 @@ int peer_told_job(const peer *p, uint32_t id) {
     return 0;
 }
 
-lease *peer_find_lease(peer *p, uint32_t job_id, uint32_t tile, lease ***link) {
-    for (lease **pp = &p->leases; *pp; pp = &(*pp)->next)
-        if ((*pp)->job->desc.id == job_id && (*pp)->tile == tile) {
-            if (link) *link = pp;
-            return *pp;
-        }
+lease *peer_find_lease(peer *p, uint32_t job_id, uint32_t tile) {
+    lease *l;
+    LIST_FOREACH(l, &p->leases, link)
+        if (l->job->desc.id == job_id && l->tile == tile) return l;
     return NULL;
 }
 
@@ -136,7 +137,7 @@ static int job_pick_backup(const farm *f, job *j, peer *p, uint32_t *out) {
     int found = 0;
     for (int t = 0; t < j->tile_count; t++) {
         if (j->done[t] || j->holders[t] != 1 || now - j->first_start[t] <= best_age) continue;
-        if (peer_find_lease(p, j->desc.id, (uint32_t)t, NULL)) continue;
+        if (peer_find_lease(p, j->desc.id, (uint32_t)t)) continue;
         best_age = now - j->first_start[t];
         *out = (uint32_t)t;
         found = 1;
@@ -164,8 +165,8 @@ static int peer_assign(peer *p, job *j, uint32_t t, int backup) {
         return -1;
     }
     double now = farm_now(p->f);
-    *l = (lease){j, t, now, 1, p->leases};
-    p->leases = l;
+    *l = (lease){.job = j, .tile = t, .start = now, .live = 1};
+    LIST_INSERT_HEAD(&p->leases, l, link);
     if (j->holders[t]++ == 0) j->first_start[t] = now;
     if (backup) j->rep.backups++;
     p->credits--;
@@ -179,7 +180,9 @@ static int peer_assign(peer *p, job *j, uint32_t t, int backup) {
 void peer_schedule(peer *p) {
     farm *f = p->f;
     if (p->state != PEER_ACTIVE || p->blocked || conn_is_closing(p->c)) return;
-    for (job *j = f->jobs; j && p->credits > 0; j = j->next) {
+    job *j;
+    TAILQ_FOREACH(j, &f->jobs, link) {
+        if (p->credits <= 0) break;
         uint32_t t;
         while (!j->finished && p->credits > 0 && job_dequeue(j, &t))
             if (peer_assign(p, j, t, 0)) return;
@@ -189,7 +192,8 @@ void peer_schedule(peer *p) {
 }
 
 void farm_schedule_all(farm *f) {
-    for (peer *p = f->peers; p; p = p->next)
+    peer *p;
+    LIST_FOREACH(p, &f->peers, link)
         if (p->credits > 0) peer_schedule(p);
 }
 
@@ -234,10 +238,13 @@ int farm_submit(farm *f, const proto_job *desc, const uint8_t *bundle, size_t bu
         job_enqueue(j, (uint32_t)t);
     }
     j->reported = j->rep.tiles_done;
-    job **pp = &f->jobs; /* by priority, then submission order */
-    while (*pp && (*pp)->priority >= j->priority) pp = &(*pp)->next;
-    j->next = *pp;
-    *pp = j;
+    job *after = NULL, *k; /* by priority, then submission order */
+    TAILQ_FOREACH(k, &f->jobs, link) {
+        if (k->priority < j->priority) break;
+        after = k;
+    }
+    if (after) TAILQ_INSERT_AFTER(&f->jobs, after, j, link);
+    else TAILQ_INSERT_HEAD(&f->jobs, j, link);
     if (j->rep.tiles_done == j->tile_count)
         farm_job_finish(f, j);
     else
@@ -256,25 +263,20 @@ int farm_cancel(farm *f, uint32_t id) {
 }
 
 int farm_forget(farm *f, uint32_t id) {
-    for (job **pp = &f->jobs; *pp; pp = &(*pp)->next)
-        if ((*pp)->desc.id == id) {
-            job *j = *pp;
-            if (!j->finished) return -1;
-            for (peer *p = f->peers; p; p = p->next) /* leases of it die with it */
-                for (lease **lp = &p->leases; *lp;) {
-                    lease *l = *lp;
-                    if (l->job == j) {
-                        *lp = l->next;
-                        free(l);
-                    } else {
-                        lp = &l->next;
-                    }
-                }
-            *pp = j->next;
-            farm_job_free(j);
-            return 0;
-        }
-    return -1;
+    job *j = farm_find_job(f, id);
+    if (!j || !j->finished) return -1;
+    peer *p;
+    LIST_FOREACH(p, &f->peers, link) { /* leases of it die with it */
+        lease *l, *next;
+        LIST_FOREACH_SAFE(l, &p->leases, link, next)
+            if (l->job == j) {
+                LIST_REMOVE(l, link);
+                free(l);
+            }
+    }
+    TAILQ_REMOVE(&f->jobs, j, link);
+    farm_job_free(j);
+    return 0;
 }
 
 int farm_job_report(const farm *f, uint32_t id, farm_report *r) {

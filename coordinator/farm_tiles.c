@@ -16,9 +16,10 @@ static float *tile_decode(const uint8_t *body, const proto_tile *h, long *bad) {
 
 /* Another copy of tile t won: tell the other holders to stop. */
 static void job_cancel_copies(farm *f, job *j, uint32_t t, peer *winner) {
-    for (peer *p = f->peers; p; p = p->next) {
+    peer *p;
+    LIST_FOREACH(p, &f->peers, link) {
         if (p == winner) continue;
-        lease *l = peer_find_lease(p, j->desc.id, t, NULL);
+        lease *l = peer_find_lease(p, j->desc.id, t);
         if (!l || !l->live) continue;
         l->live = 0;
         j->holders[t]--;
@@ -35,7 +36,7 @@ int farm_on_tile(peer *p, const uint8_t *body, size_t len) {
     if (!peer_told_job(p, h.job))
         return peer_violation(p, "sent tile %u of job %u, a job it was not given", h.tile, h.job);
     if (!j) return 0; /* a job that ended and was forgotten: a late result */
-    lease **link, *l = peer_find_lease(p, h.job, h.tile, &link);
+    lease *l = peer_find_lease(p, h.job, h.tile);
     if (!l) return peer_violation(p, "sent tile %u of job %u, which was not assigned to it", h.tile, h.job);
     const tile_rect *r = &j->rects[h.tile];
     if (h.width != (uint32_t)tile_width(r) || h.height != (uint32_t)tile_height(r))
@@ -54,7 +55,7 @@ int farm_on_tile(peer *p, const uint8_t *body, size_t len) {
     }
     double took = farm_now(f) - l->start;
     int was_live = l->live;
-    *link = l->next;
+    LIST_REMOVE(l, link);
     free(l);
     if (was_live) j->holders[h.tile]--;
     if (j->finished || j->done[h.tile]) {

@@ -56,7 +56,8 @@ static void store_job_release(sjob *j) {
 }
 
 sjob *store_find_job(service *s, uint32_t id) {
-    for (sjob *j = s->jobs; j; j = j->next)
+    sjob *j;
+    TAILQ_FOREACH(j, &s->jobs, link)
         if (j->desc.id == id) return j;
     return NULL;
 }
@@ -161,25 +162,20 @@ sjob *store_job_new(service *s) {
     if (!j) return NULL;
     j->svc = s;
     j->tiles_fd = -1;
-    sjob **pp = &s->jobs;
-    while (*pp) pp = &(*pp)->next;
-    *pp = j;
+    TAILQ_INSERT_TAIL(&s->jobs, j, link);
     return j;
 }
 
 void store_job_unlink_free(service *s, sjob *j) {
-    for (sjob **pp = &s->jobs; *pp; pp = &(*pp)->next)
-        if (*pp == j) {
-            *pp = j->next;
-            break;
-        }
+    TAILQ_REMOVE(&s->jobs, j, link);
     store_job_release(j);
     free(j);
 }
 
 int store_running_jobs(const service *s) {
     int n = 0;
-    for (const sjob *j = s->jobs; j; j = j->next) n += j->state == SJOB_RUNNING;
+    const sjob *j;
+    TAILQ_FOREACH(j, &s->jobs, link) n += j->state == SJOB_RUNNING;
     return n;
 }
 

@@ -148,7 +148,8 @@ static void on_status(client *cl, const cJSON *m) {
     const cJSON *id = cJSON_GetObjectItemCaseSensitive(m, "job");
     cJSON *r = cJSON_CreateObject(), *arr = cJSON_AddArrayToObject(r, "jobs");
     cJSON_AddStringToObject(r, "type", "status");
-    for (sjob *j = s->jobs; j; j = j->next)
+    sjob *j;
+    TAILQ_FOREACH(j, &s->jobs, link)
         if (!cJSON_IsNumber(id) || id->valuedouble == j->desc.id) cJSON_AddItemToArray(arr, job_status_json(j));
     if (cJSON_IsNumber(id) && cJSON_GetArraySize(arr) == 0) {
         cJSON_Delete(r);
@@ -335,8 +336,8 @@ static void on_client(void *ctx, conn *c, const cJSON *hello, const char *addr) 
 static void on_expiry(uv_timer_t *t) {
     service *s = t->data;
     double now = svc_wall_now();
-    for (sjob *j = s->jobs, *next; j; j = next) {
-        next = j->next;
+    sjob *j, *next;
+    TAILQ_FOREACH_SAFE(j, &s->jobs, link, next) {
         if (j->state == SJOB_RUNNING || now - j->finished < s->o.keep_s) continue;
         static const char *const exts[] = {"json", "pfm", "tiles"};
         char path[4096];
@@ -385,6 +386,7 @@ int service_run(const service_options *o) {
     service *s = calloc(1, sizeof *s);
     char err[600];
     if (!s) return 1;
+    TAILQ_INIT(&s->jobs);
     s->o = *o;
     s->next_id = 1;
     if (prepare_data_dir(o->data_dir, err, sizeof err) || data_dir_lock(o->data_dir, err, sizeof err) < 0) {
@@ -415,7 +417,7 @@ int service_run(const service_options *o) {
     uv_timer_start(&s->expiry, on_expiry, 1000, 60000);
     uv_run(&s->loop, UV_RUN_DEFAULT);
     farm_free(s->f);
-    while (s->jobs) store_job_unlink_free(s, s->jobs);
+    while (!TAILQ_EMPTY(&s->jobs)) store_job_unlink_free(s, TAILQ_FIRST(&s->jobs));
     uv_loop_close(&s->loop);
     free(s);
     return 0;

@@ -36,6 +36,7 @@
 #include "fileio.h"
 #include "image/image.h"
 #include "limit.h"
+#include "list.h"
 #include "log.h"
 #include "net/conn.h"
 #include "net/wire.h"
@@ -65,7 +66,7 @@ typedef struct sjob {
     trace_stats stats;
     double submitted, started, finished; /* wall clock, seconds */
     int tiles_fd;
-    struct sjob *next;
+    TAILQ_ENTRY(sjob) link; /* on the service's jobs, oldest first */
 } sjob;
 
 typedef struct service {
@@ -74,7 +75,7 @@ typedef struct service {
     farm *f;
     uv_signal_t sigint, sigterm;
     uv_timer_t expiry;
-    sjob *jobs;
+    TAILQ_HEAD(sjob_list, sjob) jobs;
     uint32_t next_id;
     int stopping;
 } service;

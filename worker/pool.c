@@ -24,16 +24,15 @@ struct pool_job {
     pthread_mutex_t load_lock;
     int refs;  /* the pool's table (until ended) + one per task; under pool.lock */
     int ended;
-    pool_job *next;
+    LIST_ENTRY(pool_job) link; /* on the pool's table */
 };
 
 struct pool {
     pthread_mutex_t lock;
     pthread_cond_t cond;
-    pool_task *queue_head, *queue_tail;
-    pool_task *done_head, *done_tail;
+    STAILQ_HEAD(task_queue, pool_task) queue, done; /* waiting; finished, for the loop */
     pool_task **running; /* per thread, or NULL */
-    pool_job *jobs;
+    LIST_HEAD(job_table, pool_job) jobs;
     pthread_t *threads;
     int thread_count;
     int stopping;
@@ -51,11 +50,8 @@ typedef struct {
 
 /* Unlink j from the table; under the lock. */
 static void job_unlink(pool *p, pool_job *j) {
-    for (pool_job **pp = &p->jobs; *pp; pp = &(*pp)->next)
-        if (*pp == j) {
-            *pp = j->next;
-            break;
-        }
+    (void)p;
+    LIST_REMOVE(j, link);
 }
 
 static void job_free(pool_job *j) {
@@ -161,12 +157,7 @@ static void task_render(pool *p, pool_task *t) {
 
 /* Append t to the finished list; under the lock. */
 static void done_append(pool *p, pool_task *t) {
-    t->next = NULL;
-    if (p->done_tail)
-        p->done_tail->next = t;
-    else
-        p->done_head = t;
-    p->done_tail = t;
+    STAILQ_INSERT_TAIL(&p->done, t, link);
 }
 
 static void *pool_thread(void *arg) {
@@ -174,11 +165,10 @@ static void *pool_thread(void *arg) {
     pool *p = ta->p;
     pthread_mutex_lock(&p->lock);
     for (;;) {
-        while (!p->stopping && !p->queue_head) pthread_cond_wait(&p->cond, &p->lock);
+        while (!p->stopping && STAILQ_EMPTY(&p->queue)) pthread_cond_wait(&p->cond, &p->lock);
         if (p->stopping) break;
-        pool_task *t = p->queue_head;
-        p->queue_head = t->next;
-        if (!p->queue_head) p->queue_tail = NULL;
+        pool_task *t = STAILQ_FIRST(&p->queue);
+        STAILQ_REMOVE_HEAD(&p->queue, link);
         p->running[ta->index] = t;
         pthread_mutex_unlock(&p->lock);
         if (atomic_load(&t->cancel))
@@ -208,6 +198,9 @@ pool *pool_new(int threads, int throttle_ms, void (*wake)(void *), void *ctx) {
     if (p->hold_path && getenv("TESSERA_TEST_HOLD_AFTER")) p->hold_after = atol(getenv("TESSERA_TEST_HOLD_AFTER"));
     p->wake = wake;
     p->ctx = ctx;
+    STAILQ_INIT(&p->queue);
+    STAILQ_INIT(&p->done);
+    LIST_INIT(&p->jobs);
     pthread_mutex_init(&p->lock, NULL);
     pthread_cond_init(&p->cond, NULL);
     if (!p->running || !p->threads) {
@@ -237,13 +230,13 @@ void pool_free(pool *p) {
     for (int i = 0; i < p->thread_count; i++) pthread_join(p->threads[i], NULL);
     pool_task *t = pool_take_done(p);
     while (t) {
-        pool_task *next = t->next;
+        pool_task *next = STAILQ_NEXT(t, link);
         pool_task_free(p, t);
         t = next;
     }
-    while (p->jobs) {
-        pool_job *j = p->jobs;
-        p->jobs = j->next;
+    while (!LIST_EMPTY(&p->jobs)) {
+        pool_job *j = LIST_FIRST(&p->jobs);
+        LIST_REMOVE(j, link);
         job_unref(j);
     }
     pthread_mutex_destroy(&p->lock);
@@ -265,16 +258,16 @@ pool_job *pool_job_new(pool *p, const proto_job *desc, scene_bundle *b) {
     pthread_mutex_init(&j->load_lock, NULL);
     j->refs = 1;
     pthread_mutex_lock(&p->lock);
-    j->next = p->jobs;
-    p->jobs = j;
+    LIST_INSERT_HEAD(&p->jobs, j, link);
     pthread_mutex_unlock(&p->lock);
     return j;
 }
 
 pool_job *pool_job_find(pool *p, uint32_t id) {
     pthread_mutex_lock(&p->lock);
-    pool_job *j = p->jobs;
-    while (j && j->desc.id != id) j = j->next;
+    pool_job *j;
+    LIST_FOREACH(j, &p->jobs, link)
+        if (j->desc.id == id) break;
     pthread_mutex_unlock(&p->lock);
     return j;
 }
@@ -282,7 +275,7 @@ pool_job *pool_job_find(pool *p, uint32_t id) {
 /* Any live job, or NULL. */
 static pool_job *pool_job_first(pool *p) {
     pthread_mutex_lock(&p->lock);
-    pool_job *j = p->jobs;
+    pool_job *j = LIST_FIRST(&p->jobs);
     pthread_mutex_unlock(&p->lock);
     return j;
 }
@@ -294,20 +287,14 @@ const proto_job *pool_job_desc(const pool_job *j) { return &j->desc; }
  * lock. Returns how many matched. */
 static int cancel_matching(pool *p, const pool_job *job, int match_tile, uint32_t tile) {
     int n = 0;
-    pool_task **pp = &p->queue_head, *prev = NULL;
-    while (*pp) {
-        pool_task *t = *pp;
+    pool_task *t, *next;
+    STAILQ_FOREACH_SAFE(t, &p->queue, link, next)
         if ((!job || t->job == job) && (!match_tile || t->assign.tile == tile)) {
-            *pp = t->next;
+            STAILQ_REMOVE(&p->queue, t, pool_task, link);
             t->status = TASK_CANCELLED;
             done_append(p, t);
             n++;
-        } else {
-            prev = t;
-            pp = &t->next;
         }
-    }
-    p->queue_tail = prev;
     for (int i = 0; i < p->thread_count; i++) {
         pool_task *t = p->running[i];
         if (t && (!job || t->job == job) && (!match_tile || t->assign.tile == tile)) {
@@ -345,11 +332,7 @@ int pool_push(pool *p, pool_job *j, const proto_assign *a, uint64_t generation) 
     atomic_init(&t->cancel, 0);
     pthread_mutex_lock(&p->lock);
     j->refs++;
-    if (p->queue_tail)
-        p->queue_tail->next = t;
-    else
-        p->queue_head = t;
-    p->queue_tail = t;
+    STAILQ_INSERT_TAIL(&p->queue, t, link);
     pthread_cond_signal(&p->cond);
     pthread_mutex_unlock(&p->lock);
     return 0;
@@ -357,8 +340,9 @@ int pool_push(pool *p, pool_job *j, const proto_assign *a, uint64_t generation) 
 
 int pool_cancel(pool *p, uint32_t job, uint32_t tile) {
     pthread_mutex_lock(&p->lock);
-    pool_job *j = p->jobs;
-    while (j && j->desc.id != job) j = j->next;
+    pool_job *j;
+    LIST_FOREACH(j, &p->jobs, link)
+        if (j->desc.id == job) break;
     int n = j ? cancel_matching(p, j, 1, tile) : 0;
     pthread_mutex_unlock(&p->lock);
     if (n) p->wake(p->ctx);
@@ -374,8 +358,8 @@ void pool_cancel_all(pool *p) {
 
 pool_task *pool_take_done(pool *p) {
     pthread_mutex_lock(&p->lock);
-    pool_task *t = p->done_head;
-    p->done_head = p->done_tail = NULL;
+    pool_task *t = STAILQ_FIRST(&p->done); /* the list's elements stay chained */
+    STAILQ_INIT(&p->done);
     pthread_mutex_unlock(&p->lock);
     return t;
 }

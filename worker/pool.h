@@ -15,6 +15,7 @@
 #include <stdint.h>
 
 #include "job/job.h"
+#include "list.h"
 #include "net/protocol.h"
 #include "render/scene_bundle.h"
 
@@ -33,7 +34,7 @@ typedef struct pool_task {
     uint8_t *frame; /* TASK_DONE: the complete 'T' frame; the loop frees it */
     size_t frame_len;
     char error[512]; /* TASK_FAILED: why */
-    struct pool_task *next;
+    STAILQ_ENTRY(pool_task) link; /* on the pool's queue or finished list */
 } pool_task;
 
 /* Start `threads` render threads. wake(ctx) is called from a render thread
@@ -73,9 +74,9 @@ int pool_cancel(pool *p, uint32_t job, uint32_t tile);
 /* Cancel every task (queued ones come back as TASK_CANCELLED). */
 void pool_cancel_all(pool *p);
 
-/* Finished tasks, oldest first, as a list whose tasks the caller frees with
- * pool_task_free (which releases the task's hold on its job). Can't fail;
- * NULL when none. */
+/* Finished tasks, oldest first: the first, the others following it by
+ * STAILQ_NEXT(t, link); the caller frees each with pool_task_free (which
+ * releases the task's hold on its job). Can't fail; NULL when none. */
 pool_task *pool_take_done(pool *p);
 void pool_task_free(pool *p, pool_task *t);
 

@@ -121,7 +121,7 @@ static void on_wake(uv_async_t *a) {
     int freed = 0;
     if (!w->pool) return;
     for (pool_task *t = pool_take_done(w->pool), *next; t; t = next) {
-        next = t->next;
+        next = STAILQ_NEXT(t, link);
         w->held--;
         freed++;
         if (t->generation == w->generation && w->welcomed) {
