@@ -39,13 +39,6 @@ int store_save_job(sjob *j, char *err, size_t err_len) {
     return rc;
 }
 
-static uint32_t record_check(uint32_t tile, const float *px, size_t n) {
-    uint32_t h = 2166136261u ^ tile; /* FNV-1a over the bytes: catches torn writes */
-    const uint8_t *b = (const uint8_t *)px;
-    for (size_t i = 0; i < 4 * n; i++) h = (h ^ b[i]) * 16777619u;
-    return h;
-}
-
 static void store_job_release(sjob *j) {
     free(j->rgb);
     free(j->journaled);
@@ -73,7 +66,7 @@ static int store_on_tile_done(void *ctx, uint32_t tile, const tile_rect *r, char
         snprintf(err, err_len, "out of memory journaling tile %u", tile);
         return -1;
     }
-    wire_put_u32(rec, TILE_MAGIC);
+    wire_put_u32(rec, JOURNAL_MAGIC);
     wire_put_u32(rec + 4, tile);
     wire_put_u32(rec + 8, (uint32_t)n);
     float *px = (float *)malloc(4 * n);
@@ -81,7 +74,7 @@ static int store_on_tile_done(void *ctx, uint32_t tile, const tile_rect *r, char
         memcpy(px + 3 * w * (size_t)(y - r->y0), j->rgb + 3 * ((size_t)y * (size_t)j->desc.width + (size_t)r->x0),
                12 * w);
     for (size_t i = 0; px && i < n; i++) wire_put_f32(rec + 12 + 4 * i, px[i]);
-    if (px) wire_put_u32(rec + 12 + 4 * n, record_check(tile, px, n));
+    if (px) wire_put_u32(rec + 12 + 4 * n, journal_record_check(tile, px, n));
     size_t written = 0;
     int e = px ? 0 : ENOMEM;
     while (!e && written < len) { /* a short write (disk full, file limit) is followed by the error */
@@ -186,27 +179,8 @@ static void replay_tiles(service *s, sjob *j, const tile_rect *rects) {
     size_t len = 0;
     char *data = file_read_all(path, (size_t)1 << 40, &len, err, sizeof err);
     if (!data) return; /* no journal yet */
-    size_t off = 0;
-    while (off + 16 <= len) {
-        const uint8_t *p = (const uint8_t *)data + off;
-        uint32_t tile = wire_get_u32(p + 4), n = wire_get_u32(p + 8);
-        if (wire_get_u32(p) != TILE_MAGIC || tile >= (uint32_t)j->tile_count) break;
-        const tile_rect *r = &rects[tile];
-        size_t w = (size_t)tile_width(r);
-        if (n != 3 * w * (size_t)tile_height(r) || off + 16 + 4 * (size_t)n > len) break;
-        float *px = malloc(4 * (size_t)n);
-        if (!px) break;
-        for (uint32_t i = 0; i < n; i++) px[i] = wire_get_f32(p + 12 + 4 * i);
-        int ok = record_check(tile, px, n) == wire_get_u32(p + 12 + 4 * (size_t)n);
-        for (int y = r->y0; ok && y < r->y1; y++)
-            memcpy(j->rgb + 3 * ((size_t)y * (size_t)j->desc.width + (size_t)r->x0), px + 3 * w * (size_t)(y - r->y0),
-                   12 * w);
-        free(px);
-        if (!ok) break;
-        if (!j->journaled[tile]) j->tiles_resumed++;
-        j->journaled[tile] = 1;
-        off += 16 + 4 * (size_t)n;
-    }
+    film f = {j->rgb, j->desc.width, j->desc.height, 3};
+    size_t off = journal_replay((const uint8_t *)data, len, rects, j->tile_count, &f, j->journaled, &j->tiles_resumed);
     if (off < len) {
         svc_log("job %u: %s: dropping %zu bytes of a torn or corrupt record at the end", j->desc.id, path, len - off);
         if (truncate(path, (off_t)off) != 0) svc_log("%s: cannot truncate: %s", path, strerror(errno));

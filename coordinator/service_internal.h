@@ -42,10 +42,9 @@
 #include "net/wire.h"
 #include "render/scene.h"
 #include "data_lock.h"
-#include "journal_partial.h"
+#include "journal.h"
 #include "service.h"
 
-#define TILE_MAGIC 0x454c4954u /* "TILE" */
 #define WIRE_KIND_IMAGE 'I'
 
 typedef enum { SJOB_RUNNING, SJOB_DONE, SJOB_FAILED, SJOB_CANCELLED } sjob_state;
