@@ -40,6 +40,8 @@ CFLAGS := $(CFLAGS_COMMON) $(CFLAGS_OPT) -I$(BUILD)
 LDLIBS := -lcjson -lpng16 -ljpeg -lOpenEXRCore-3_1 -lsodium -luv -lpthread -lm
 LDFLAGS := $(LDFLAGS_V)
 
+.DEFAULT_GOAL := all
+
 # Layers (README "Where things are"): one static library per folder of
 # common/, linked in this order (a library may use only those after it):
 # job (what a job and a tile are on the wire) over render, image and net,
