@@ -80,11 +80,11 @@ stamp() { sed -n "s/^tessera.sbatch: $2 \([0-9.]*\).*/\1/p" "$1" | head -1; }
 
 if [ "$MODE" = "--bench-layout" ]; then
     # Same job, two layouts, rounds interleaved: the render's own seconds.
-    echo "layout bench: cornell-box 256x256 16 spp on $(nproc) CPUs, sbatch -n $(nproc), $ROUNDS rounds"
+    echo "layout bench: cornell-box 512x512 16 spp on $(nproc) CPUs, sbatch -n $(nproc), $ROUNDS rounds"
     for r in $(seq 1 "$ROUNDS"); do
         for layout in node task; do
             j=$(TESSERA_LAYOUT=$layout sbatch --parsable -n "$(nproc)" "$SBATCH_RENDER" "$ROOT/scenes/cornell-box.json" \
-                --width 256 --height 256 --spp 16 -o "bench-$layout.pfm")
+                --width 512 --height 512 --spp 16 -o "bench-$layout.pfm")
             wait_gone "$j" 300 >/dev/null
             secs=$(sed -n 's/^rendered .*: \([0-9.]*\) s, \([0-9.]*\) Msamples.*/\1 s \2 Msamples\/s/p' "tessera-$j.log")
             echo "round $r layout $layout: $secs ($(job_exit "$j"))"
