@@ -32,7 +32,13 @@ fi
 
 # shellcheck source=tests/slurm/cluster.sh
 source "$ROOT/tests/slurm/cluster.sh"
-trap 'cluster_stop' EXIT
+BG_PIDS=() # our own background processes (coordinators, workers, srun), stopped on exit
+cleanup() {
+    local p
+    for p in "${BG_PIDS[@]}"; do kill "$p" 2>/dev/null; done
+    cluster_stop
+}
+trap cleanup EXIT
 trap 'exit 130' INT TERM
 cluster_start "$ROOT/build/slurm" || { echo "slurm-test: could not start the test cluster" >&2; exit 1; }
 WORK=$SLURM_DIR/work
@@ -136,6 +142,7 @@ if wait_text "$log" "coordinator at " 60; then
     srun --jobid="$j" --overlap -n 1 --job-name=extra "$BIN/tessera-worker" --connect "$addr" --threads 1 \
         --name extra --throttle-ms 40 --token-file "/tmp/tessera-token-$j" --idle-exit 3 >extra.log 2>&1 &
     extra=$!
+    BG_PIDS+=("$extra")
     wait_text "$log" "worker extra (" 60 || fail "the extra step's worker never joined; logs $WORK/$log $WORK/extra.log"
     sleep 0.5
     step=$(squeue -h -s -j "$j" -o "%i %j" | awk '$2 == "extra" { print $1 }')
@@ -161,6 +168,7 @@ port=$(cluster_free_port)
 rm -rf svc
 "$BIN/tessera-coordinator" --listen "127.0.0.1:$port" --data-dir svc --token-file token -v >svc.log 2>&1 &
 svc=$!
+BG_PIDS+=("$svc")
 wait_text svc.log "listening on" 30 || fail "the job service did not start; log $WORK/svc.log"
 a=$(TESSERA_TOKEN_FILE=$WORK/token TESSERA_IDLE_EXIT=3 sbatch --parsable --array=1-2 -c 1 "$SBATCH_POOL" "127.0.0.1:$port")
 export TESSERA_COORDINATOR=127.0.0.1:$port TESSERA_TOKEN_FILE=$WORK/token
@@ -191,6 +199,7 @@ port=$(cluster_free_port)
 "$BIN/tessera" render "$SCENE" --tile-size 8 --no-progress -v -o timelimit.pfm --listen "127.0.0.1:$port" \
     >timelimit-coord.log 2>&1 &
 coord=$!
+BG_PIDS+=("$coord")
 wait_text timelimit-coord.log "coordinator listening on" 30 || fail "coordinator did not start"
 # One slow worker (2 s a tile, 64 tiles) under a 1-minute limit: still busy when the limit hits.
 j=$(TESSERA_WORKER_ARGS="--threads 1 --throttle-ms 2000" sbatch --parsable --time=1 -c 1 "$SBATCH_POOL" "127.0.0.1:$port")
@@ -205,6 +214,7 @@ echo "    $(grep -h -o "SIGTERM: abandoning .*" tessera-pool-"$j"*.log | head -1
 # Another worker finishes the render: the same bytes.
 "$BIN/tessera-worker" --connect "127.0.0.1:$port" --threads 2 --idle-exit 2 >timelimit-w.log 2>&1 &
 finisher=$!
+BG_PIDS+=("$finisher")
 wait "$coord" || fail "the coordinator failed; log $WORK/timelimit-coord.log"
 wait "$finisher" || fail "the finishing worker did not exit 0; log $WORK/timelimit-w.log"
 cmp -s timelimit.pfm ref.pfm || fail "timelimit.pfm differs from the single-process render"
