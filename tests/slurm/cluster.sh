@@ -10,6 +10,7 @@
 
 # Set by cluster_start.
 SLURM_DIR=""
+MUNGE_SOCKET="" # $SLURM_DIR/munge.socket, or under /tmp when that path is too long for a socket
 CLUSTER_PIDS=()
 
 # A TCP port on 127.0.0.1 nobody answers on right now (best effort).
@@ -51,7 +52,7 @@ SlurmUser=root
 SlurmdUser=root
 AuthType=auth/munge
 CredType=cred/munge
-AuthInfo=socket=$d/munge.socket
+AuthInfo=socket=$MUNGE_SOCKET
 StateSaveLocation=$d/state
 SlurmdSpoolDir=$d/spool
 SlurmctldPidFile=$d/slurmctld.pid
@@ -88,12 +89,17 @@ cluster_start() {
     rm -rf "$SLURM_DIR"
     mkdir -p "$SLURM_DIR/state" "$SLURM_DIR/spool" "$SLURM_DIR/munge"
     chmod 700 "$SLURM_DIR" "$SLURM_DIR/munge"
+    MUNGE_SOCKET=$SLURM_DIR/munge.socket
+    if [ ${#MUNGE_SOCKET} -gt 100 ]; then # sun_path holds 108 bytes
+        MUNGE_SOCKET=$(mktemp -d /tmp/tessera-munge.XXXXXX)/munge.socket || return 1
+        echo "$(dirname "$MUNGE_SOCKET")" >"$SLURM_DIR/munge-socket-dir"
+    fi
     cluster_write_conf "$SLURM_DIR" || { echo "cluster: no free port" >&2; return 1; }
     export SLURM_CONF="$SLURM_DIR/slurm.conf"
     local d=$SLURM_DIR
     # munge: our own key, socket, pid, log and seed.
     dd if=/dev/urandom of="$d/munge/munge.key" bs=1024 count=1 status=none && chmod 400 "$d/munge/munge.key"
-    munged --force --socket="$d/munge.socket" --key-file="$d/munge/munge.key" --pid-file="$d/munged.pid" \
+    munged --force --socket="$MUNGE_SOCKET" --key-file="$d/munge/munge.key" --pid-file="$d/munged.pid" \
         --log-file="$d/munged.log" --seed-file="$d/munge/munged.seed" || {
         echo "cluster: munged did not start; see $d/munged.log" >&2; return 1; }
     CLUSTER_PIDS+=("$d/munged.pid:munged")
@@ -118,6 +124,10 @@ cluster_stop_daemons() {
     cluster_kill_pidfile "$SLURM_DIR/slurmd.pid" slurmd
     cluster_kill_pidfile "$SLURM_DIR/slurmctld.pid" slurmctld
     cluster_kill_pidfile "$SLURM_DIR/munged.pid" munged
+    if [ -s "$SLURM_DIR/munge-socket-dir" ]; then
+        rm -rf "$(cat "$SLURM_DIR/munge-socket-dir")"
+        rm -f "$SLURM_DIR/munge-socket-dir"
+    fi
 }
 
 cluster_stop() {
