@@ -10,7 +10,7 @@
 
 # Set by cluster_start.
 SLURM_DIR=""
-MUNGE_SOCKET="" # $SLURM_DIR/munge.socket, or under /tmp when that path is too long for a socket
+MUNGE_SOCKET="" # $SLURM_DIR/munge.socket, through a short link in /tmp when $SLURM_DIR is deep
 CLUSTER_PIDS=()
 
 # A TCP port on 127.0.0.1 nobody answers on right now (best effort).
@@ -89,14 +89,16 @@ cluster_start() {
     rm -rf "$SLURM_DIR"
     mkdir -p "$SLURM_DIR/state" "$SLURM_DIR/spool" "$SLURM_DIR/munge"
     chmod 700 "$SLURM_DIR" "$SLURM_DIR/munge"
-    MUNGE_SOCKET=$SLURM_DIR/munge.socket
-    if [ ${#MUNGE_SOCKET} -gt 100 ]; then # sun_path holds 108 bytes
-        MUNGE_SOCKET=$(mktemp -d /tmp/tessera-munge.XXXXXX)/munge.socket || return 1
-        echo "$(dirname "$MUNGE_SOCKET")" >"$SLURM_DIR/munge-socket-dir"
-    fi
-    cluster_write_conf "$SLURM_DIR" || { echo "cluster: no free port" >&2; return 1; }
-    export SLURM_CONF="$SLURM_DIR/slurm.conf"
+    # munged and slurmstepd make unix sockets in here (at most 108 bytes a
+    # path): name a deep build folder through a short link in /tmp.
     local d=$SLURM_DIR
+    if [ ${#d} -gt 50 ]; then
+        d=$(mktemp -u /tmp/tessera-slurm.XXXXXX) && ln -s "$SLURM_DIR" "$d" || return 1
+        echo "$d" >"$SLURM_DIR/short-link"
+    fi
+    MUNGE_SOCKET=$d/munge.socket
+    cluster_write_conf "$d" || { echo "cluster: no free port" >&2; return 1; }
+    export SLURM_CONF="$d/slurm.conf"
     # munge: our own key, socket, pid, log and seed.
     dd if=/dev/urandom of="$d/munge/munge.key" bs=1024 count=1 status=none && chmod 400 "$d/munge/munge.key"
     munged --force --socket="$MUNGE_SOCKET" --key-file="$d/munge/munge.key" --pid-file="$d/munged.pid" \
@@ -107,8 +109,8 @@ cluster_start() {
     CLUSTER_PIDS+=("$d/slurmctld.pid:slurmctld")
     slurmd -f "$SLURM_CONF" || { echo "cluster: slurmd did not start; see $d/slurmd.log" >&2; return 1; }
     CLUSTER_PIDS+=("$d/slurmd.pid:slurmd")
-    local state=""
-    for _ in $(seq 1 300); do
+    local state="" end=$((SECONDS + 30))
+    while [ "$SECONDS" -lt "$end" ]; do
         state=$(sinfo -h -N -o %T 2>/dev/null | head -1)
         [ "$state" = "idle" ] && return 0
         sleep 0.1
@@ -124,9 +126,10 @@ cluster_stop_daemons() {
     cluster_kill_pidfile "$SLURM_DIR/slurmd.pid" slurmd
     cluster_kill_pidfile "$SLURM_DIR/slurmctld.pid" slurmctld
     cluster_kill_pidfile "$SLURM_DIR/munged.pid" munged
-    if [ -s "$SLURM_DIR/munge-socket-dir" ]; then
-        rm -rf "$(cat "$SLURM_DIR/munge-socket-dir")"
-        rm -f "$SLURM_DIR/munge-socket-dir"
+    if [ -s "$SLURM_DIR/short-link" ]; then
+        local link; link=$(cat "$SLURM_DIR/short-link")
+        [ -L "$link" ] && rm -f "$link"
+        rm -f "$SLURM_DIR/short-link"
     fi
 }
 
@@ -134,7 +137,8 @@ cluster_stop() {
     [ -n "$SLURM_DIR" ] || return 0
     if [ -s "$SLURM_DIR/slurmctld.pid" ]; then
         scancel --full --quiet --user=root 2>/dev/null || true
-        for _ in $(seq 1 100); do
+        local end=$((SECONDS + 10))
+        while [ "$SECONDS" -lt "$end" ]; do
             [ -z "$(squeue -h -o %i 2>/dev/null)" ] && break
             sleep 0.1
         done

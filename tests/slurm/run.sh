@@ -62,11 +62,14 @@ finish() {
 now() { date +%s.%N; }
 sub() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.2f", a - b }'; }
 
-# Wait until job $1 is no longer in squeue (up to $2 s); prints the time it left.
+# Wait until job $1 is no longer in squeue (up to $2 s); GONE_AT = when it
+# left. (Not in a $(...) subshell, so a signal reaches the trap at once.)
+GONE_AT=""
 wait_gone() {
-    local j=$1 limit=${2:-120} t
-    for _ in $(seq 1 $((limit * 20))); do
-        if [ -z "$(squeue -h -j "$j" -o %i 2>/dev/null)" ]; then now; return 0; fi
+    local j=$1 end=$((SECONDS + ${2:-120}))
+    GONE_AT=""
+    while [ "$SECONDS" -lt "$end" ]; do
+        if [ -z "$(squeue -h -j "$j" -o %i 2>/dev/null)" ]; then GONE_AT=$(now); return 0; fi
         sleep 0.05
     done
     return 1
@@ -75,7 +78,8 @@ wait_gone() {
 job_exit() { scontrol show job "$1" 2>/dev/null | sed -n 's/.* ExitCode=\([0-9:]*\).*/\1/p' | head -1; }
 # Wait up to $3 s for file $1 to contain $2.
 wait_text() {
-    for _ in $(seq 1 $(($3 * 20))); do grep -q -- "$2" "$1" 2>/dev/null && return 0; sleep 0.05; done
+    local end=$((SECONDS + $3))
+    while [ "$SECONDS" -lt "$end" ]; do grep -q -- "$2" "$1" 2>/dev/null && return 0; sleep 0.05; done
     return 1
 }
 # The number after "$2" on a "tessera.sbatch: ..." line of log $1.
@@ -91,7 +95,7 @@ if [ "$MODE" = "--bench-layout" ]; then
         for layout in node task; do
             j=$(TESSERA_LAYOUT=$layout sbatch --parsable -n "$(nproc)" "$SBATCH_RENDER" "$ROOT/scenes/cornell-box.json" \
                 --width 512 --height 512 --spp 16 -o "bench-$layout.pfm")
-            wait_gone "$j" 300 >/dev/null
+            wait_gone "$j" 300
             secs=$(sed -n 's/^rendered .*: \([0-9.]*\) s, \([0-9.]*\) Msamples.*/\1 s \2 Msamples\/s/p' "tessera-$j.log")
             echo "round $r layout $layout: $secs ($(job_exit "$j"))"
         done
@@ -104,7 +108,8 @@ fi
 begin sbatch_render_identical
 t_submit=$(now)
 j=$(sbatch --parsable -n 2 "$SBATCH_RENDER" "$SCENE" -o sbatch.pfm)
-t_gone=$(wait_gone "$j" 120) || fail "job $j still queued after 120 s"
+wait_gone "$j" 120 || fail "job $j still queued after 120 s"
+t_gone=$GONE_AT
 log=tessera-$j.log
 [ "$(job_exit "$j")" = "0:0" ] || fail "job $j exit code $(job_exit "$j"), want 0:0; log $WORK/$log"
 cmp -s sbatch.pfm ref.pfm || fail "sbatch.pfm differs from the single-process render; log $WORK/$log"
@@ -125,7 +130,7 @@ finish
 # ---- the job's exit status is the render's
 begin sbatch_exit_status_is_the_renders
 j=$(sbatch --parsable -n 1 "$SBATCH_RENDER" "$WORK/no-such-scene.json" -o never.pfm)
-wait_gone "$j" 60 >/dev/null || fail "job $j still queued after 60 s"
+wait_gone "$j" 60 || fail "job $j still queued after 60 s"
 [ "$(job_exit "$j")" = "1:0" ] || fail "job $j exit code $(job_exit "$j"), want 1:0 (tessera's); log $WORK/tessera-$j.log"
 grep -q "no-such-scene.json" "tessera-$j.log" || fail "the log does not name the missing scene; $WORK/tessera-$j.log"
 [ ! -e never.pfm ] || fail "an image was written for a failed render"
@@ -148,7 +153,7 @@ if wait_text "$log" "coordinator at " 60; then
     step=$(squeue -h -s -j "$j" -o "%i %j" | awk '$2 == "extra" { print $1 }')
     [ -n "$step" ] && scancel "$step" || fail "no step named extra to cancel"
     wait "$extra"
-    wait_gone "$j" 120 >/dev/null || fail "job $j still queued after 120 s"
+    wait_gone "$j" 120 || fail "job $j still queued after 120 s"
     [ "$(job_exit "$j")" = "0:0" ] || fail "job $j exit code $(job_exit "$j"); log $WORK/$log"
     cmp -s scancel.pfm ref.pfm || fail "scancel.pfm differs from the single-process render; log $WORK/$log"
     grep -q "worker extra (.*its unfinished tiles go back to the queue" "$log" ||
@@ -181,7 +186,8 @@ cmp -s pool.pfm ref.pfm || fail "pool.pfm differs from the single-process render
 for t in 1 2; do
     grep -q "slurm-${a}-$t" workers.txt || fail "array task $t is not among the service's workers: $(cat workers.txt)"
 done
-t_gone=$(wait_gone "$a" 60) || fail "pool $a still queued 60 s after the job"
+wait_gone "$a" 60 || fail "pool $a still queued 60 s after the job"
+t_gone=$GONE_AT
 for t in 1 2; do
     f=tessera-pool-${a}_$t.log
     grep -q "no work from the coordinator at 127.0.0.1:$port for .* (--idle-exit 3); leaving" "$f" ||
@@ -204,7 +210,7 @@ wait_text timelimit-coord.log "coordinator listening on" 30 || fail "coordinator
 # One slow worker (2 s a tile, 64 tiles) under a 1-minute limit: still busy when the limit hits.
 j=$(TESSERA_WORKER_ARGS="--threads 1 --throttle-ms 2000" sbatch --parsable --time=1 -c 1 "$SBATCH_POOL" "127.0.0.1:$port")
 wait_text timelimit-coord.log "worker slurm-$j-0 (" 60 || fail "the worker under the time limit never joined"
-t_gone=$(wait_gone "$j" 150) || fail "job $j still running 150 s after its 1-minute limit"
+wait_gone "$j" 150 || fail "job $j still running 150 s after its 1-minute limit"
 grep -q "SIGTERM: abandoning [1-9][0-9]* tiles" tessera-pool-"$j"*.log ||
     fail "the worker did not get SIGTERM while holding tiles; log $WORK/$(ls tessera-pool-"$j"*.log 2>/dev/null)"
 grep -q "worker slurm-$j-0 (.*left: worker left (.*its unfinished tiles go back to the queue" timelimit-coord.log ||
