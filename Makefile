@@ -216,3 +216,14 @@ install: $(if $(filter $(BUILD)/bin,$(INSTALL_FROM)),$(TESSERA) $(WORKER))
 uninstall:
 	rm -f "$(DESTDIR)$(PREFIX)/bin/tessera" "$(DESTDIR)$(PREFIX)/bin/tessera-worker" \
 	      "$(DESTDIR)$(PREFIX)/bin/tessera-coordinator"
+# Slurm (docs/slurm.md): the batch scripts in docker/slurm/ against a real,
+# private one-node cluster under build/slurm/ (tests/slurm/run.sh: needs
+# root, installs slurm-wlm and munge when missing, stops exactly the daemons
+# it started; prints "slurm-test: skipped (...)" when it cannot run).
+.PHONY: slurm-test slurm-bench
+slurm-test: $(TESSERA) $(WORKER)
+	tests/slurm/run.sh $(BUILD)/bin
+# One worker per node (--threads = its CPUs) against one per Slurm task.
+SLURM_BENCH_ROUNDS ?= 3
+slurm-bench: $(TESSERA) $(WORKER)
+	tests/slurm/run.sh $(BUILD)/bin --bench-layout $(SLURM_BENCH_ROUNDS)

@@ -1,4 +1,4 @@
-/* main.c - `tessera-worker --connect HOST:PORT [--threads N] [--name NAME]`:
+/* main.c - `tessera-worker --connect HOST:PORT [--threads N] [--name NAME] [--idle-exit S]`:
  * command-line parsing for a farm worker (worker.c does the work). */
 #define _GNU_SOURCE
 #include <errno.h>
@@ -28,6 +28,9 @@ static void usage(FILE *f) {
             "      --prefetch N         tiles held beyond one per thread (default 1)\n"
             "      --retry-max S        longest wait between connection attempts (default 5)\n"
             "      --once               exit when the connection ends (local farms)\n"
+            "      --idle-exit S        leave (status 0) after S seconds with no tile in hand:\n"
+            "                           no coordinator reachable, or none that gives work\n"
+            "                           (batch schedulers: frees the allocation; default: never)\n"
             "      --throttle-ms MS     sleep after each tile: simulates a slow machine (tests)\n"
             "      --token-file F       prove this shared secret to the coordinator (default:\n"
             "                           $TESSERA_TOKEN_FILE; none: no authentication)\n"
@@ -44,13 +47,14 @@ static long parse_long(const char *opt, const char *s, long lo, long hi) {
     return args_long("tessera-worker", opt, s, lo, hi);
 }
 
-enum { OPT_PREFETCH = 256, OPT_ONCE, OPT_THROTTLE, OPT_RETRY, OPT_VERSION, OPT_TOKEN };
+enum { OPT_PREFETCH = 256, OPT_ONCE, OPT_THROTTLE, OPT_RETRY, OPT_VERSION, OPT_TOKEN, OPT_IDLE_EXIT };
 
 int main(int argc, char **argv) {
     static const struct option opts[] = {
         {"connect", required_argument, 0, 'c'}, {"threads", required_argument, 0, 't'},
         {"name", required_argument, 0, 'n'}, {"prefetch", required_argument, 0, OPT_PREFETCH},
         {"retry-max", required_argument, 0, OPT_RETRY}, {"once", no_argument, 0, OPT_ONCE},
+        {"idle-exit", required_argument, 0, OPT_IDLE_EXIT},
         {"throttle-ms", required_argument, 0, OPT_THROTTLE}, {"verbose", no_argument, 0, 'v'},
         {"quiet", no_argument, 0, 'q'}, {"token-file", required_argument, 0, OPT_TOKEN}, {"version", no_argument, 0, OPT_VERSION}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
     signal(SIGPIPE, SIG_IGN); /* a vanished coordinator is an error to handle, not a reason to die */
@@ -66,6 +70,7 @@ int main(int argc, char **argv) {
         case OPT_PREFETCH: cfg.prefetch = (int)parse_long("--prefetch", optarg, 0, 1024); break;
         case OPT_RETRY: cfg.retry_max_s = (double)parse_long("--retry-max", optarg, 1, 3600); break;
         case OPT_ONCE: cfg.once = 1; break;
+        case OPT_IDLE_EXIT: cfg.idle_exit_s = args_double("tessera-worker", "--idle-exit", optarg, 0.1, 1e7); break;
         case OPT_THROTTLE: cfg.throttle_ms = (int)parse_long("--throttle-ms", optarg, 0, 600000); break;
         case 'v': cfg.verbose = 1; break;
         case 'q': cfg.quiet = 1; break;

@@ -47,6 +47,8 @@ typedef struct {
     double backoff;       /* seconds before the next attempt */
     double next_attempt;  /* loop time (s) of the next connection attempt */
     double last_heard, last_sent, last_tick;
+    double last_work;     /* loop time (s) a tile was last in hand (--idle-exit) */
+    double last_welcomed; /* loop time (s) a coordinator was last connected */
     double heartbeat_s, timeout_s;
     char nonce[AUTH_HEX]; /* ours, for the coordinator to prove itself */
     cached_bundle bundles[WORKER_MAX_BUNDLES];
@@ -56,6 +58,7 @@ typedef struct {
 } worker;
 
 static void close_handles(worker *w);
+static void check_idle(worker *w, double now);
 
 static double now_s(worker *w) { return (double)uv_now(&w->loop) / 1e3; }
 
@@ -206,6 +209,7 @@ static int on_assign(worker *w, conn *c, const cJSON *m) {
         return protocol_error(w, c, "out of memory for a tile");
     }
     w->held++;
+    w->last_work = now_s(w);
     return 0;
 }
 
@@ -413,6 +417,8 @@ static void on_tick(uv_timer_t *t) {
         if (!w->c && !w->resolving) close_handles(w);
         return;
     }
+    check_idle(w, now);
+    if (w->stopping) return;
     if (w->welcomed && now - w->last_sent >= w->heartbeat_s) {
         size_t len;
         uint8_t *frame = proto_frame_simple("heartbeat", &len);
@@ -426,10 +432,9 @@ static void on_tick(uv_timer_t *t) {
     if (!w->c && !w->resolving && now >= w->next_attempt) try_connect(w);
 }
 
-static void on_signal(uv_signal_t *s, int signum) {
-    worker *w = s->data;
-    if (w->stopping) return;
-    worker_log(w, "%s: abandoning %d tiles and leaving", signum == SIGTERM ? "SIGTERM" : "SIGINT", w->held);
+/* Leave cleanly: say bye, abandon the tiles in hand (the coordinator hands
+ * them to others) and let the loop wind down; exit status stays 0. */
+static void worker_leave(worker *w) {
     w->stopping = 1;
     if (w->c && w->welcomed) {
         size_t len;
@@ -438,6 +443,32 @@ static void on_signal(uv_signal_t *s, int signum) {
     }
     pool_cancel_all(w->pool);
     if (w->c) conn_close(w->c, "leaving", 1);
+}
+
+static void on_signal(uv_signal_t *s, int signum) {
+    worker *w = s->data;
+    if (w->stopping) return;
+    worker_log(w, "%s: abandoning %d tiles and leaving", signum == SIGTERM ? "SIGTERM" : "SIGINT", w->held);
+    worker_leave(w);
+}
+
+/* --idle-exit: leave once no tile has been in hand for idle_exit_s seconds,
+ * saying why (no coordinator reachable, or one that gave no work). */
+static void check_idle(worker *w, double now) {
+    if (w->welcomed) w->last_welcomed = now;
+    if (w->held > 0) w->last_work = now;
+    double idle = now - w->last_work;
+    if (w->cfg.idle_exit_s <= 0 || w->held > 0 || idle < w->cfg.idle_exit_s) return;
+    if (w->welcomed)
+        worker_log(w, "no work from the coordinator at %s:%d for %.1f s (--idle-exit %g); leaving", w->cfg.host,
+                   w->cfg.port, idle, w->cfg.idle_exit_s);
+    else if (now - w->last_welcomed >= w->cfg.idle_exit_s)
+        worker_log(w, "no coordinator reachable at %s:%d for %.1f s (--idle-exit %g); leaving", w->cfg.host,
+                   w->cfg.port, now - w->last_welcomed, w->cfg.idle_exit_s);
+    else
+        worker_log(w, "no work for %.1f s and the coordinator at %s:%d went away (--idle-exit %g); leaving", idle,
+                   w->cfg.host, w->cfg.port, w->cfg.idle_exit_s);
+    worker_leave(w);
 }
 
 /* Stop: join the render threads (they may still wake the loop), then close
@@ -463,6 +494,7 @@ int worker_run(const worker_config *cfg) {
     w->cfg = *cfg;
     w->backoff = 0.1;
     uv_loop_init(&w->loop);
+    w->last_work = w->last_welcomed = now_s(w);
     uv_async_init(&w->loop, &w->wake, on_wake);
     w->wake.data = w;
     w->pool = pool_new(cfg->threads, cfg->throttle_ms, wake_loop, &w->wake);

@@ -18,13 +18,15 @@ typedef struct {
     int once;           /* exit when the connection ends instead of reconnecting */
     int throttle_ms;    /* sleep after each tile (tests: a slow machine) */
     double retry_max_s; /* longest wait between connection attempts */
+    double idle_exit_s; /* > 0: leave (status 0) after this long with no tile in hand */
     int verbose;
     int quiet;          /* errors only (local farms) */
     auth_key auth;      /* enabled: prove the token, and make the coordinator prove it */
 } worker_config;
 
-/* Run until SIGTERM/SIGINT, a refused handshake, or (with once) the end of
- * the connection. Returns the process exit status: 0 after a clean stop,
+/* Run until SIGTERM/SIGINT, a refused handshake, (with once) the end of
+ * the connection, or (with idle_exit_s) that long without a tile in hand,
+ * whether no coordinator was reachable or it gave no work. Returns the process exit status: 0 after a clean stop,
  * 1 on a fatal error (printed on stderr). */
 int worker_run(const worker_config *cfg);
 
