@@ -198,3 +198,8 @@ fuzz: $(FUZZ_BINS)
 
 -include $(FUZZ_COMMON_OBJ:.o=.d)
 -include $(COMMON_OBJ:.o=.d) $(TEST_OBJ:.o=.d) $(COORD_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(BUILD)/bench/loadgen.d
+
+# ---- glTF / OBJ+MTL import (issue 14): Assimp reads the models ------------
+DEB_PACKAGES += libassimp-dev
+LDLIBS += -lassimp
+FUZZ_TARGETS += gltf
