@@ -26,6 +26,7 @@
 #include "net/auth.h"
 #include "image/image.h"
 #include "net/protocol.h"
+#include "render/model_files.h"
 #include "render/scene_bundle.h"
 #include "net/wire.h"
 
@@ -48,6 +49,7 @@ typedef struct {
     scene_overrides ov;
     int priority, tile_size;
     image_write_options wo;
+    const char *camera; /* --camera NAME: a glTF's camera */
 } cli_args;
 
 static int cli_fail(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
@@ -282,6 +284,10 @@ static int do_submit(const cli_args *a, const char *scene_path) {
     char err[1024], hash[SCENE_BUNDLE_HASH_HEX], out_default[512];
     scene_bundle b;
     if (scene_bundle_read(scene_path, &b, err, sizeof err)) return cli_fail("%s", err);
+    if (a->camera && model_bundle_select_camera(&b, a->camera, err, sizeof err)) {
+        scene_bundle_free(&b);
+        return cli_fail("%s", err);
+    }
     size_t len;
     uint8_t *bytes = scene_bundle_serialise(&b, &len);
     scene_bundle_free(&b);
@@ -451,7 +457,7 @@ static void usage(FILE *f) {
 static long parse_num(const char *what, const char *s, long lo, long hi) { return args_long("tessera", what, s, lo, hi); }
 
 enum { C_COORD = 300, C_JSON, C_WAIT, C_SPP, C_WIDTH, C_HEIGHT, C_DEPTH, C_SEED, C_PRIORITY, C_TONEMAP, C_EXPOSURE,
-       C_TILE, C_TOKEN, C_QUALITY, C_PNG16 };
+       C_TILE, C_TOKEN, C_QUALITY, C_PNG16, C_CAMERA };
 
 int client_main(int argc, char **argv) {
     static const struct option opts[] = {
@@ -462,7 +468,7 @@ int client_main(int argc, char **argv) {
         {"priority", required_argument, 0, C_PRIORITY}, {"tonemap", required_argument, 0, C_TONEMAP},
         {"exposure", required_argument, 0, C_EXPOSURE}, {"output", required_argument, 0, 'o'},
         {"tile-size", required_argument, 0, C_TILE}, {"token-file", required_argument, 0, C_TOKEN},
-        {"quality", required_argument, 0, C_QUALITY}, {"png16", no_argument, 0, C_PNG16}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
+        {"quality", required_argument, 0, C_QUALITY}, {"png16", no_argument, 0, C_PNG16}, {"camera", required_argument, 0, C_CAMERA}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
     const char *cmd = argv[0];
     cli_args a = {.ov = {-1, -1, -1, -1, 0, 0}, .wo = {.tonemap = {.kind = TONEMAP_REINHARD}}};
     int c;
@@ -472,6 +478,7 @@ int client_main(int argc, char **argv) {
         case C_COORD: a.coordinator = optarg; break;
         case C_JSON: a.json = 1; break;
         case C_WAIT: a.wait = 1; break;
+        case C_CAMERA: a.camera = optarg; break;
         case C_SPP: a.ov.spp = (int)parse_num("--spp", optarg, 1, 1 << 24); break;
         case C_WIDTH: a.ov.width = (int)parse_num("--width", optarg, 1, 32768); break;
         case C_HEIGHT: a.ov.height = (int)parse_num("--height", optarg, 1, 32768); break;

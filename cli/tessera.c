@@ -22,6 +22,7 @@
 #include "image/image.h"
 #include "image/image_compare.h"
 #include "render/render.h"
+#include "render/model_files.h"
 #include "render/scene.h"
 #include "version.h"
 #include "cli_util.h"
@@ -36,6 +37,7 @@ typedef struct {
     int threads, threads_given, workers, tile_size, verbose, progress, jpeg_quality, png16;
     int aov_samples; /* --aov samples: also write the per-pixel sample counts */
     const char *listen, *token_file;
+    const char *camera; /* --camera NAME: a glTF's camera */
     char listen_host[256];
     farm_options farm;
     codec_exr_options exr;
@@ -45,7 +47,7 @@ typedef struct {
 
 static void usage_render(FILE *f) {
     fprintf(f,
-            "usage: tessera render SCENE.json [-o OUT] [options]\n"
+            "usage: tessera render SCENE.json|MODEL.glb|MODEL.gltf|MODEL.obj [-o OUT] [options]\n"
             "\n"
             "Render a scene and save the image; the format follows OUT's extension:\n"
             "  .pfm .exr  linear float RGB (HDR); EXR records scene, spp, seed\n"
@@ -58,6 +60,7 @@ static void usage_render(FILE *f) {
             "      --height H         image height in pixels (overrides render.height)\n"
             "      --max-depth N      maximum bounces (overrides render.max_depth)\n"
             "      --seed N           random seed (overrides render.seed)\n"
+            "      --camera NAME      glTF: render from this camera (node or camera name; default: the first)\n"
             "      --workers N        local worker processes (default: one per core; with\n"
             "                         --listen, 0); 0 without --listen renders in this process\n"
             "      --threads N        threads per local worker (default 1), or render threads\n"
@@ -107,7 +110,7 @@ static void parse_tonemap(const char *s, tonemap_kind *out) {
 }
 
 enum { OPT_SPP = 256, OPT_WIDTH, OPT_HEIGHT, OPT_DEPTH, OPT_SEED, OPT_THREADS, OPT_WORKERS, OPT_TILE,
-       OPT_PASSES, OPT_TONEMAP, OPT_EXPOSURE, OPT_WHITE, OPT_QUALITY, OPT_EXR_COMPRESSION, OPT_EXR_HALF, OPT_EXR_ALPHA, OPT_PNG16, OPT_NO_NEE, OPT_NO_MIS, OPT_SAMPLER, OPT_NOISE_THRESHOLD, OPT_MIN_SPP, OPT_AOV, OPT_NO_PROGRESS, OPT_LISTEN, OPT_HEARTBEAT, OPT_WORKER_TIMEOUT, OPT_LEASE, OPT_TOKEN };
+       OPT_PASSES, OPT_TONEMAP, OPT_EXPOSURE, OPT_WHITE, OPT_QUALITY, OPT_EXR_COMPRESSION, OPT_EXR_HALF, OPT_EXR_ALPHA, OPT_PNG16, OPT_NO_NEE, OPT_NO_MIS, OPT_SAMPLER, OPT_NOISE_THRESHOLD, OPT_MIN_SPP, OPT_AOV, OPT_NO_PROGRESS, OPT_LISTEN, OPT_HEARTBEAT, OPT_WORKER_TIMEOUT, OPT_LEASE, OPT_TOKEN, OPT_CAMERA };
 
 static void parse_render_args(int argc, char **argv, render_args *a) {
     static const struct option opts[] = {
@@ -127,7 +130,7 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         {"no-progress", no_argument, 0, OPT_NO_PROGRESS}, {"verbose", no_argument, 0, 'v'},
         {"listen", required_argument, 0, OPT_LISTEN}, {"heartbeat", required_argument, 0, OPT_HEARTBEAT},
         {"worker-timeout", required_argument, 0, OPT_WORKER_TIMEOUT}, {"lease", required_argument, 0, OPT_LEASE},
-        {"token-file", required_argument, 0, OPT_TOKEN},
+        {"token-file", required_argument, 0, OPT_TOKEN}, {"camera", required_argument, 0, OPT_CAMERA},
         {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
     memset(a, 0, sizeof *a);
     a->ov.width = a->ov.height = a->ov.spp = a->ov.max_depth = -1;
@@ -158,6 +161,7 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
             break;
         case OPT_LISTEN: a->listen = optarg; break;
         case OPT_TOKEN: a->token_file = optarg; break;
+        case OPT_CAMERA: a->camera = optarg; break;
         case OPT_HEARTBEAT: a->farm.heartbeat_s = parse_double("--heartbeat", optarg, 0.01, 3600); break;
         case OPT_WORKER_TIMEOUT: a->farm.timeout_s = parse_double("--worker-timeout", optarg, 0.05, 86400); break;
         case OPT_LEASE: a->farm.lease_s = parse_double("--lease", optarg, 0.1, 1e7); break;
@@ -379,8 +383,10 @@ static int cmd_render(int argc, char **argv) {
         a.out_path = out_default;
     }
     scene_bundle b;
-    if (scene_bundle_read(a.scene_path, &b, err, sizeof err)) {
+    if (scene_bundle_read(a.scene_path, &b, err, sizeof err) ||
+        (a.camera && model_bundle_select_camera(&b, a.camera, err, sizeof err))) {
         fprintf(stderr, "tessera: %s\n", err);
+        if (a.camera) scene_bundle_free(&b);
         return 1;
     }
     scene *s = scene_load_bundle(&b, &a.ov, err, sizeof err);

@@ -17,6 +17,7 @@
 
 #include "model_files.h"
 
+#define IMPORT_LUMENS_PER_WATT 683.0
 #define MAX_NODE_VISITS 1000000 /* bounds the node walk of a malformed (cyclic) hierarchy */
 
 /* Extensions whose meaning is honoured (or, for a required one, safe to
@@ -546,8 +547,11 @@ static int push_light(importer *im, const cJSON *lj, const double M[16]) {
     } else {
         return fail(im, "KHR_lights_punctual: unknown light type \"%s\"", t);
     }
+    /* Photometric (cd, lux) to radiometric (W/sr, W/m^2) at 683 lm/W, the
+     * factor Blender's exporter multiplies by; and a model scaled by s keeps
+     * its picture when point and spot intensities scale by s^2. */
     double scale2 = l->kind == LIGHT_DIRECTIONAL ? 1 : im->opt->scale * im->opt->scale;
-    l->intensity = vec3_scale(l->intensity, (float)scale2); /* keep the same picture under scale */
+    l->intensity = vec3_scale(l->intensity, (float)(scale2 / IMPORT_LUMENS_PER_WATT));
     if (!vec3_is_zero(l->intensity)) im->m->light_count++;
     return 0;
 }
