@@ -308,6 +308,114 @@ static const uint8_t *gltf_image(importer *im, int i, size_t *len, uint8_t **own
     return buf + (size_t)off;
 }
 
+/* Components per element of an accessor type, 0 if unknown. */
+static int type_components(const char *t) {
+    static const struct {
+        const char *name;
+        int n;
+    } types[] = {{"SCALAR", 1}, {"VEC2", 2}, {"VEC3", 3}, {"VEC4", 4}, {"MAT2", 4}, {"MAT3", 9}, {"MAT4", 16}};
+    for (size_t i = 0; i < sizeof types / sizeof types[0]; i++)
+        if (strcmp(t, types[i].name) == 0) return types[i].n;
+    return 0;
+}
+
+static int component_size(int ct) {
+    switch (ct) {
+    case 5120: case 5121: return 1;
+    case 5122: case 5123: return 2;
+    case 5125: case 5126: return 4;
+    default: return 0;
+    }
+}
+
+/* Every buffer holds at least its declared byteLength; every bufferView
+ * lies inside its buffer; every accessor inside its bufferView. */
+static int check_buffers_and_accessors(importer *im) {
+    const cJSON *bufs = cJSON_GetObjectItemCaseSensitive(im->gltf, "buffers");
+    const cJSON *views = cJSON_GetObjectItemCaseSensitive(im->gltf, "bufferViews");
+    int nb = cJSON_GetArraySize(bufs), i = 0;
+    const cJSON *e;
+    for (i = 0; i < nb; i++) {
+        size_t len;
+        double declared = num_or(cJSON_GetArrayItem(bufs, i), "byteLength", -1);
+        if (!gltf_buffer(im, i, &len)) return -1;
+        if (!(declared >= 0) || declared > (double)len)
+            return fail(im, "buffers[%d]: byteLength %g but the data has %zu bytes", i, declared, len);
+    }
+    i = 0;
+    cJSON_ArrayForEach(e, views) {
+        double b = num_or(e, "buffer", -1), off = num_or(e, "byteOffset", 0), n = num_or(e, "byteLength", -1);
+        if (!(b >= 0 && b < nb) || !(off >= 0 && n >= 0) ||
+            off + n > num_or(cJSON_GetArrayItem(bufs, (int)b), "byteLength", -1))
+            return fail(im, "bufferViews[%d]: not inside buffer %g", i, b);
+        i++;
+    }
+    i = 0;
+    cJSON_ArrayForEach(e, cJSON_GetObjectItemCaseSensitive(im->gltf, "accessors")) {
+        const cJSON *type = cJSON_GetObjectItemCaseSensitive(e, "type");
+        int ct = (int)num_or(e, "componentType", 0), nc = cJSON_IsString(type) ? type_components(type->valuestring) : 0;
+        double count = num_or(e, "count", -1), off = num_or(e, "byteOffset", 0);
+        if (!component_size(ct) || !nc) return fail(im, "accessors[%d]: bad componentType %d or type", i, ct);
+        if (!(count >= 1 && count <= 4294967295.0 && count == floor(count)))
+            return fail(im, "accessors[%d]: bad count %g", i, count);
+        const cJSON *bvj = cJSON_GetObjectItemCaseSensitive(e, "bufferView");
+        if (bvj) {
+            const cJSON *bv = cJSON_GetArrayItem(views, (int)num_or(e, "bufferView", -1));
+            if (!cJSON_IsNumber(bvj) || !bv) return fail(im, "accessors[%d].bufferView: no such bufferView", i);
+            double elem = (double)component_size(ct) * nc, stride = num_or(bv, "byteStride", elem);
+            if (!(off >= 0) || stride < elem || off + stride * (count - 1) + elem > num_or(bv, "byteLength", -1))
+                return fail(im, "accessors[%d]: %g elements of %g bytes from offset %g overrun bufferView %g "
+                                "(%g bytes)", i, count, elem, off, num_or(e, "bufferView", -1), num_or(bv, "byteLength", -1));
+        }
+        i++;
+    }
+    return 0;
+}
+
+/* Each primitive's attributes have the types the glTF spec allows. */
+static int check_primitives(importer *im) {
+    const cJSON *accs = cJSON_GetObjectItemCaseSensitive(im->gltf, "accessors"), *mesh;
+    int mi = 0;
+    cJSON_ArrayForEach(mesh, cJSON_GetObjectItemCaseSensitive(im->gltf, "meshes")) {
+        const cJSON *prim;
+        int pi = 0;
+        cJSON_ArrayForEach(prim, cJSON_GetObjectItemCaseSensitive(mesh, "primitives")) {
+            const cJSON *attrs = cJSON_GetObjectItemCaseSensitive(prim, "attributes"), *a;
+            if (ext_of(prim, "KHR_draco_mesh_compression"))
+                return fail(im, "meshes[%d].primitives[%d]: Draco-compressed (KHR_draco_mesh_compression), not "
+                                "supported; export without mesh compression", mi, pi);
+            if (!cJSON_GetObjectItemCaseSensitive(attrs, "POSITION"))
+                return fail(im, "meshes[%d].primitives[%d]: no POSITION attribute", mi, pi);
+            cJSON_ArrayForEach(a, attrs) {
+                const cJSON *acc = cJSON_GetArrayItem(accs, cJSON_IsNumber(a) ? a->valueint : -1);
+                if (!acc) return fail(im, "meshes[%d].primitives[%d].attributes.%s: no such accessor", mi, pi, a->string);
+                int ct = (int)num_or(acc, "componentType", 0);
+                const cJSON *t = cJSON_GetObjectItemCaseSensitive(acc, "type");
+                const char *ts = cJSON_IsString(t) ? t->valuestring : "";
+                int need_vec3_float = strcmp(a->string, "POSITION") == 0 || strcmp(a->string, "NORMAL") == 0;
+                int is_uv = strncmp(a->string, "TEXCOORD_", 9) == 0;
+                if ((need_vec3_float && (ct != 5126 || strcmp(ts, "VEC3") != 0)) ||
+                    (is_uv && (strcmp(ts, "VEC2") != 0 || (ct != 5126 && ct != 5121 && ct != 5123))))
+                    return fail(im, "meshes[%d].primitives[%d].attributes.%s: accessor of %s componentType %d is "
+                                    "not allowed here", mi, pi, a->string, ts, ct);
+            }
+            const cJSON *ij = cJSON_GetObjectItemCaseSensitive(prim, "indices");
+            if (ij) {
+                const cJSON *acc = cJSON_GetArrayItem(accs, cJSON_IsNumber(ij) ? ij->valueint : -1);
+                const cJSON *t = cJSON_GetObjectItemCaseSensitive(acc, "type");
+                int ct = (int)num_or(acc, "componentType", 0);
+                if (!acc || !cJSON_IsString(t) || strcmp(t->valuestring, "SCALAR") != 0 ||
+                    (ct != 5121 && ct != 5123 && ct != 5125))
+                    return fail(im, "meshes[%d].primitives[%d].indices: must be a SCALAR accessor of unsigned "
+                                    "byte, short or int (componentType %d)", mi, pi, ct);
+            }
+            pi++;
+        }
+        mi++;
+    }
+    return 0;
+}
+
 static texture_wrap wrap_of(double gl) {
     return gl == 33071 ? WRAP_CLAMP : gl == 33648 ? WRAP_MIRROR : WRAP_REPEAT;
 }
@@ -834,7 +942,7 @@ static int import_run(importer *im) {
         const cJSON *ver = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(im->gltf, "asset"), "version");
         if (!cJSON_IsString(ver) || strncmp(ver->valuestring, "2.", 2) != 0)
             return fail(im, "asset.version: expected \"2.0\" (only glTF 2 is supported)");
-        if (check_extensions(im)) return -1;
+        if (check_extensions(im) || check_buffers_and_accessors(im) || check_primitives(im)) return -1;
     }
     struct aiFileIO io = {io_open, io_close, (aiUserData)im};
     pthread_mutex_lock(&assimp_lock);

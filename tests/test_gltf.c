@@ -1,0 +1,274 @@
+/* test_gltf.c - models (render/import.h): glTF and OBJ + MTL through the
+ * importer, refusals of bad files, textures (decoding, limits, sRGB, wrap
+ * modes, orientation), shading with textures and the same bytes from any
+ * farm layout. Scenes from scenes/gltf (bench/gltf/make_scenes.py). */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "image/image_codecs.h"
+#include "render/import.h"
+#include "render/scene.h"
+#include "render/texture.h"
+#include "harness.h"
+#include "util.h"
+
+/* A one-triangle glTF with an embedded buffer; the parts a test changes
+ * are parameters. */
+#define TRI_DATA "data:application/octet-stream;base64,AACAvwAAgL8AAAAAAACAPwAAgL8AAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA="
+#define TRI_BAD_INDEX "data:application/octet-stream;base64,AACAvwAAgL8AAAAAAACAPwAAgL8AAAAAAAAAAAAAgD8AAAAAAAABAAcAAAA="
+
+static const char *tri_gltf(const char *name, const char *top, int mode, const char *material, const char *textures,
+                            const char *buffer_uri, int index_type, int position_type) {
+    static char text[8192];
+    snprintf(text, sizeof text,
+             "{\"asset\": {\"version\": \"2.0\"}, %s \"scenes\": [{\"nodes\": [0]}], \"nodes\": [{\"mesh\": 0}],"
+             " \"meshes\": [{\"primitives\": [{\"attributes\": {\"POSITION\": 0}, \"indices\": 1, \"mode\": %d,"
+             " \"material\": 0}]}], \"materials\": [{%s}], %s"
+             " \"buffers\": [{\"byteLength\": 44, \"uri\": \"%s\"}],"
+             " \"bufferViews\": [{\"buffer\": 0, \"byteOffset\": 0, \"byteLength\": 36},"
+             "                   {\"buffer\": 0, \"byteOffset\": 36, \"byteLength\": 6}],"
+             " \"accessors\": [{\"bufferView\": 0, \"componentType\": %d, \"count\": 3, \"type\": \"VEC3\","
+             "                  \"min\": [-1, -1, 0], \"max\": [1, 1, 0]},"
+             "                 {\"bufferView\": 1, \"componentType\": %d, \"count\": 3, \"type\": \"SCALAR\"}]}",
+             top, mode, material, textures, buffer_uri, position_type, index_type);
+    return util_write_temp(name, text);
+}
+
+static const char *good(const char *name) { return tri_gltf(name, "", 4, "", "", TRI_DATA, 5123, 5126); }
+
+/* Load path; return the error ("" on success, the scene freed). */
+static const char *load_error(const char *path) {
+    static char err[1024];
+    err[0] = '\0';
+    scene *s = scene_load(path, NULL, err, sizeof err);
+    if (s) {
+        scene_free(s);
+        err[0] = '\0';
+    }
+    return err;
+}
+
+static void write_bytes(const char *name, const void *data, size_t len) {
+    FILE *f = fopen(util_temp_path(name), "wb");
+    if (f) {
+        fwrite(data, 1, len, f);
+        fclose(f);
+    }
+}
+
+TEST(gltf_minimal_loads_with_a_default_camera_and_sky) {
+    char err[1024];
+    scene *s = scene_load(good("tri.gltf"), NULL, err, sizeof err);
+    CHECK(s, "a valid one-triangle glTF was refused: %s", err);
+    if (!s) return;
+    CHECK(s->triangle_count == 1, "%u triangles", s->triangle_count);
+    CHECK(s->materials[s->triangle_info[0].material].kind == MATERIAL_PBR, "not the glTF material");
+    CHECK(s->features & FEATURE_BACKGROUND, "a model without lights gets a sky");
+    CHECK(s->cam.kind == CAMERA_PERSPECTIVE && s->cam.forward.z < 0, "automatic camera looks at the model from +z");
+    scene_free(s);
+}
+
+TEST(gltf_bad_files_are_refused_naming_the_fault) {
+    static const struct {
+        const char *top, *material, *textures, *uri;
+        int mode, index_type, position_type;
+        const char *want; /* substring of the message */
+    } cases[] = {
+        {"", "", "", TRI_BAD_INDEX, 4, 5123, 5126, "bad.gltf"},            /* index out of range */
+        {"", "", "", TRI_DATA, 4, 5126, 5126, "accessors[1]"},            /* float indices overrun */
+        {"", "", "", TRI_DATA, 4, 5123, 5121, "attributes.POSITION"},     /* byte positions */
+        {"", "", "", "nothere.bin", 4, 5123, 5126, "nothere.bin"},         /* missing buffer */
+        {"\"extensionsRequired\": [\"EXT_foo_bar\", \"KHR_materials_ior\"], \"extensionsUsed\": [\"EXT_foo_bar\"],",
+         "", "", TRI_DATA, 4, 5123, 5126, "unsupported extensions marked required: EXT_foo_bar"},
+        {"\"extensionsRequired\": [\"KHR_draco_mesh_compression\"],", "", "", TRI_DATA, 4, 5123, 5126, "Draco"},
+        {"", "", "", TRI_DATA, 0, 5123, 5126, "no triangles"}, /* points */
+        {"", "", "", TRI_DATA, 1, 5123, 5126, "no triangles"}, /* lines */
+        {"", "\"pbrMetallicRoughness\": {\"baseColorTexture\": {\"index\": 0}}",
+         "\"textures\": [{\"source\": 0}], \"images\": [{\"uri\": \"missing.png\"}],", TRI_DATA, 4, 5123, 5126,
+         "missing.png"},
+        {"", "\"pbrMetallicRoughness\": {\"baseColorTexture\": {\"index\": 0}}",
+         "\"textures\": [{\"source\": 0}], \"images\": [{\"uri\": \"huge.png\"}],", TRI_DATA, 4, 5123, 5126,
+         "50000x50000"},
+        {"", "\"pbrMetallicRoughness\": {\"baseColorTexture\": {\"index\": 3}}", "", TRI_DATA, 4, 5123, 5126,
+         "textures"},
+    };
+    /* A PNG whose header declares 50000 x 50000 (10 GB of RGBA). */
+    static const unsigned char huge[] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n', 0, 0, 0, 13, 'I', 'H', 'D', 'R',
+                                         0, 0, 0xc3, 0x50, 0, 0, 0xc3, 0x50, 8, 6, 0, 0, 0, 0x4b, 0xaf, 0x3d, 0xca,
+                                         0x00, 0x00, 0x00, 0x00, 'I', 'D', 'A', 'T', 0x35, 0xaf, 0x06, 0x1e,
+                                         0, 0, 0, 0, 'I', 'E', 'N', 'D', 0xae, 0x42, 0x60, 0x82};
+    write_bytes("huge.png", huge, sizeof huge);
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        const char *path = tri_gltf("bad.gltf", cases[i].top, cases[i].mode, cases[i].material, cases[i].textures,
+                                    cases[i].uri, cases[i].index_type, cases[i].position_type);
+        const char *err = load_error(path);
+        CHECK(err[0] && strstr(err, cases[i].want), "case %zu: want an error with \"%s\", got \"%s\"", i,
+              cases[i].want, err);
+    }
+    /* Not glTF 2. */
+    util_write_temp("v1.gltf", "{\"asset\": {\"version\": \"1.0\"}}");
+    CHECK(strstr(load_error(util_temp_path("v1.gltf")), "only glTF 2"), "glTF 1 accepted");
+}
+
+TEST(gltf_truncated_glb_is_refused) {
+    size_t len;
+    char err[256];
+    FILE *f = fopen("scenes/gltf/suzanne.glb", "rb");
+    CHECK(f, "scenes/gltf/suzanne.glb missing");
+    if (!f) return;
+    static char buf[1 << 20];
+    len = fread(buf, 1, sizeof buf, f);
+    fclose(f);
+    const size_t cuts[] = {5, 19, 100, 5000, len - 1};
+    for (size_t i = 0; i < sizeof cuts / sizeof cuts[0]; i++) {
+        write_bytes("cut.glb", buf, cuts[i]);
+        const char *e = load_error(util_temp_path("cut.glb"));
+        CHECK(strstr(e, "cut.glb") && (strstr(e, "truncated") || strstr(e, "not a binary glTF")),
+              "cut at %zu: \"%s\"", cuts[i], e);
+    }
+    (void)err;
+}
+
+TEST(gltf_texture_decode_limits_srgb_and_wrap) {
+    size_t len;
+    char err[512];
+    FILE *f = fopen("scenes/gltf/arrow.png", "rb");
+    CHECK(f, "scenes/gltf/arrow.png missing");
+    if (!f) return;
+    static uint8_t png[65536];
+    len = fread(png, 1, sizeof png, f);
+    fclose(f);
+    texture t;
+    CHECK(texture_decode(png, len, "arrow.png", &t, err, sizeof err) == 0, "%s", err);
+    CHECK(t.width == 64 && t.height == 64, "%dx%d", t.width, t.height);
+    t.srgb = 1;
+    /* glTF orientation: v = 0 is the first row (the arrow's tip). */
+    texel tip = texture_lookup(&t, 0.5f, 0.2f), corner = texture_lookup(&t, 0.9f, 0.9f), bl = texture_lookup(&t, 0.1f, 0.9f);
+    CHECK(tip.rgb.x > 0.5f && tip.rgb.z < 0.1f, "(0.5, 0.2) should be the red arrow: %g %g %g", tip.rgb.x, tip.rgb.y, tip.rgb.z);
+    CHECK(corner.rgb.z > 0.5f && corner.rgb.x < 0.1f, "(0.9, 0.9) should be the blue square");
+    CHECK(bl.rgb.x > 0.9f && bl.rgb.z > 0.9f, "(0.1, 0.9) should be white");
+    /* Wrap modes. */
+    texel r = texture_lookup(&t, 1.9f, -0.1f);
+    CHECK(fabsf(r.rgb.z - corner.rgb.z) < 1e-6f, "repeat: (1.9, -0.1) is (0.9, 0.9)");
+    t.wrap_s = t.wrap_t = WRAP_MIRROR;
+    texel m = texture_lookup(&t, 1.1f, 1.1f);
+    CHECK(fabsf(m.rgb.z - corner.rgb.z) < 1e-6f && fabsf(m.rgb.x - corner.rgb.x) < 1e-6f, "mirror: (1.1, 1.1) is (0.9, 0.9)");
+    t.wrap_s = t.wrap_t = WRAP_CLAMP;
+    texel c = texture_lookup(&t, 7.0f, 7.0f), c0 = texture_lookup(&t, -3.0f, -3.0f);
+    CHECK(c.rgb.z > 0.5f && c0.rgb.x > 0.9f, "clamp: far corners are the corner texels");
+    /* sRGB: 8-bit values decode through the sRGB curve; data textures not. */
+    CHECK(texture_srgb_to_linear(255) == 1.0f && texture_srgb_to_linear(0) == 0.0f, "sRGB end points");
+    CHECK(fabsf(texture_srgb_to_linear(188) - 0.50289f) < 1e-4f, "sRGB 188 -> %g", texture_srgb_to_linear(188));
+    t.srgb = 0;
+    t.wrap_s = t.wrap_t = WRAP_REPEAT;
+    texel lin = texture_lookup(&t, 0.9f, 0.9f);
+    CHECK(fabsf(lin.rgb.z - 220 / 255.0f) < 1e-5f, "linear data texture: %g", lin.rgb.z);
+    /* Bilinear: halfway between two texel centres is their mean. */
+    texel a = texture_lookup(&t, 47.5f / 64, 60.5f / 64), b = texture_lookup(&t, 48.5f / 64, 60.5f / 64),
+          mid = texture_lookup(&t, 48.0f / 64, 60.5f / 64);
+    CHECK(fabsf(mid.rgb.x - 0.5f * (a.rgb.x + b.rgb.x)) < 1e-5f, "bilinear midpoint %g vs %g %g", mid.rgb.x, a.rgb.x, b.rgb.x);
+    texture_free(&t);
+    /* A JPEG whose frame header claims 50000 x 50000 is refused before decoding. */
+    uint8_t rgb[8 * 8 * 3];
+    memset(rgb, 128, sizeof rgb);
+    size_t jl;
+    uint8_t *jpg = codec_jpeg_encode(rgb, 8, 8, 90, &jl, err, sizeof err);
+    CHECK(jpg, "%s", err);
+    for (size_t i = 0; jpg && i + 9 < jl; i++)
+        if (jpg[i] == 0xff && jpg[i + 1] == 0xc0) {
+            jpg[i + 5] = 0xc3, jpg[i + 6] = 0x50, jpg[i + 7] = 0xc3, jpg[i + 8] = 0x50;
+            break;
+        }
+    CHECK(jpg && texture_decode(jpg, jl, "big.jpg", &t, err, sizeof err) == -1 && strstr(err, "50000x50000"),
+          "big JPEG: %s", err);
+    free(jpg);
+    CHECK(texture_decode((const uint8_t *)"GIF89a", 6, "x.gif", &t, err, sizeof err) == -1 && strstr(err, "not a PNG"),
+          "GIF: %s", err);
+}
+
+/* The arrow texture on a plane facing the camera appears as in the file:
+ * arrow up, blue square bottom right (UV orientation end to end). */
+TEST(gltf_textured_plane_shows_the_arrow_the_right_way) {
+    char err[1024];
+    scene_overrides ov = {64, 48, 16, -1, 0, 0};
+    scene *s = scene_load("scenes/gltf/arrow-plane.gltf", &ov, err, sizeof err);
+    CHECK(s, "%s", err);
+    if (!s) return;
+    CHECK(s->settings.width == 64 && s->settings.height == 48, "%dx%d", s->settings.width, s->settings.height);
+    trace_stats st;
+    float *img = util_render(s, 2, 16, 1, &st);
+#define PX(x, y) (&img[3 * ((y) * 64 + (x))])
+    /* The plane covers x 10..54, y 2..46 (camera and plane as exported). */
+    const float *blue = PX(49, 41), *white = PX(15, 41), *red = PX(32, 15), *top_white = PX(15, 8);
+    CHECK(blue[2] > 2 * blue[0], "bottom right should be blue: %g %g %g", blue[0], blue[1], blue[2]);
+    CHECK(white[0] > 0.5f * white[2] && white[2] > 0.5f * white[0] && white[1] > 0.1f, "bottom left should be white");
+    CHECK(red[0] > 2 * red[2], "the arrow head (top middle) should be red: %g %g %g", red[0], red[1], red[2]);
+    CHECK(top_white[0] < 2 * top_white[2], "top left should be white");
+#undef PX
+    free(img);
+    scene_free(s);
+}
+
+/* OBJ + MTL: a floor (Kd) and a panel (Ke) as a "model" shape render the
+ * same bytes as the same quads written in the JSON format. */
+TEST(gltf_obj_mtl_matches_the_json_scene) {
+    util_write_temp("room.mtl", "newmtl floor\nKd 0.5 0.4 0.3\nKs 0 0 0\n\nnewmtl lamp\nKd 0 0 0\nKe 5 5 5\n");
+    util_write_temp("room.obj", "mtllib room.mtl\n"
+                                "v -1 0 -1\nv -1 0 1\nv 1 0 1\nv 1 0 -1\n"
+                                "v -0.3 1 -0.3\nv 0.3 1 -0.3\nv 0.3 1 0.3\nv -0.3 1 0.3\n"
+                                "usemtl floor\nf 1 2 3 4\nusemtl lamp\nf 5 6 7 8\n");
+    static const char *cam = "\"render\": {\"width\": 24, \"height\": 24, \"spp\": 8, \"seed\": 3},"
+                             " \"camera\": {\"type\": \"perspective\", \"position\": [0, 0.5, 2.5], \"look_at\": [0, 0.3, 0], \"fov\": 50},";
+    char json[4096], err[1024];
+    snprintf(json, sizeof json, "{%s \"shapes\": [{\"type\": \"model\", \"file\": \"room.obj\"}]}", cam);
+    scene *a = scene_load(util_write_temp("obj.json", json), NULL, err, sizeof err);
+    CHECK(a, "%s", err);
+    snprintf(json, sizeof json,
+             "{%s \"materials\": {\"floor\": {\"type\": \"diffuse\", \"albedo\": [0.5, 0.4, 0.3]}},"
+             " \"shapes\": [{\"type\": \"quad\", \"vertices\": [[-1, 0, -1], [-1, 0, 1], [1, 0, 1], [1, 0, -1]], \"material\": \"floor\"},"
+             "  {\"type\": \"quad\", \"vertices\": [[-0.3, 1, -0.3], [0.3, 1, -0.3], [0.3, 1, 0.3], [-0.3, 1, 0.3]], \"emission\": [5, 5, 5]}]}",
+             cam);
+    scene *b = scene_load(util_write_temp("quads.json", json), NULL, err, sizeof err);
+    CHECK(b, "%s", err);
+    if (!a || !b) return;
+    CHECK(a->triangle_count == 4 && a->light_count == 2, "%u triangles, %u lights", a->triangle_count, a->light_count);
+    CHECK(a->materials[a->triangle_info[0].material].kind == MATERIAL_DIFFUSE, "Kd alone is Lambert");
+    trace_stats st;
+    float *ia = util_render(a, 1, 8, 1, &st), *ib = util_render(b, 1, 8, 1, &st);
+    double sa = 0, sb = 0;
+    for (int i = 0; i < 24 * 24 * 3; i++) sa += ia[i], sb += ib[i];
+    CHECK(sa > 0 && memcmp(ia, ib, 24 * 24 * 3 * sizeof(float)) == 0, "OBJ+MTL scene (sum %g) differs from the "
+          "JSON scene (sum %g)", sa, sb);
+    free(ia), free(ib);
+    scene_free(a), scene_free(b);
+}
+
+/* Same bytes for any number of workers, threads and tiles, with textures
+ * (arrow plane: .gltf + .bin + .png, shipped in the bundle) and glTF PBR
+ * (Suzanne). */
+TEST(gltf_farm_same_bytes_any_workers_threads_tiles) {
+    static const char *scenes[] = {"scenes/gltf/arrow-plane.gltf", "scenes/gltf/suzanne.glb"};
+    static const struct {
+        const char *workers, *threads, *tile;
+    } runs[] = {{"0", "1", "64"}, {"1", "2", "7"}, {"3", "1", "13"}};
+    for (size_t s = 0; s < 2; s++) {
+        char first[256] = "";
+        for (size_t i = 0; i < sizeof runs / sizeof runs[0]; i++) {
+            char name[64], path[256], cmd[1024], out[8192];
+            snprintf(name, sizeof name, "farm-gltf-%zu-%zu.pfm", s, i);
+            snprintf(path, sizeof path, "%s", util_temp_path(name));
+            snprintf(cmd, sizeof cmd, "%s render %s --width 48 --height 36 --spp 4 --workers %s --threads %s "
+                     "--tile-size %s --no-progress -o %s", harness_tessera(), scenes[s], runs[i].workers,
+                     runs[i].threads, runs[i].tile, path);
+            int st = util_run(cmd, out, sizeof out);
+            CHECK(st == 0, "%s failed (%d): %s", cmd, st, out);
+            if (i == 0)
+                snprintf(first, sizeof first, "%s", path);
+            else
+                CHECK(util_same_file(path, first), "%s: differs from %s", cmd, first);
+        }
+    }
+}
