@@ -203,3 +203,4 @@ fuzz: $(FUZZ_BINS)
 DEB_PACKAGES += libassimp-dev
 LDLIBS += -lassimp
 FUZZ_TARGETS += gltf
+fuzz: $(FUZZ_BUILD)/fuzz_gltf
