@@ -6,6 +6,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <signal.h>
+#include <sys/types.h>
 #include <unistd.h>
 
 #include "image/image_codecs.h"
@@ -271,4 +273,45 @@ TEST(gltf_farm_same_bytes_any_workers_threads_tiles) {
                 CHECK(util_same_file(path, first), "%s: differs from %s", cmd, first);
         }
     }
+}
+
+/* tessera submit of a .gltf (with its .bin and .png, from a folder the
+ * service and its worker never see) with --camera: the job service renders
+ * the same bytes as tessera render. */
+TEST(gltf_submit_to_the_service_same_bytes) {
+    char port[16], addr[64], data[256], clog[256], wlog[256], out[256], local[256], cmd[2048], text[8192];
+    snprintf(port, sizeof port, "%d", util_free_port());
+    snprintf(addr, sizeof addr, "127.0.0.1:%s", port);
+    snprintf(data, sizeof data, "%s", util_temp_path("svc-data"));
+    snprintf(clog, sizeof clog, "%s", util_temp_path("svc-coord.log"));
+    snprintf(wlog, sizeof wlog, "%s", util_temp_path("svc-worker.log"));
+    snprintf(out, sizeof out, "%s", util_temp_path("svc-out.pfm"));
+    snprintf(local, sizeof local, "%s", util_temp_path("svc-local.pfm"));
+    char coord_bin[512], worker_bin[512];
+    snprintf(coord_bin, sizeof coord_bin, "%s", util_bin("tessera-coordinator"));
+    snprintf(worker_bin, sizeof worker_bin, "%s", util_bin("tessera-worker"));
+    const char *cargv[] = {coord_bin, "--data-dir", data, "--listen", addr, NULL};
+    pid_t c = util_spawn(cargv, clog);
+    CHECK(util_wait_for_text(clog, "listening on", 30) == 0, "no coordinator; log %s", clog);
+    const char *wargv[] = {worker_bin, "--connect", addr, NULL};
+    pid_t w = util_spawn(wargv, wlog);
+    snprintf(cmd, sizeof cmd, "mkdir -p %s && cp scenes/gltf/arrow-plane.gltf scenes/gltf/arrow-plane.bin "
+             "scenes/gltf/arrow.png %s/", util_temp_path("svc-model"), util_temp_path("svc-model"));
+    CHECK(util_run(cmd, text, sizeof text) == 0, "%s: %s", cmd, text);
+    snprintf(cmd, sizeof cmd, "%s submit %s/arrow-plane.gltf --camera Camera --width 40 --spp 4 --wait -o %s "
+             "--coordinator %s", harness_tessera(), util_temp_path("svc-model"), out, addr);
+    int st = util_run(cmd, text, sizeof text);
+    CHECK(st == 0, "%s failed (%d): %s", cmd, st, text);
+    snprintf(cmd, sizeof cmd, "%s render scenes/gltf/arrow-plane.gltf --width 40 --spp 4 --workers 0 "
+             "--no-progress -o %s", harness_tessera(), local);
+    CHECK(util_run(cmd, text, sizeof text) == 0, "%s: %s", cmd, text);
+    CHECK(util_same_file(out, local), "the service's image differs from tessera render's");
+    snprintf(cmd, sizeof cmd, "%s submit %s/arrow-plane.gltf --camera NoSuchCamera --coordinator %s",
+             harness_tessera(), util_temp_path("svc-model"), addr);
+    st = util_run(cmd, text, sizeof text);
+    CHECK(st != 0 && strstr(text, "no camera named \"NoSuchCamera\""), "a missing camera: %d %s", st, text);
+    kill(w, SIGTERM);
+    kill(c, SIGTERM);
+    util_wait(w, 30, NULL);
+    util_wait(c, 30, NULL);
 }
