@@ -7,8 +7,10 @@ scene camera).
       MODEL.glb -o OUT.exr --width W --height H --spp N [--lambert ALBEDO] [--threads T] [--bounces B]
 
 --lambert A: every material becomes a Diffuse BSDF of albedo A; a material
-with emission also emits it (Emission strength x colour), from its front
-face only (Geometry Backfacing), as Tessera's one-sided emitters do. Used for
+with emission also emits it (Emission strength x colour): from both faces
+when the glTF material is doubleSided (Blender's importer then turns backface
+culling off), else from the front face only (Geometry Backfacing), as
+Tessera's emitters do. Used for
 the comparison where both renderers have the same model (diffuse + emission).
 
 Cycles settings as bench/cycles/render_scene.py (the `cycles` branch): CPU,
@@ -29,7 +31,8 @@ if not hasattr(numpy, "bool"):
 
 
 def parse(argv):
-    a = {"width": 160, "height": 120, "spp": 256, "threads": 2, "bounces": 64, "lambert": None, "out": None, "model": None}
+    a = {"width": 160, "height": 120, "spp": 256, "threads": 2, "bounces": 64, "lambert": None, "out": None, "model": None,
+         "turn": False}
     i = 0
     while i < len(argv):
         k = argv[i]
@@ -37,6 +40,10 @@ def parse(argv):
             a["out"] = argv[i + 1]
         elif k in ("--width", "--height", "--spp", "--threads", "--bounces"):
             a[k[2:]] = int(argv[i + 1])
+        elif k == "--turn-camera":  # mirror the camera through the scene's centre plane y = 0 (Blender axes)
+            a["turn"] = True
+            i += 1
+            continue
         elif k == "--lambert":
             a["lambert"] = float(argv[i + 1])
         else:
@@ -58,11 +65,22 @@ def lambertise(albedo):
         out = next((n for n in nt.nodes if n.type == "OUTPUT_MATERIAL"), None)
         if p is None or out is None:
             continue
-        ec = p.inputs["Emission"].default_value
+        ec = tuple(p.inputs["Emission"].default_value)
         es = p.inputs["Emission Strength"].default_value
+        nt.nodes.clear()  # a fresh tree: nothing of the importer's nodes stays in the way
+        out = nt.nodes.new("ShaderNodeOutputMaterial")
         diff = nt.nodes.new("ShaderNodeBsdfDiffuse")
         diff.inputs["Color"].default_value = (albedo, albedo, albedo, 1)
-        if es > 0 and max(ec[0], ec[1], ec[2]) > 0:
+        one_sided = m.use_backface_culling  # Blender's importer: glTF doubleSided false
+        if es > 0 and max(ec[0], ec[1], ec[2]) > 0 and not one_sided:
+            em = nt.nodes.new("ShaderNodeEmission")
+            em.inputs["Color"].default_value = ec
+            em.inputs["Strength"].default_value = es
+            add = nt.nodes.new("ShaderNodeAddShader")
+            nt.links.new(diff.outputs[0], add.inputs[0])
+            nt.links.new(em.outputs[0], add.inputs[1])
+            nt.links.new(add.outputs[0], out.inputs["Surface"])
+        elif es > 0 and max(ec[0], ec[1], ec[2]) > 0:
             em = nt.nodes.new("ShaderNodeEmission")
             em.inputs["Color"].default_value = ec
             em.inputs["Strength"].default_value = es
@@ -120,6 +138,13 @@ def main():
     if not cams:
         sys.exit("%s: no camera" % a["model"])
     bpy.context.scene.camera = cams[0]
+    if a["turn"]:
+        import math
+        cams[0].location.y = -cams[0].location.y
+        cams[0].rotation_mode = "XYZ"
+        e = cams[0].matrix_world.to_euler("XYZ")
+        e.z += math.pi
+        cams[0].rotation_euler = e
     if a["lambert"] is not None:
         lambertise(a["lambert"])
     configure(a)

@@ -86,7 +86,9 @@ bpy.ops.mesh.flip_normals()  # faces point inwards
 bpy.ops.object.mode_set(mode="OBJECT")
 add(box, principled("walls", (0.7, 0.7, 0.7, 1), roughness=1.0))
 bpy.ops.mesh.primitive_plane_add(size=0.8, location=(0, 0, 1.98), rotation=(math.radians(180), 0, 0))
-add(bpy.context.object, principled("panel", (0, 0, 0, 1), roughness=1.0, emission=(1, 0.9, 0.8, 1), strength=10.0))
+panel = principled("panel", (0, 0, 0, 1), roughness=1.0, emission=(1, 0.9, 0.8, 1), strength=10.0)
+panel.use_backface_culling = True  # exported as doubleSided false: emits downwards only
+add(bpy.context.object, panel)
 bpy.ops.mesh.primitive_uv_sphere_add(radius=0.35, location=(-0.3, 0.2, 0.35), segments=48, ring_count=24)
 bpy.ops.object.shade_smooth()
 add(bpy.context.object, principled("ball", (0.2, 0.4, 0.8, 1), roughness=0.6))
