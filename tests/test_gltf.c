@@ -12,6 +12,7 @@
 
 #include "image/image_codecs.h"
 #include "render/import.h"
+#include "render/punctual.h"
 #include "render/scene.h"
 #include "render/texture.h"
 #include "harness.h"
@@ -314,4 +315,51 @@ TEST(gltf_submit_to_the_service_same_bytes) {
     kill(c, SIGTERM);
     util_wait(w, 30, NULL);
     util_wait(c, 30, NULL);
+}
+
+/* KHR_lights_punctual spot: full intensity inside the inner cone, none
+ * outside the outer one, the spec's smooth (squared) falloff between;
+ * directional: the same irradiance everywhere. */
+TEST(gltf_spot_and_directional_lights) {
+    light spot = {.kind = LIGHT_SPOT, .intensity = {4, 4, 4}, .position = {0, 0, 0}, .direction = {0, -1, 0},
+                  .cos_inner = cosf(0.2f), .cos_outer = cosf(0.4f), .select_pdf = 1};
+    light_sample ls;
+    CHECK(punctual_sample(&spot, vec3_make(0, -2, 0), &ls) && fabsf(ls.radiance.x - 1.0f) < 1e-6f && ls.is_delta,
+          "on the axis at distance 2: I / 4 = 1, got %g", ls.radiance.x);
+    CHECK(!punctual_sample(&spot, vec3_make(2, -2, 0), &ls), "45 degrees off the axis is outside the outer cone");
+    CHECK(!punctual_sample(&spot, vec3_make(0, 2, 0), &ls), "behind the spot");
+    float mid = 0.3f, cm = cosf(mid), a = (cm - cosf(0.4f)) / (cosf(0.2f) - cosf(0.4f));
+    vec3 p = vec3_make(2 * sinf(mid), -2 * cosf(mid), 0);
+    CHECK(punctual_sample(&spot, p, &ls) && fabsf(ls.radiance.x - a * a) < 1e-4f, "falloff %g, want %g", ls.radiance.x,
+          a * a);
+    light sun = {.kind = LIGHT_DIRECTIONAL, .intensity = {3, 3, 3}, .direction = {0, -1, 0}, .select_pdf = 1};
+    CHECK(punctual_sample(&sun, vec3_make(0.3f, 0.1f, -0.5f), &ls) && ls.radiance.x == 3.0f && ls.wi.y == 1.0f,
+          "directional: E = 3 from above");
+}
+
+/* A model placed with a scale of 1024 (and its camera and point light
+ * scaled alike) renders the same picture: glTF is in metres, the scene may
+ * be in millimetres. */
+TEST(gltf_model_scale_keeps_the_picture) {
+    char json[2048], err[1024];
+    static const double scales[] = {1, 1024};
+    float *img[2] = {NULL, NULL};
+    for (int i = 0; i < 2; i++) {
+        double s = scales[i];
+        snprintf(json, sizeof json,
+                 "{\"render\": {\"width\": 32, \"height\": 24, \"spp\": 8},"
+                 " \"camera\": {\"type\": \"perspective\", \"position\": [0, 0, %g], \"look_at\": [0, 0, 0], \"fov\": 30.2},"
+                 " \"shapes\": [{\"type\": \"model\", \"file\": \"%s/scenes/gltf/arrow-plane.gltf\", \"scale\": %g}]}",
+                 4 * s, getcwd((char[1024]){0}, 1024), s);
+        scene *sc = scene_load(util_write_temp("scaled.json", json), NULL, err, sizeof err);
+        CHECK(sc, "%s", err);
+        if (!sc) return;
+        trace_stats st;
+        img[i] = util_render(sc, 1, 16, 1, &st);
+        scene_free(sc);
+    }
+    double sa = 0, sb = 0;
+    for (int k = 0; k < 32 * 24 * 3; k++) sa += img[0][k], sb += img[1][k];
+    CHECK(sa > 0 && fabs(sa / sb - 1) < 1e-4, "scale 1: %g, scale 1024: %g", sa, sb);
+    free(img[0]), free(img[1]);
 }

@@ -25,7 +25,7 @@ static int hexval(int c) {
     return c >= 'a' && c <= 'f' ? c - 'a' + 10 : -1;
 }
 
-/* Remove "." segments and "x/.." pairs in place. */
+/* Remove "." segments and "x/.." pairs in place; a leading "/" stays. */
 static void normalise(char *p) {
     char *segs[512];
     int n = 0;
@@ -41,9 +41,10 @@ static void normalise(char *p) {
     }
     char out[4096];
     size_t used = 0;
+    int absolute = p[0] == '/';
     out[0] = '\0';
     for (int i = 0; i < n && used < sizeof out; i++)
-        used += (size_t)snprintf(out + used, sizeof out - used, "%s%s", i ? "/" : "", segs[i]);
+        used += (size_t)snprintf(out + used, sizeof out - used, "%s%s", i || absolute ? "/" : "", segs[i]);
     snprintf(p, 4096, "%s", out);
 }
 
