@@ -363,3 +363,66 @@ TEST(gltf_model_scale_keeps_the_picture) {
     CHECK(sa > 0 && fabs(sa / sb - 1) < 1e-4, "scale 1: %g, scale 1024: %g", sa, sb);
     free(img[0]), free(img[1]);
 }
+
+/* Normal maps, glTF convention: tangent-space +X along increasing u, +Y
+ * toward decreasing v (up the image), +Z the surface normal. A quad facing
+ * the camera (+z), u to the right, v down, with a constant normal map, lit
+ * by a directional light 45 degrees off the normal: a map tilted toward +X
+ * is brighter lit from +x than from -x, one tilted toward +Y brighter lit
+ * from +y (above); the flat map (128, 128, 255) is symmetric. */
+static double normal_map_mean(const char *map_b64, const char *light_rotation) {
+    static char text[8192];
+    snprintf(text, sizeof text,
+             "{\"asset\": {\"version\": \"2.0\"}, \"extensionsUsed\": [\"KHR_lights_punctual\"],"
+             " \"extensions\": {\"KHR_lights_punctual\": {\"lights\": [{\"type\": \"directional\", \"intensity\": 683}]}},"
+             " \"scenes\": [{\"nodes\": [0, 1, 2]}],"
+             " \"nodes\": [{\"mesh\": 0}, {\"camera\": 0, \"translation\": [0, 0, 3]},"
+             "  {\"rotation\": %s, \"extensions\": {\"KHR_lights_punctual\": {\"light\": 0}}}],"
+             " \"cameras\": [{\"type\": \"perspective\", \"perspective\": {\"yfov\": 0.5, \"aspectRatio\": 1}}],"
+             " \"meshes\": [{\"primitives\": [{\"attributes\": {\"POSITION\": 0, \"NORMAL\": 1, \"TEXCOORD_0\": 2},"
+             "  \"indices\": 3, \"material\": 0}]}],"
+             " \"materials\": [{\"pbrMetallicRoughness\": {\"metallicFactor\": 0, \"roughnessFactor\": 1},"
+             "  \"normalTexture\": {\"index\": 0}}],"
+             " \"textures\": [{\"source\": 0, \"sampler\": 0}], \"samplers\": [{\"wrapS\": 33071, \"wrapT\": 33071}],"
+             " \"images\": [{\"uri\": \"data:image/png;base64,%s\"}],"
+             " \"buffers\": [{\"byteLength\": 140, \"uri\": \"data:application/octet-stream;base64,"
+             "AACAvwAAgL8AAAAAAACAPwAAgL8AAAAAAACAPwAAgD8AAAAAAACAvwAAgD8AAAAAAAAAAAAAAAAAAIA/AAAAAAAAAAAAAIA/AAAAAAAAAA"
+             "AAAIA/AAAAAAAAAAAAAIA/AAAAAAAAgD8AAIA/AACAPwAAgD8AAAAAAAAAAAAAAAAAAAEAAgAAAAIAAwA=\"}],"
+             " \"bufferViews\": [{\"buffer\": 0, \"byteOffset\": 0, \"byteLength\": 48},"
+             "  {\"buffer\": 0, \"byteOffset\": 48, \"byteLength\": 48}, {\"buffer\": 0, \"byteOffset\": 96, \"byteLength\": 32},"
+             "  {\"buffer\": 0, \"byteOffset\": 128, \"byteLength\": 12}],"
+             " \"accessors\": [{\"bufferView\": 0, \"componentType\": 5126, \"count\": 4, \"type\": \"VEC3\", \"min\": [-1, -1, 0], \"max\": [1, 1, 0]},"
+             "  {\"bufferView\": 1, \"componentType\": 5126, \"count\": 4, \"type\": \"VEC3\"},"
+             "  {\"bufferView\": 2, \"componentType\": 5126, \"count\": 4, \"type\": \"VEC2\"},"
+             "  {\"bufferView\": 3, \"componentType\": 5123, \"count\": 6, \"type\": \"SCALAR\"}]}",
+             light_rotation, map_b64);
+    char err[1024];
+    scene_overrides ov = {8, 8, 4, 1, 0, 0}; /* direct light only */
+    scene *s = scene_load(util_write_temp("nmap.gltf", text), &ov, err, sizeof err);
+    CHECK(s, "%s", err);
+    if (!s) return -1;
+    trace_stats st;
+    float *img = util_render(s, 1, 8, 1, &st);
+    double sum = 0;
+    for (int i = 0; i < 8 * 8 * 3; i++) sum += img[i];
+    free(img);
+    scene_free(s);
+    return sum / (8 * 8 * 3);
+}
+
+TEST(gltf_normal_map_orientation) {
+    static const char *flat = "iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAIAAACQd1PeAAAADElEQVR4nGNoaPgPAAODAgAApfuJAAAAAElFTkSuQmCC";
+    static const char *plus_x = "iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAIAAACQd1PeAAAADElEQVR4nGP439AAAASBAgCFVE/wAAAAAElFTkSuQmCC";
+    static const char *plus_y = "iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAIAAACQd1PeAAAADElEQVR4nGNo+N8AAAQCAgCpSbOxAAAAAElFTkSuQmCC";
+    /* Light travelling (-1, 0, -1) (from +x), (1, 0, -1) (from -x),
+     * (0, -1, -1) (from +y) and (0, 1, -1) (from -y). */
+    static const char *from_px = "[0, 0.3826834, 0, 0.9238795]", *from_mx = "[0, -0.3826834, 0, 0.9238795]";
+    static const char *from_py = "[-0.3826834, 0, 0, 0.9238795]", *from_my = "[0.3826834, 0, 0, 0.9238795]";
+    double fx = normal_map_mean(flat, from_px), fmx = normal_map_mean(flat, from_mx);
+    /* 128 / 255 is 0.0039 off the middle: "flat" tilts by 0.2 degrees. */
+    CHECK(fx > 0 && fabs(fx - fmx) < 0.02 * fx, "flat map: %g from +x, %g from -x", fx, fmx);
+    double px = normal_map_mean(plus_x, from_px), pmx = normal_map_mean(plus_x, from_mx);
+    CHECK(px > 1.5 * pmx, "+X map: %g lit from +x should beat %g from -x", px, pmx);
+    double py = normal_map_mean(plus_y, from_py), pmy = normal_map_mean(plus_y, from_my);
+    CHECK(py > 1.5 * pmy, "+Y map: %g lit from above should beat %g from below", py, pmy);
+}
