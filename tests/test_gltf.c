@@ -426,3 +426,50 @@ TEST(gltf_normal_map_orientation) {
     double py = normal_map_mean(plus_y, from_py), pmy = normal_map_mean(plus_y, from_my);
     CHECK(py > 1.5 * pmy, "+Y map: %g lit from above should beat %g from below", py, pmy);
 }
+
+/* alphaMode MASK: a quad whose base colour texture has alpha 0 is cut out
+ * (camera rays pass to the sky); the same quad OPAQUE is seen (red). */
+static double quad_green_mean(const char *alpha_mode) {
+    static char text[8192];
+    snprintf(text, sizeof text,
+             "{\"asset\": {\"version\": \"2.0\"}, \"scenes\": [{\"nodes\": [0, 1]}],"
+             " \"nodes\": [{\"mesh\": 0}, {\"camera\": 0, \"translation\": [0, 0, 3]}],"
+             " \"cameras\": [{\"type\": \"perspective\", \"perspective\": {\"yfov\": 0.5, \"aspectRatio\": 1}}],"
+             " \"meshes\": [{\"primitives\": [{\"attributes\": {\"POSITION\": 0, \"NORMAL\": 1, \"TEXCOORD_0\": 2},"
+             "  \"indices\": 3, \"material\": 0}]}],"
+             " \"materials\": [{\"pbrMetallicRoughness\": {\"metallicFactor\": 0, \"baseColorTexture\": {\"index\": 0}},"
+             "  \"alphaMode\": \"%s\", \"doubleSided\": true}],"
+             " \"textures\": [{\"source\": 0}],"
+             " \"images\": [{\"uri\": \"data:image/png;base64,"
+             "iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR4nGP4z8DAAAAEAQEARwbK3gAAAABJRU5ErkJggg==\"}],"
+             " \"buffers\": [{\"byteLength\": 140, \"uri\": \"data:application/octet-stream;base64,"
+             "AACAvwAAgL8AAAAAAACAPwAAgL8AAAAAAACAPwAAgD8AAAAAAACAvwAAgD8AAAAAAAAAAAAAAAAAAIA/AAAAAAAAAAAAAIA/AAAAAAAAAA"
+             "AAAIA/AAAAAAAAAAAAAIA/AAAAAAAAgD8AAIA/AACAPwAAgD8AAAAAAAAAAAAAAAAAAAEAAgAAAAIAAwA=\"}],"
+             " \"bufferViews\": [{\"buffer\": 0, \"byteOffset\": 0, \"byteLength\": 48},"
+             "  {\"buffer\": 0, \"byteOffset\": 48, \"byteLength\": 48}, {\"buffer\": 0, \"byteOffset\": 96, \"byteLength\": 32},"
+             "  {\"buffer\": 0, \"byteOffset\": 128, \"byteLength\": 12}],"
+             " \"accessors\": [{\"bufferView\": 0, \"componentType\": 5126, \"count\": 4, \"type\": \"VEC3\", \"min\": [-1, -1, 0], \"max\": [1, 1, 0]},"
+             "  {\"bufferView\": 1, \"componentType\": 5126, \"count\": 4, \"type\": \"VEC3\"},"
+             "  {\"bufferView\": 2, \"componentType\": 5126, \"count\": 4, \"type\": \"VEC2\"},"
+             "  {\"bufferView\": 3, \"componentType\": 5123, \"count\": 6, \"type\": \"SCALAR\"}]}",
+             alpha_mode);
+    char err[1024];
+    scene_overrides ov = {8, 8, 4, 4, 0, 0};
+    scene *s = scene_load(util_write_temp("alpha.gltf", text), &ov, err, sizeof err);
+    CHECK(s, "%s", err);
+    if (!s) return -1;
+    CHECK((strcmp(alpha_mode, "MASK") == 0) == ((s->features & FEATURE_CUTOUT) != 0), "cutout feature bit");
+    trace_stats st;
+    float *img = util_render(s, 1, 8, 1, &st);
+    double sum = 0;
+    for (int i = 0; i < 8 * 8; i++) sum += img[3 * i + 1];
+    free(img);
+    scene_free(s);
+    return sum / 64;
+}
+
+TEST(gltf_alpha_mask_cuts_out) {
+    double masked = quad_green_mean("MASK"), opaque = quad_green_mean("OPAQUE");
+    CHECK(fabs(masked - 1.0) < 1e-6, "MASK with alpha 0: the sky (1) everywhere, got %g", masked);
+    CHECK(opaque < 0.5, "OPAQUE: the red quad covers the view, green %g", opaque);
+}
