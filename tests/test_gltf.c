@@ -473,3 +473,21 @@ TEST(gltf_alpha_mask_cuts_out) {
     CHECK(fabs(masked - 1.0) < 1e-6, "MASK with alpha 0: the sky (1) everywhere, got %g", masked);
     CHECK(opaque < 0.5, "OPAQUE: the red quad covers the view, green %g", opaque);
 }
+
+/* tessera render room.obj: an OBJ alone, with its MTL's Ke as the light (so
+ * no sky), the automatic camera and a 4:3 image from --width alone. */
+TEST(gltf_obj_alone_renders_with_its_lights) {
+    util_write_temp("alone.mtl", "newmtl floor\nKd 0.5 0.4 0.3\n\nnewmtl lamp\nKd 0 0 0\nKe 5 5 5\n");
+    const char *path = util_write_temp("alone.obj", "mtllib alone.mtl\nv -1 0 -1\nv -1 0 1\nv 1 0 1\nv 1 0 -1\n"
+                                                    "v -0.3 1 -0.3\nv 0.3 1 -0.3\nv 0.3 1 0.3\nv -0.3 1 0.3\n"
+                                                    "usemtl floor\nf 1 2 3 4\nusemtl lamp\nf 5 6 7 8\n");
+    char err[1024];
+    scene_overrides ov = {160, -1, 4, -1, 0, 0};
+    scene *s = scene_load(path, &ov, err, sizeof err);
+    CHECK(s, "%s", err);
+    if (!s) return;
+    CHECK(s->settings.width == 160 && s->settings.height == 120, "%dx%d", s->settings.width, s->settings.height);
+    CHECK(s->light_count == 2 && !(s->features & FEATURE_BACKGROUND), "%u lights, background %d", s->light_count,
+          !!(s->features & FEATURE_BACKGROUND));
+    scene_free(s);
+}
