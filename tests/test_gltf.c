@@ -491,3 +491,67 @@ TEST(gltf_obj_alone_renders_with_its_lights) {
           !!(s->features & FEATURE_BACKGROUND));
     scene_free(s);
 }
+
+/* Material extensions read from the glTF JSON: emissive strength multiplies
+ * the factor (one-sided unless doubleSided); transmission with an IOR maps
+ * onto the smooth glass. */
+TEST(gltf_material_extensions) {
+    char err[1024];
+    const char *path = tri_gltf("emit.gltf", "\"extensionsUsed\": [\"KHR_materials_emissive_strength\"],", 4,
+                                "\"emissiveFactor\": [1, 0.5, 0.25], \"extensions\": {\"KHR_materials_emissive_strength\":"
+                                " {\"emissiveStrength\": 8}}", "", TRI_DATA, 5123, 5126);
+    scene *s = scene_load(path, NULL, err, sizeof err);
+    CHECK(s, "%s", err);
+    if (s) {
+        CHECK(s->light_count == 1 && fabsf(s->lights[0].radiance.x - 8) < 1e-6f && fabsf(s->lights[0].radiance.z - 2) < 1e-6f &&
+                  !s->lights[0].two_sided && !(s->features & FEATURE_BACKGROUND),
+              "emissive triangle: %u lights, radiance %g %g", s->light_count, s->light_count ? s->lights[0].radiance.x : 0,
+              s->light_count ? s->lights[0].radiance.z : 0);
+        scene_free(s);
+    }
+    path = tri_gltf("emit2.gltf", "", 4, "\"emissiveFactor\": [1, 1, 1], \"doubleSided\": true", "", TRI_DATA, 5123, 5126);
+    s = scene_load(path, NULL, err, sizeof err);
+    CHECK(s && s->light_count == 1 && s->lights[0].two_sided, "doubleSided emitter emits from both faces");
+    scene_free(s);
+    path = tri_gltf("glass.gltf", "\"extensionsUsed\": [\"KHR_materials_transmission\", \"KHR_materials_ior\"],", 4,
+                    "\"pbrMetallicRoughness\": {\"baseColorFactor\": [0.9, 1, 0.8, 1], \"metallicFactor\": 0},"
+                    " \"extensions\": {\"KHR_materials_transmission\": {\"transmissionFactor\": 1},"
+                    " \"KHR_materials_ior\": {\"ior\": 1.33}}", "", TRI_DATA, 5123, 5126);
+    s = scene_load(path, NULL, err, sizeof err);
+    CHECK(s, "%s", err);
+    if (s) {
+        const material *m = &s->materials[s->triangle_info[0].material];
+        CHECK(m->kind == MATERIAL_GLASS && fabsf(m->ior - 1.33f) < 1e-6f && fabsf(m->kt.x - 0.9f) < 1e-6f,
+              "transmission 1, ior 1.33: kind %d ior %g", m->kind, m->ior);
+        scene_free(s);
+    }
+}
+
+/* OBJ + MTL map_Kd: the texture on a quad with OBJ's v-up texture
+ * coordinates appears upright (arrow up, blue square bottom right). */
+TEST(gltf_obj_map_kd_the_right_way) {
+    char cmd[1024], out[1024];
+    snprintf(cmd, sizeof cmd, "cp scenes/gltf/arrow.png %s", util_temp_path("arrow.png"));
+    CHECK(util_run(cmd, out, sizeof out) == 0, "%s", out);
+    util_write_temp("tex.mtl", "newmtl arrow\nKd 1 1 1\nmap_Kd arrow.png\n");
+    util_write_temp("tex.obj", "mtllib tex.mtl\nv -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n"
+                               "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl arrow\nf 1/1 2/2 3/3 4/4\n");
+    const char *path = util_write_temp("tex.json",
+        "{\"render\": {\"width\": 64, \"height\": 64, \"spp\": 4, \"max_depth\": 1}, \"background\": [1, 1, 1],"
+        " \"camera\": {\"type\": \"perspective\", \"position\": [0, 0, 3], \"look_at\": [0, 0, 0], \"fov\": 38},"
+        " \"shapes\": [{\"type\": \"model\", \"file\": \"tex.obj\"}]}");
+    char err[1024];
+    scene *s = scene_load(path, NULL, err, sizeof err);
+    CHECK(s, "%s", err);
+    if (!s) return;
+    trace_stats st;
+    float *img = util_render(s, 1, 16, 1, &st);
+#define PX(x, y) (&img[3 * ((y) * 64 + (x))])
+    const float *blue = PX(52, 52), *red = PX(32, 18), *white = PX(12, 52);
+    CHECK(blue[2] > 2 * blue[0], "bottom right should be blue: %g %g %g", blue[0], blue[1], blue[2]);
+    CHECK(red[0] > 2 * red[2], "top middle should be the red arrow head: %g %g %g", red[0], red[1], red[2]);
+    CHECK(white[0] > 0.5f * white[2] && white[2] > 0.5f * white[0], "bottom left should be white");
+#undef PX
+    free(img);
+    scene_free(s);
+}
