@@ -3,6 +3,7 @@
 #include "texture.h"
 
 #include <png.h>
+#include <pthread.h>
 #include <setjmp.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -130,17 +131,19 @@ int texture_decode(const uint8_t *data, size_t len, const char *name, texture *o
     return -1;
 }
 
-float texture_srgb_to_linear(uint8_t c) {
-    static float table[256];
-    static int ready; /* benign: every thread writes the same values */
-    if (!__atomic_load_n(&ready, __ATOMIC_ACQUIRE)) {
-        for (int i = 0; i < 256; i++) {
-            double v = i / 255.0;
-            table[i] = (float)(v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4));
-        }
-        __atomic_store_n(&ready, 1, __ATOMIC_RELEASE);
+static float srgb_table[256];
+static pthread_once_t srgb_once = PTHREAD_ONCE_INIT;
+
+static void srgb_fill(void) {
+    for (int i = 0; i < 256; i++) {
+        double v = i / 255.0;
+        srgb_table[i] = (float)(v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4));
     }
-    return table[c];
+}
+
+float texture_srgb_to_linear(uint8_t c) {
+    pthread_once(&srgb_once, srgb_fill);
+    return srgb_table[c];
 }
 
 /* Texel index along one axis of size n for integer coordinate i. */
