@@ -555,3 +555,25 @@ TEST(gltf_obj_map_kd_the_right_way) {
     free(img);
     scene_free(s);
 }
+
+/* KHR_texture_transform on the base colour texture: uv' = T R S uv. */
+TEST(gltf_texture_transform_is_read) {
+    char cmd[1024], out[1024], err[1024];
+    snprintf(cmd, sizeof cmd, "cp scenes/gltf/arrow.png %s", util_temp_path("arrow.png"));
+    CHECK(util_run(cmd, out, sizeof out) == 0, "%s", out);
+    const char *path = tri_gltf("xform.gltf", "\"extensionsUsed\": [\"KHR_texture_transform\"],", 4,
+                                "\"pbrMetallicRoughness\": {\"baseColorTexture\": {\"index\": 0, \"extensions\":"
+                                " {\"KHR_texture_transform\": {\"offset\": [0.5, 0.25], \"rotation\": 1.5707963,"
+                                " \"scale\": [2, 3]}}}}",
+                                "\"textures\": [{\"source\": 0}], \"images\": [{\"uri\": \"arrow.png\"}],", TRI_DATA,
+                                5123, 5126);
+    scene *s = scene_load(path, NULL, err, sizeof err);
+    CHECK(s, "%s", err);
+    if (!s) return;
+    const material *m = &s->materials[s->triangle_info[0].material];
+    /* rotation pi/2: cos 0, sin 1: M = [c sx, s sy, ox; -s sx, c sy, oy]. */
+    const float want[6] = {0, 3, 0.5f, -2, 0, 0.25f};
+    CHECK(m->has_uv_xform && m->tex_base, "transform and texture present");
+    for (int i = 0; i < 6; i++) CHECK(fabsf(m->uv_xform[i] - want[i]) < 1e-6f, "M[%d] = %g, want %g", i, m->uv_xform[i], want[i]);
+    scene_free(s);
+}
