@@ -577,3 +577,26 @@ TEST(gltf_texture_transform_is_read) {
     for (int i = 0; i < 6; i++) CHECK(fabsf(m->uv_xform[i] - want[i]) < 1e-6f, "M[%d] = %g, want %g", i, m->uv_xform[i], want[i]);
     scene_free(s);
 }
+
+/* A model shape's "rotate" (degrees, x then y then z) turns geometry and
+ * shading normals: a triangle facing +z turned 90 degrees about y faces +x. */
+TEST(gltf_model_shape_rotates) {
+    good("rot.gltf");
+    char err[1024];
+    const char *path = util_write_temp("rot.json",
+        "{\"camera\": {\"type\": \"perspective\", \"position\": [5, 0, 0], \"look_at\": [0, 0, 0], \"fov\": 40},"
+        " \"shapes\": [{\"type\": \"model\", \"file\": \"rot.gltf\", \"rotate\": [0, 90, 0]}]}");
+    scene *s = scene_load(path, NULL, err, sizeof err);
+    CHECK(s, "%s", err);
+    if (!s) return;
+    vec3 n = s->triangle_normals[0];
+    CHECK(fabsf(n.x - 1) < 1e-5f && fabsf(n.y) < 1e-5f && fabsf(n.z) < 1e-5f, "normal %g %g %g", n.x, n.y, n.z);
+    scene_free(s);
+    path = util_write_temp("rot2.json",
+        "{\"camera\": {\"type\": \"perspective\", \"position\": [5, 0, 0], \"look_at\": [0, 0, 0], \"fov\": 40},"
+        " \"materials\": {\"w\": {\"type\": \"diffuse\", \"albedo\": [1, 1, 1]}},"
+        " \"shapes\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, \"material\": \"w\", \"rotate\": [0, 1, 0]}]}");
+    s = scene_load(path, NULL, err, sizeof err);
+    CHECK(!s && strstr(err, "shapes[0].rotate: only model shapes rotate"), "rotate on a sphere: %s", err);
+    scene_free(s);
+}

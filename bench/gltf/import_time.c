@@ -33,7 +33,7 @@ int main(int argc, char **argv) {
     for (int r = 0; r < 3; r++) {
         scene_bundle b;
         if (scene_bundle_read(argv[1], &b, err, sizeof err)) return fprintf(stderr, "%s\n", err), 1;
-        import_options opt = {NULL, 1, {0, 0, 0}};
+        import_options opt = {.scale = 1};
         import_model m;
         const char *slash = strrchr(argv[1], '/');
         double t0 = now();

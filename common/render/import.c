@@ -623,7 +623,17 @@ static void xform_dir(const double m[16], const double d[3], double o[3]) {
     for (int r = 0; r < 3 && l > 0; r++) o[r] /= l;
 }
 
+/* The caller's rotation of a direction (normals, light and camera axes). */
+static void user_dir(const import_options *opt, double d[3]) {
+    if (!opt->has_rotate) return;
+    const double *R = opt->rotate;
+    double o[3];
+    for (int r = 0; r < 3; r++) o[r] = R[3 * r] * d[0] + R[3 * r + 1] * d[1] + R[3 * r + 2] * d[2];
+    memcpy(d, o, sizeof o);
+}
+
 static void user_point(const import_options *opt, double p[3]) {
+    user_dir(opt, p);
     for (int k = 0; k < 3; k++) p[k] = p[k] * opt->scale + opt->translate[k];
 }
 
@@ -641,6 +651,7 @@ static int push_light(importer *im, const cJSON *lj, const double M[16]) {
     xform_point(M, o, l->position);
     user_point(im->opt, l->position);
     xform_dir(M, down, l->direction);
+    user_dir(im->opt, l->direction);
     l->intensity = vec3_make((float)(c[0] * I), (float)(c[1] * I), (float)(c[2] * I));
     const char *t = cJSON_IsString(type) ? type->valuestring : "";
     if (strcmp(t, "point") == 0) {
@@ -695,6 +706,8 @@ static int walk_node(importer *im, int ni, const double parent[16], int depth) {
         user_point(im->opt, c->position);
         xform_dir(M, fwd, c->forward);
         xform_dir(M, up, c->up);
+        user_dir(im->opt, c->forward);
+        user_dir(im->opt, c->up);
         c->yfov = num_or(p, "yfov", 0.8);
         c->aspect = num_or(p, "aspectRatio", 0);
     }
@@ -856,6 +869,7 @@ static int add_mesh(importer *im, const struct aiScene *sc, const struct aiMesh 
                 const struct aiVector3D *n = &mesh->mNormals[vi];
                 double w[3];
                 for (int r = 0; r < 3; r++) w[r] = N[3 * r] * n->x + N[3 * r + 1] * n->y + N[3 * r + 2] * n->z;
+                user_dir(im->opt, w);
                 double l = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
                 if (!(l > 0) || !isfinite(l)) m->flags[t] &= (uint8_t)~1u;
                 for (int r = 0; r < 3; r++) m->normals[9 * t + 3 * k + r] = (float)(l > 0 ? w[r] / l * (det < 0 ? -1 : 1) : 0);
@@ -1004,7 +1018,7 @@ int import_model_load(const scene_bundle *b, const char *name, const import_opti
 
 int import_model_from_memory(const char *name, const uint8_t *data, size_t len, import_model *out, char *err,
                              size_t err_len) {
-    static const import_options opt = {NULL, 1, {0, 0, 0}};
+    static const import_options opt = {.scale = 1};
     importer im;
     memset(&im, 0, sizeof im);
     im.name = name;

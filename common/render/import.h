@@ -47,8 +47,10 @@ typedef struct {
 
 typedef struct {
     const char *camera; /* --camera: node or camera name; NULL = the first */
-    double scale;       /* applied after the model's own transforms: p * scale + translate */
-    double translate[3];
+    double scale;       /* applied after the model's own transforms: */
+    double translate[3]; /* p -> R p * scale + translate */
+    int has_rotate;     /* R: rotate (row-major), else the identity */
+    double rotate[9];
 } import_options;
 
 typedef struct {

@@ -378,7 +378,7 @@ static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat
 
 static int load_shape(loader *L, const cJSON *sh, const char *where) {
     static const char *const keys[] = {"type", "name", "material", "emission", "two_sided", "vertices",
-                                       "center", "radius", "file", "scale", "translate", NULL};
+                                       "center", "radius", "file", "scale", "translate", "rotate", NULL};
     const char *type, *name;
     int em = -1;
     uint32_t mat = 0;
@@ -386,6 +386,8 @@ static int load_shape(loader *L, const cJSON *sh, const char *where) {
         jf_string(&L->j, sh, where, "name", 0, &name) || shape_emission(L, sh, where, &em) ||
         shape_material(L, sh, where, em >= 0 || strcmp(type, "model") == 0, &mat))
         return -1;
+    if (strcmp(type, "model") != 0 && cJSON_GetObjectItemCaseSensitive(sh, "rotate"))
+        return jf_fail(&L->j, where, "rotate", "only model shapes rotate");
     if (strcmp(type, "triangle") == 0) {
         double v[3][3];
         return read_vertices(L, sh, where, 3, v) || add_triangle(L, v[0], v[1], v[2], mat, em, 1, where);
