@@ -227,3 +227,8 @@ slurm-test: $(TESSERA) $(WORKER)
 SLURM_BENCH_ROUNDS ?= 3
 slurm-bench: $(TESSERA) $(WORKER)
 	tests/slurm/run.sh $(BUILD)/bin --bench-layout $(SLURM_BENCH_ROUNDS)
+# ---- glTF / OBJ+MTL import (issue 14): Assimp reads the models ------------
+DEB_PACKAGES += libassimp-dev
+LDLIBS += -lassimp
+FUZZ_TARGETS += gltf
+fuzz: $(FUZZ_BUILD)/fuzz_gltf

@@ -26,6 +26,7 @@
 #include "net/auth.h"
 #include "image/image.h"
 #include "net/protocol.h"
+#include "render/model_files.h"
 #include "render/scene.h"
 #include "render/scene_bundle.h"
 #include "net/wire.h"
@@ -52,6 +53,7 @@ typedef struct {
     scene_overrides ov;
     int priority, tile_size;
     image_write_options wo;
+    const char *camera; /* --camera NAME: a glTF's camera */
 } cli_args;
 
 static int cli_fail(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
@@ -318,6 +320,10 @@ static int do_submit(const cli_args *a, const char *scene_path) {
     char err[1024], hash[SCENE_BUNDLE_HASH_HEX], out_default[512];
     scene_bundle b;
     if (scene_bundle_read(scene_path, &b, err, sizeof err)) return cli_fail("%s", err);
+    if (a->camera && model_bundle_select_camera(&b, a->camera, err, sizeof err)) {
+        scene_bundle_free(&b);
+        return cli_fail("%s", err);
+    }
     size_t len;
     uint8_t *bytes = scene_bundle_serialise(&b, &len);
     scene_bundle_free(&b);
@@ -489,7 +495,7 @@ static void usage(FILE *f) {
 static long parse_num(const char *what, const char *s, long lo, long hi) { return args_long("tessera", what, s, lo, hi); }
 
 enum { C_COORD = 300, C_JSON, C_WAIT, C_SPP, C_WIDTH, C_HEIGHT, C_DEPTH, C_SEED, C_PRIORITY, C_TONEMAP, C_EXPOSURE,
-       C_TILE, C_TOKEN, C_QUALITY, C_PNG16, C_PARTIAL };
+       C_TILE, C_TOKEN, C_QUALITY, C_PNG16, C_PARTIAL, C_CAMERA };
 
 int client_main(int argc, char **argv) {
     static const struct option opts[] = {
@@ -501,6 +507,7 @@ int client_main(int argc, char **argv) {
         {"exposure", required_argument, 0, C_EXPOSURE}, {"output", required_argument, 0, 'o'},
         {"tile-size", required_argument, 0, C_TILE}, {"token-file", required_argument, 0, C_TOKEN},
         {"quality", required_argument, 0, C_QUALITY}, {"png16", no_argument, 0, C_PNG16}, {"partial", no_argument, 0, C_PARTIAL},
+        {"camera", required_argument, 0, C_CAMERA},
         {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
     const char *cmd = argv[0];
     cli_args a = {.ov = {-1, -1, -1, -1, 0, 0}, .wo = {.tonemap = {.kind = TONEMAP_REINHARD}}};
@@ -528,6 +535,7 @@ int client_main(int argc, char **argv) {
             break;
         case C_EXPOSURE: a.wo.tonemap.exposure_stops = (float)parse_num("--exposure", optarg, -64, 64); break;
         case C_TOKEN: a.token_file = optarg; break;
+        case C_CAMERA: a.camera = optarg; break;
         case C_QUALITY: a.wo.jpeg_quality = (int)parse_num("--quality", optarg, 1, 100); break;
         case C_PNG16: a.wo.png16 = 1; break;
         case C_PARTIAL: a.partial = 1; break;

@@ -23,6 +23,7 @@
 #include "image/image_compare.h"
 #include "image/image_meta.h"
 #include "render/render.h"
+#include "render/model_files.h"
 #include "render/scene.h"
 #include "version.h"
 #include "cli_util.h"
@@ -38,6 +39,7 @@ typedef struct {
     int threads, threads_given, workers, tile_size, verbose, progress, jpeg_quality, png16;
     int aov_samples; /* --aov samples: also write the per-pixel sample counts */
     const char *listen, *token_file;
+    const char *camera; /* --camera NAME: a glTF's camera */
     char listen_host[256];
     farm_options farm;
     codec_exr_options exr;
@@ -47,7 +49,7 @@ typedef struct {
 
 static void usage_render(FILE *f) {
     fprintf(f,
-            "usage: tessera render SCENE.json [-o OUT] [options]\n"
+            "usage: tessera render SCENE.json|MODEL.glb|MODEL.gltf|MODEL.obj [-o OUT] [options]\n"
             "\n"
             "Render a scene and save the image; the format follows OUT's extension:\n"
             "  .pfm .exr  linear float RGB (HDR); EXR records scene, spp, seed\n"
@@ -60,6 +62,7 @@ static void usage_render(FILE *f) {
             "      --height H         image height in pixels (overrides render.height)\n"
             "      --max-depth N      maximum bounces (overrides render.max_depth)\n"
             "      --seed N           random seed (overrides render.seed)\n"
+            "      --camera NAME      glTF: render from this camera (node or camera name; default: the first)\n"
             "      --workers N        local worker processes (default: one per core; with\n"
             "                         --listen, 0); 0 without --listen renders in this process\n"
             "      --threads N        threads per local worker (default 1), or render threads\n"
@@ -192,6 +195,7 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         {.name = "workers", .kind = ARG_INT, .dest = &a->workers, .lo = 0, .hi = 4096},
         {.name = "listen", .kind = ARG_STRING, .dest = &a->listen},
         {.name = "token-file", .kind = ARG_STRING, .dest = &a->token_file},
+        {.name = "camera", .kind = ARG_STRING, .dest = &a->camera},
         {.name = "heartbeat", .kind = ARG_DOUBLE, .dest = &a->farm.heartbeat_s, .lo = 0.01, .hi = 3600},
         {.name = "worker-timeout", .kind = ARG_DOUBLE, .dest = &a->farm.timeout_s, .lo = 0.05, .hi = 86400},
         {.name = "lease", .kind = ARG_DOUBLE, .dest = &a->farm.lease_s, .lo = 0.1, .hi = 1e7},
@@ -366,8 +370,10 @@ static int cmd_render(int argc, char **argv) {
         a.out_path = out_default;
     }
     scene_bundle b;
-    if (scene_bundle_read(a.scene_path, &b, err, sizeof err)) {
+    if (scene_bundle_read(a.scene_path, &b, err, sizeof err) ||
+        (a.camera && model_bundle_select_camera(&b, a.camera, err, sizeof err))) {
         fprintf(stderr, "tessera: %s\n", err);
+        if (a.camera) scene_bundle_free(&b);
         return 1;
     }
     scene *s = scene_load_bundle(&b, &a.ov, err, sizeof err);

@@ -177,3 +177,112 @@ TEST(bsdf_glass_fresnel) {
     CHECK(fabsf(sin_i - 1.5f * sin_t) < 1e-5f, "Snell: %g vs %g", sin_i, 1.5f * sin_t);
     CHECK(fabsf(bs.weight.x - 1 / 2.25f) < 1e-5f, "radiance scales by (1/eta)^2 entering: %g", bs.weight.x);
 }
+
+/* ---- glTF metallic-roughness (render/bsdf_pbr.h) ------------------------- */
+
+static material pbr(float r, float g, float b, float metallic, float roughness) {
+    material m = {.kind = MATERIAL_PBR, .base_color = {r, g, b}, .metallic = metallic, .roughness = roughness,
+                  .base_alpha = 1};
+    return m;
+}
+
+TEST(bsdf_pbr_chi2) {
+    /* Roughness from 0.35 up: sharper lobes are narrower than the
+     * quadrature of the expected counts can resolve (as for Phong above). */
+    material ms[] = {pbr(0.8f, 0.5f, 0.2f, 0, 0.5f), pbr(1, 0.8f, 0.4f, 1, 0.35f), pbr(0.9f, 0.9f, 0.9f, 1, 0.4f),
+                     pbr(0.5f, 0.5f, 0.5f, 0.5f, 0.8f), pbr(0.2f, 0.6f, 0.3f, 0, 1), pbr(1, 1, 1, 1, 1),
+                     pbr(0.9f, 0.9f, 0.9f, 0, 0.4f)};
+    for (size_t i = 0; i < sizeof ms / sizeof ms[0]; i++)
+        for (size_t w = 0; w < sizeof wos / sizeof wos[0]; w++) {
+            double stat;
+            vec3 wo = vec3_normalize(wos[w]);
+            CHECK(chi2_agrees(&ms[i], wo, bsdf_pdf, &stat), "pbr material %zu, wo %zu: chi2 %.1f too large", i, w,
+                  stat);
+        }
+}
+
+TEST(bsdf_pbr_reciprocity_and_albedo) {
+    material ms[] = {pbr(0.8f, 0.5f, 0.2f, 0, 0.5f), pbr(1, 0.8f, 0.4f, 1, 0.2f), pbr(0.5f, 0.5f, 0.5f, 0.5f, 0.8f)};
+    for (size_t i = 0; i < sizeof ms / sizeof ms[0]; i++) {
+        for (int k = 0; k < 1000; k++) {
+            rng_stream r = rng_stream_start(5, i, (uint64_t)k);
+            vec3 a = dir_from(rng_next(&r), 2 * M_PI * rng_next(&r));
+            vec3 b = dir_from(rng_next(&r), 2 * M_PI * rng_next(&r));
+            vec3 fab = bsdf_eval(&ms[i], a, b), fba = bsdf_eval(&ms[i], b, a);
+            CHECK(fabsf(fab.x - fba.x) <= 1e-4f * fmaxf(1.0f, fab.x) && fabsf(fab.z - fba.z) <= 1e-4f * fmaxf(1.0f, fab.z),
+                  "pbr %zu: f(a,b)=%g f(b,a)=%g", i, fab.x, fba.x);
+        }
+        for (int w = 0; w <= 10; w++) {
+            vec3 wo = dir_from(w == 0 ? 0.02 : w / 10.0, 0.3);
+            double sum = 0, sum2 = 0;
+            const int n = 20000;
+            for (int k = 0; k < n; k++) {
+                rng_stream r = rng_stream_start(19, (uint64_t)w, (uint64_t)k);
+                float u1 = rng_next(&r), u2 = rng_next(&r), u3 = rng_next(&r);
+                bsdf_sample bs;
+                double v = bsdf_sample_wi(&ms[i], wo, u1, u2, u3, &bs) ? vec3_max_comp(bs.weight) : 0;
+                sum += v;
+                sum2 += v * v;
+            }
+            double mean = sum / n, se = sqrt(fmax(0, sum2 / n - mean * mean) / n);
+            CHECK(mean <= 1.0 + 4 * se + 1e-6, "pbr %zu, cos(wo)=%.2f: albedo %.4f", i, wo.z, mean);
+        }
+    }
+}
+
+/* Directional albedo of f cos by quadrature over the hemisphere (midpoint
+ * rule in cos theta and phi, fine enough for the lobes tested). */
+static double albedo_quadrature(const material *m, vec3 wo) {
+    const int nc = 2000, np = 400;
+    double sum = 0;
+    for (int a = 0; a < nc; a++)
+        for (int b = 0; b < np; b++) {
+            double c = (a + 0.5) / nc, p = (b + 0.5) * 2 * M_PI / np;
+            sum += bsdf_eval(m, wo, dir_from(c, p)).x * c;
+        }
+    return sum * (1.0 / nc) * (2 * M_PI / np);
+}
+
+/* White furnace of a rough metal of reflectance 1 (F = 1 everywhere): a
+ * single-scattering microfacet BRDF loses the energy of the paths that
+ * would bounce between microfacets, and nothing else. So the sampled
+ * estimate E[f cos / pdf] must equal the BRDF's own directional albedo (by
+ * quadrature), and the loss 1 - albedo must be 0 for a smooth surface and
+ * grow with roughness. Figures (printed): the loss at normal incidence and
+ * at cos = 0.2. */
+TEST(bsdf_pbr_white_furnace) {
+    const float rough[] = {0.05f, 0.25f, 0.5f, 0.75f, 1.0f};
+    double prev_loss = -1;
+    for (size_t i = 0; i < sizeof rough / sizeof rough[0]; i++) {
+        material m = pbr(1, 1, 1, 1, rough[i]);
+        double loss[2];
+        const double cosines[2] = {1.0, 0.2};
+        for (int w = 0; w < 2; w++) {
+            vec3 wo = dir_from(cosines[w], 0.0);
+            double sum = 0, sum2 = 0;
+            const int n = 200000;
+            for (int k = 0; k < n; k++) {
+                rng_stream r = rng_stream_start(23, i * 2 + (uint64_t)w, (uint64_t)k);
+                float u1 = rng_next(&r), u2 = rng_next(&r), u3 = rng_next(&r);
+                bsdf_sample bs;
+                double v = bsdf_sample_wi(&m, wo, u1, u2, u3, &bs) ? bs.weight.x : 0;
+                sum += v;
+                sum2 += v * v;
+            }
+            double mc = sum / n, se = sqrt(fmax(0, sum2 / n - mc * mc) / n), q = albedo_quadrature(&m, wo);
+            /* The quadrature misses part of a very sharp lobe: compare
+             * only where it resolves the lobe (roughness >= 0.25). */
+            if (rough[i] >= 0.25f)
+                CHECK(fabs(mc - q) <= 4 * se + 0.003, "roughness %.2f cos %.1f: sampled albedo %.4f, quadrature %.4f",
+                      rough[i], cosines[w], mc, q);
+            CHECK(mc <= 1 + 4 * se, "roughness %.2f: albedo %.4f above 1", rough[i], mc);
+            loss[w] = 1 - mc;
+        }
+        printf("    furnace: metal, reflectance 1, roughness %.2f: energy lost %.4f at normal incidence, "
+               "%.4f at cos 0.2\n", rough[i], loss[0], loss[1]);
+        if (rough[i] <= 0.05f) CHECK(loss[0] < 0.005, "a smooth metal loses %.4f", loss[0]);
+        CHECK(loss[0] >= prev_loss - 0.002, "loss must grow with roughness: %.4f after %.4f", loss[0], prev_loss);
+        prev_loss = loss[0];
+    }
+    CHECK(prev_loss > 0.02 && prev_loss < 0.8, "roughness 1 loses %.4f at normal incidence", prev_loss);
+}

@@ -8,6 +8,7 @@
  * with probability p_specular, the cosine hemisphere otherwise. */
 #include "bsdf.h"
 
+#include "bsdf_pbr.h"
 #include "warp.h"
 
 static inline vec3 reflect_local(vec3 wo) { return vec3_make(-wo.x, -wo.y, wo.z); }
@@ -24,6 +25,8 @@ vec3 bsdf_eval(const material *m, vec3 wo, vec3 wi) {
         float lobe = ca > 0.0f ? (m->exponent + 2.0f) * (0.5f * TS_INV_PI) * powf(ca, m->exponent) : 0.0f;
         return vec3_add(vec3_scale(m->kd, TS_INV_PI), vec3_scale(m->ks, lobe));
     }
+    case MATERIAL_PBR:
+        return bsdf_pbr_eval(m, wo, wi);
     default:
         return vec3_splat(0.0f);
     }
@@ -37,6 +40,8 @@ float bsdf_pdf(const material *m, vec3 wo, vec3 wi) {
     case MATERIAL_GLOSSY:
         return (1.0f - m->p_specular) * warp_cosine_hemisphere_pdf(wi.z) +
                m->p_specular * warp_power_cosine_pdf(phong_cos_alpha(wo, wi), m->exponent);
+    case MATERIAL_PBR:
+        return bsdf_pbr_pdf(m, wo, wi);
     default:
         return 0.0f;
     }
@@ -109,6 +114,8 @@ int bsdf_sample_wi(const material *m, vec3 wo, float u1, float u2, float u3, bsd
         return 1;
     case MATERIAL_GLASS:
         return sample_glass(m, wo, u3, out);
+    case MATERIAL_PBR:
+        return bsdf_pbr_sample(m, wo, u1, u2, u3, out);
     default:
         return 0;
     }

@@ -21,7 +21,7 @@ typedef struct {
 
 /* 1 if the material has a non-delta component that light sampling can hit. */
 static inline int bsdf_is_smooth(const material *m) {
-    return m->kind == MATERIAL_DIFFUSE || m->kind == MATERIAL_GLOSSY;
+    return m->kind == MATERIAL_DIFFUSE || m->kind == MATERIAL_GLOSSY || m->kind == MATERIAL_PBR;
 }
 
 /* f(wo, wi); zero for delta materials and for wi below the surface. */

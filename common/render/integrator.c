@@ -13,6 +13,7 @@
 #include "accel.h"
 #include "lights.h"
 #include "offset.h"
+#include "shading.h"
 #include "warp.h"
 
 /* Where each random decision of a bounce lives, relative to the bounce's
@@ -85,7 +86,8 @@ static vec3 direct_light(const scene *s, const integrator_options *opt, const ma
     if (!(len > 0.0f)) return vec3_splat(0.0f);
     sh.d = vec3_scale(to, 1.0f / len);
     st->shadow_rays++;
-    if (accel_occluded(s->accel, s, &sh, len)) return vec3_splat(0.0f);
+    if ((s->features & FEATURE_CUTOUT) ? shading_occluded(s, &sh, len) : accel_occluded(s->accel, s, &sh, len))
+        return vec3_splat(0.0f);
     float w = (ls.is_delta || opt->no_mis) ? 1.0f : mis_power(ls.pdf, bsdf_pdf(m, wo_local, wi_local));
     return vec3_scale(vec3_mul(f, ls.radiance), fabsf(wi_local.z) * w / ls.pdf);
 }
@@ -111,6 +113,7 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
      * to add. (Material kinds and area-light MIS cost nothing unused: they
      * are reached only through primitives that have them.) */
     int has_lights = (s->features & (FEATURE_AREA_LIGHTS | FEATURE_POINT_LIGHTS)) != 0;
+    int passes = 0; /* cut-out surfaces passed through (render/shading.h) */
     for (int depth = 0;; depth++) {
         hit h;
         st->rays++;
@@ -129,6 +132,16 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
         vec3 wo = vec3_neg(r.d);
         /* Opaque materials reflect on whichever side the ray arrived. */
         vec3 n = (m->kind != MATERIAL_GLASS && vec3_dot(sf.ng, wo) < 0.0f) ? vec3_neg(sf.ng) : sf.ng;
+        material m_hit;
+        if (s->corner_normals && h.prim < s->triangle_count) { /* imported: textures, normals, cutout */
+            m = shading_resolve(s, &h, m, n, wo, &m_hit, &n);
+            if (!m) {
+                if (++passes > 64) break;
+                r = spawn(sf.p, sf.ng, h.prim, r.d);
+                depth--;
+                continue;
+            }
+        }
         frame fr = frame_from_normal(n);
         vec3 wo_local = frame_to_local(&fr, wo);
         /* Only the numbers a vertex uses are computed. */

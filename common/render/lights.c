@@ -2,6 +2,7 @@
 #include "lights.h"
 
 #include "intersect.h"
+#include "punctual.h"
 #include "warp.h"
 
 /* Index i with cdf[i] <= u < cdf[i+1], skipping lights of zero weight. */
@@ -95,6 +96,9 @@ int lights_sample(const scene *s, vec3 ref, float u1, float u2, light_sample *ou
     int ok;
     out->is_delta = 0;
     switch (l->kind) {
+    case LIGHT_SPOT:
+    case LIGHT_DIRECTIONAL:
+        return punctual_sample(l, ref, out);
     case LIGHT_POINT: {
         vec3 d = vec3_sub(l->position, ref);
         out->dist = vec3_length(d);
@@ -121,7 +125,7 @@ int lights_sample(const scene *s, vec3 ref, float u1, float u2, light_sample *ou
 }
 
 float lights_pdf(const scene *s, const light *l, vec3 ref, vec3 p, vec3 n, float dist) {
-    if (l->kind == LIGHT_POINT) return 0.0f;
+    if (l->kind >= LIGHT_POINT) return 0.0f; /* point, spot, directional: deltas */
     if (l->kind == LIGHT_SPHERE) {
         float dc, one_minus_cos = sphere_cone(&s->spheres[l->prim], ref, &dc);
         if (one_minus_cos > 0.0f) return l->select_pdf / (2.0f * TS_PI * one_minus_cos);

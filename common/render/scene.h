@@ -22,7 +22,8 @@ typedef enum {
     MATERIAL_DIFFUSE, /* Lambert */
     MATERIAL_GLOSSY,  /* normalised Phong: diffuse + specular lobe */
     MATERIAL_MIRROR,  /* ideal specular reflection */
-    MATERIAL_GLASS    /* smooth dielectric */
+    MATERIAL_GLASS,   /* smooth dielectric */
+    MATERIAL_PBR      /* glTF metallic-roughness (render/bsdf_pbr.h) */
 } material_kind;
 
 typedef struct {
@@ -33,6 +34,18 @@ typedef struct {
     float exponent;   /* Phong exponent (glossy) */
     float ior;        /* index of refraction inside / outside (glass) */
     float p_specular; /* glossy: probability of sampling the specular lobe */
+    /* MATERIAL_PBR (glTF metallic-roughness, render/bsdf_pbr.h). At a hit
+     * the textures are looked up and folded into a copy of the material. */
+    vec3 base_color;       /* linear base colour factor */
+    float metallic, roughness; /* factors in [0, 1] */
+    float alpha_cutoff;    /* alphaMode MASK: cut out where alpha < cutoff; 0 = opaque */
+    float base_alpha;      /* base colour factor's alpha */
+    float normal_scale;    /* normalTexture.scale */
+    /* Textures, as index + 1 into scene.textures (0 = none, so that a zeroed
+     * material has none). tex_base also tints kd of diffuse and glossy. */
+    uint32_t tex_base, tex_mr, tex_normal;
+    int has_uv_xform;      /* KHR_texture_transform of the base colour texture: */
+    float uv_xform[6];     /* uv' = (M0 u + M1 v + M2, M3 u + M4 v + M5) */
 } material;
 
 typedef enum { CAMERA_PERSPECTIVE, CAMERA_ENVIRONMENT } camera_kind;
@@ -78,7 +91,11 @@ typedef struct {
     int32_t light; /* index into scene.lights, or -1 */
 } prim_info;
 
-typedef enum { LIGHT_TRIANGLE, LIGHT_SPHERE, LIGHT_POINT } light_kind;
+typedef enum {
+    LIGHT_TRIANGLE, LIGHT_SPHERE, LIGHT_POINT,
+    LIGHT_SPOT,       /* KHR_lights_punctual spot: a point light with a cone (render/punctual.h) */
+    LIGHT_DIRECTIONAL /* KHR_lights_punctual directional: irradiance from `direction` */
+} light_kind;
 
 typedef struct {
     light_kind kind;
@@ -89,6 +106,8 @@ typedef struct {
     vec3 position;    /* point lights */
     float area;       /* area lights, internal units */
     float select_pdf; /* probability that light sampling picks this light */
+    vec3 direction;   /* spot, directional: unit direction the light travels */
+    float cos_inner, cos_outer; /* spot: full intensity inside, none outside */
 } light;
 
 struct accel;
@@ -104,7 +123,9 @@ enum {
     FEATURE_SPHERES = 1u << 9,
     FEATURE_AREA_LIGHTS = 1u << 10,  /* emitting triangles or spheres */
     FEATURE_POINT_LIGHTS = 1u << 11, /* delta lights */
-    FEATURE_BACKGROUND = 1u << 12    /* escaping rays carry radiance */
+    FEATURE_BACKGROUND = 1u << 12,   /* escaping rays carry radiance */
+    FEATURE_PBR = 1u << MATERIAL_PBR,
+    FEATURE_CUTOUT = 1u << 13        /* a material has alphaMode MASK: shadow rays pass cutouts */
 };
 
 typedef struct scene {
@@ -137,6 +158,13 @@ typedef struct scene {
     double world_scale;
 
     size_t degenerate_triangles; /* skipped at load, reported with -v */
+
+    /* Imported models (render/import.h): per-corner shading data, NULL when
+     * no triangle has it; triangle t's corners are entries 3t, 3t+1, 3t+2. */
+    vec3 *corner_normals; /* unit shading normals (internal frame) */
+    float *corner_uvs;    /* 2 per corner, glTF convention (v down the image) */
+    struct texture *textures; /* render/texture.h */
+    uint32_t texture_count;
 } scene;
 
 /* Load and validate a scene file. On success returns the scene (free it with

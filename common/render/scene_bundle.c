@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "fileio.h"
+#include "model_files.h"
 
 #define BUNDLE_SCENE_MAX (64u << 20)
 #define BUNDLE_MESH_MAX (SCENE_BUNDLE_MAX_BYTES / 2)
@@ -32,6 +33,31 @@ const scene_bundle_file *scene_bundle_find(const scene_bundle *b, const char *na
     return NULL;
 }
 
+static int bundle_read_mesh(scene_bundle *b, const char *dir, const char *name);
+
+typedef struct {
+    scene_bundle *b;
+    const char *dir;
+} ref_ctx;
+
+static int bundle_read_ref(void *ctx, const char *name) {
+    ref_ctx *c = ctx;
+    if (c->b->count >= SCENE_BUNDLE_MAX_FILES) return 0;
+    return bundle_read_mesh(c->b, c->dir, name);
+}
+
+/* Models (model_files.h): read the files entry i references, recursively
+ * (a glTF's buffers and images, an OBJ's MTL files and their textures). */
+static int bundle_read_references(scene_bundle *b, const char *dir, size_t i) {
+    if (!b->files[i].data || model_kind_of(b->files[i].name) == MODEL_NONE) return 0;
+    ref_ctx c = {b, dir};
+    char *name = strdup(b->files[i].name); /* b->files moves as entries are added */
+    if (!name) return -1;
+    int rc = model_references(name, b->files[i].data, b->files[i].len, bundle_read_ref, &c);
+    free(name);
+    return rc;
+}
+
 /* Read one mesh named in the scene into a new entry. Returns -1 only when
  * out of memory; an unreadable file is recorded in the entry. */
 static int bundle_read_mesh(scene_bundle *b, const char *dir, const char *name) {
@@ -48,7 +74,7 @@ static int bundle_read_mesh(scene_bundle *b, const char *dir, const char *name) 
         f->error = strdup(err);
         if (!f->error) return -1;
     }
-    return 0;
+    return bundle_read_references(b, dir, b->count - 1);
 }
 
 /* Names of mesh files: shapes[i].file where shapes[i].type is "mesh". The
@@ -61,9 +87,13 @@ static int bundle_read_meshes(scene_bundle *b, const char *dir) {
     cJSON_ArrayForEach(sh, shapes) {
         const cJSON *type = cJSON_GetObjectItemCaseSensitive(sh, "type");
         const cJSON *file = cJSON_GetObjectItemCaseSensitive(sh, "file");
-        if (!cJSON_IsString(type) || strcmp(type->valuestring, "mesh") != 0 || !cJSON_IsString(file)) continue;
+        if (!cJSON_IsString(type) || !cJSON_IsString(file) ||
+            (strcmp(type->valuestring, "mesh") != 0 && strcmp(type->valuestring, "model") != 0))
+            continue;
         if (b->count >= SCENE_BUNDLE_MAX_FILES || (rc = bundle_read_mesh(b, dir, file->valuestring))) break;
     }
+    const cJSON *imp = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(root, "import"), "file");
+    if (!rc && cJSON_IsString(imp) && b->count < SCENE_BUNDLE_MAX_FILES) rc = bundle_read_mesh(b, dir, imp->valuestring);
     cJSON_Delete(root);
     return rc;
 }
@@ -72,7 +102,13 @@ int scene_bundle_read(const char *path, scene_bundle *out, char *err, size_t err
     memset(out, 0, sizeof *out);
     scene_bundle_file *f = bundle_add(out, path);
     if (!f) goto oom;
-    f->data = file_read_all(path, BUNDLE_SCENE_MAX, &f->len, err, err_len);
+    model_kind mk = model_kind_of(path);
+    if (mk == MODEL_GLTF || mk == MODEL_GLB || mk == MODEL_OBJ) { /* a model alone: import it whole */
+        f->data = model_scene_json(path, NULL, &f->len);
+        if (!f->data) goto oom;
+    } else {
+        f->data = file_read_all(path, BUNDLE_SCENE_MAX, &f->len, err, err_len);
+    }
     if (!f->data) {
         scene_bundle_free(out);
         return -1;

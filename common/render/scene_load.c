@@ -11,11 +11,13 @@
 #include <string.h>
 
 #include "accel.h"
+#include "import.h"
 #include "json_field.h"
 #include "obj.h"
 #include "scene_bundle.h"
 #include "scene.h"
 #include "limit.h"
+#include "texture.h"
 
 #define MAX_RESOLUTION LIMIT_SIDE
 #define MAX_SPP LIMIT_SPP
@@ -26,6 +28,7 @@ typedef struct {
     double p[3][3];
     uint32_t material;
     int emitter; /* index into loader.emitters, or -1 */
+    int32_t shade; /* imported models: index into loader.shade_*, or -1 */
 } tri_d;
 
 typedef struct {
@@ -42,6 +45,9 @@ typedef struct {
 typedef struct {
     double position[3];
     vec3 intensity;
+    light_kind kind;        /* point, or an imported spot / directional light */
+    double direction[3];
+    float cos_inner, cos_outer;
 } point_d;
 
 typedef struct {
@@ -55,8 +61,15 @@ typedef struct {
     emitter_d *emitters;
     size_t emitter_count, emitter_cap;
     point_d *points;
-    size_t point_count;
+    size_t point_count, point_cap;
     scene *s;
+    /* Imported models (import.h): per-corner normals and uvs of the
+     * triangles whose shade index points here, the model's camera. */
+    float *shade_n, *shade_uv;
+    uint8_t *shade_flags;
+    size_t shade_count, shade_cap;
+    import_camera import_cam;
+    int imported, imported_lights;
 } loader;
 
 /* Make room for one more element; returns the slot or NULL (out of memory). */
@@ -269,6 +282,7 @@ static int add_triangle(loader *L, const double *a, const double *b, const doubl
     memcpy(t->p[2], c, sizeof t->p[2]);
     t->material = mat;
     t->emitter = emitter;
+    t->shade = -1;
     return 0;
 }
 
@@ -361,16 +375,20 @@ static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat
     return rc;
 }
 
+#include "scene_load_import.inc"
+
 static int load_shape(loader *L, const cJSON *sh, const char *where) {
     static const char *const keys[] = {"type", "name", "material", "emission", "two_sided", "vertices",
-                                       "center", "radius", "file", "scale", "translate", NULL};
+                                       "center", "radius", "file", "scale", "translate", "rotate", NULL};
     const char *type, *name;
     int em = -1;
     uint32_t mat = 0;
     if (jf_check_object(&L->j, sh, where, keys) || jf_string(&L->j, sh, where, "type", 1, &type) ||
         jf_string(&L->j, sh, where, "name", 0, &name) || shape_emission(L, sh, where, &em) ||
-        shape_material(L, sh, where, em >= 0, &mat))
+        shape_material(L, sh, where, em >= 0 || strcmp(type, "model") == 0, &mat))
         return -1;
+    if (strcmp(type, "model") != 0 && cJSON_GetObjectItemCaseSensitive(sh, "rotate"))
+        return jf_fail(&L->j, where, "rotate", "only model shapes rotate");
     if (strcmp(type, "triangle") == 0) {
         double v[3][3];
         return read_vertices(L, sh, where, 3, v) || add_triangle(L, v[0], v[1], v[2], mat, em, 1, where);
@@ -378,7 +396,9 @@ static int load_shape(loader *L, const cJSON *sh, const char *where) {
     if (strcmp(type, "quad") == 0) return load_quad(L, sh, where, mat, em);
     if (strcmp(type, "sphere") == 0) return load_sphere(L, sh, where, mat, em);
     if (strcmp(type, "mesh") == 0) return load_mesh(L, sh, where, mat, em);
-    return jf_fail(&L->j, where, "type", "unknown shape type \"%s\" (expected triangle, quad, sphere or mesh)", type);
+    if (strcmp(type, "model") == 0) return load_model_shape(L, sh, where, mat, em);
+    return jf_fail(&L->j, where, "type", "unknown shape type \"%s\" (expected triangle, quad, sphere, mesh "
+                   "or model)", type);
 }
 
 static int load_shapes(loader *L, const cJSON *root) {
@@ -400,14 +420,18 @@ static int load_lights(loader *L, const cJSON *root) {
     if (!lights) return 0;
     if (!cJSON_IsArray(lights)) return jf_fail(&L->j, "lights", NULL, "expected an array of lights");
     int n = cJSON_GetArraySize(lights), i = 0;
-    L->points = calloc((size_t)n + 1, sizeof(point_d));
-    if (!L->points) return jf_fail(&L->j, "lights", NULL, "out of memory");
+    point_d *np = realloc(L->points, (L->point_count + (size_t)n + 1) * sizeof(point_d));
+    if (!np) return jf_fail(&L->j, "lights", NULL, "out of memory");
+    L->points = np;
+    L->point_cap = L->point_count + (size_t)n + 1;
     for (const cJSON *l = lights->child; l; l = l->next, i++) {
         char where[64];
         const char *type;
         double I[3];
         snprintf(where, sizeof where, "lights[%d]", i);
         point_d *p = &L->points[L->point_count];
+        memset(p, 0, sizeof *p);
+        p->kind = LIGHT_POINT;
         if (jf_check_object(&L->j, l, where, keys) || jf_string(&L->j, l, where, "type", 1, &type)) return -1;
         if (strcmp(type, "point") != 0)
             return jf_fail(&L->j, where, "type", "unknown light type \"%s\" (expected point; area lights "
@@ -516,6 +540,7 @@ static void set_prim_light(scene *s, light *l) {
 /* Power of a light, the weight for picking it (its colour's mean). */
 static double light_power(const light *l) {
     if (l->kind == LIGHT_POINT) return 4.0 * M_PI * (l->intensity.x + l->intensity.y + l->intensity.z) / 3.0;
+    if (l->kind == LIGHT_SPOT || l->kind == LIGHT_DIRECTIONAL) return import_light_power(l);
     double sides = l->two_sided ? 2.0 : 1.0;
     return sides * M_PI * l->area * (l->radiance.x + l->radiance.y + l->radiance.z) / 3.0;
 }
@@ -552,9 +577,12 @@ static int build_lights(loader *L) {
     double inv_s2 = 1.0 / (s->world_scale * s->world_scale);
     for (size_t i = 0; i < L->point_count; i++) {
         light *l = &s->lights[s->light_count++];
-        l->kind = LIGHT_POINT;
+        l->kind = L->points[i].kind;
         l->position = to_internal(s, L->points[i].position);
-        l->intensity = vec3_scale(L->points[i].intensity, (float)inv_s2);
+        l->intensity = vec3_scale(L->points[i].intensity, l->kind == LIGHT_DIRECTIONAL ? 1.0f : (float)inv_s2);
+        l->direction = to_vec3(L->points[i].direction);
+        l->cos_inner = L->points[i].cos_inner;
+        l->cos_outer = L->points[i].cos_outer;
     }
     double total = 0, run = 0;
     for (uint32_t i = 0; i < s->light_count; i++) total += light_power(&s->lights[i]);
@@ -608,8 +636,10 @@ static void record_features(scene *s) {
     if (s->triangle_count) f |= FEATURE_TRIANGLES;
     if (s->sphere_count) f |= FEATURE_SPHERES;
     for (uint32_t i = 0; i < s->light_count; i++)
-        f |= s->lights[i].kind == LIGHT_POINT ? FEATURE_POINT_LIGHTS : FEATURE_AREA_LIGHTS;
+        f |= s->lights[i].kind >= LIGHT_POINT ? FEATURE_POINT_LIGHTS : FEATURE_AREA_LIGHTS;
     if (!vec3_is_zero(s->background)) f |= FEATURE_BACKGROUND;
+    for (uint32_t i = 0; i < s->material_count && s->corner_uvs; i++)
+        if (s->materials[i].alpha_cutoff > 0.0f) f |= FEATURE_CUTOUT;
     s->features = f;
 }
 
@@ -621,7 +651,8 @@ void scene_feature_names(uint32_t features, char *buf, size_t len) {
                  {FEATURE_MIRROR, "mirror"},           {FEATURE_GLASS, "glass"},
                  {FEATURE_TRIANGLES, "triangles"},     {FEATURE_SPHERES, "spheres"},
                  {FEATURE_AREA_LIGHTS, "area-lights"}, {FEATURE_POINT_LIGHTS, "point-lights"},
-                 {FEATURE_BACKGROUND, "background"}};
+                 {FEATURE_BACKGROUND, "background"}, {FEATURE_PBR, "pbr"},
+                 {FEATURE_CUTOUT, "cutout"}};
     size_t used = 0;
     if (len) buf[0] = '\0';
     for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) {
@@ -632,16 +663,23 @@ void scene_feature_names(uint32_t features, char *buf, size_t len) {
 }
 
 static int load_root(loader *L, const cJSON *root, const scene_overrides *ov) {
-    static const char *const keys[] = {"render", "camera", "background", "materials", "shapes", "lights", NULL};
+    static const char *const keys[] = {"render", "camera", "background", "materials", "shapes", "lights", "import", NULL};
     static const double black[3] = {0, 0, 0};
     double bg[3];
     if (jf_check_object(&L->j, root, "", keys) || load_render(L, root, ov) || load_materials(L, root) ||
-        load_shapes(L, root) || load_lights(L, root) ||
+        load_shapes(L, root) || load_lights(L, root) || load_import(L, root, ov) ||
         jf_vec3(&L->j, root, "", "background", 0, black, 0, BIG, bg))
         return -1;
     L->s->background = to_vec3(bg);
+    if (L->imported && !cJSON_GetObjectItemCaseSensitive(root, "background") && !L->imported_lights)
+        L->s->background = vec3_splat(IMPORT_DEFAULT_SKY); /* no light in the model: a uniform sky */
     choose_units(L);
-    if (load_camera(L, root) || assemble(L)) return -1;
+    if (L->imported && !cJSON_GetObjectItemCaseSensitive(root, "camera")) {
+        if (import_camera_set(L)) return -1;
+    } else if (load_camera(L, root)) {
+        return -1;
+    }
+    if (assemble(L) || assemble_shading(L)) return -1;
     record_features(L->s);
     L->s->accel = accel_build(L->s, L->s->settings.accel);
     if (!L->s->accel) return jf_fail(&L->j, "shapes", NULL, "out of memory building the intersector");
@@ -667,6 +705,9 @@ scene *scene_load_bundle(const scene_bundle *b, const scene_overrides *ov, char 
     free(L.spheres);
     free(L.emitters);
     free(L.points);
+    free(L.shade_n);
+    free(L.shade_uv);
+    free(L.shade_flags);
     if (rc != 0 || !L.s->path) {
         scene_free(L.s);
         return NULL;
@@ -694,5 +735,9 @@ void scene_free(scene *s) {
     free(s->sphere_info);
     free(s->lights);
     free(s->light_cdf);
+    free(s->corner_normals);
+    free(s->corner_uvs);
+    for (uint32_t i = 0; s->textures && i < s->texture_count; i++) texture_free(&s->textures[i]);
+    free(s->textures);
     free(s);
 }

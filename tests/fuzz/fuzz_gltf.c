@@ -1,0 +1,25 @@
+/* fuzz_gltf.c - libFuzzer target: the model importer (glTF JSON or binary
+ * glTF, told apart by the "glTF" magic) on any bytes, with no other files. */
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "render/import.h"
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
+    import_model m;
+    char err[1024];
+    const char *name = size >= 4 && memcmp(data, "glTF", 4) == 0 ? "fuzz.glb" : "fuzz.gltf";
+    err[0] = '\0';
+    if (import_model_from_memory(name, data, size, &m, err, sizeof err) == 0) {
+        for (size_t i = 0; i < 9 * m.tri_count; i++)
+            if (!isfinite(m.positions[i])) abort();
+        for (size_t t = 0; t < m.tri_count; t++)
+            if (m.material[t] >= m.material_count) abort();
+        import_model_free(&m);
+    } else if (!err[0]) {
+        abort();
+    }
+    return 0;
+}
