@@ -64,6 +64,7 @@ typedef struct sjob {
     int tiles_done, tiles_resumed;
     trace_stats stats;
     double submitted, started, finished; /* wall clock, seconds */
+    double first_tile; /* when this run handed out its first tile (0: queued so far) */
     int tiles_fd;
     TAILQ_ENTRY(sjob) link; /* on the service's jobs, oldest first */
 } sjob;
