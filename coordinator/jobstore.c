@@ -214,7 +214,8 @@ static void load_job(service *s, const char *file) {
     for (int i = 0; cJSON_IsString(state) && i < 4; i++)
         if (strcmp(state->valuestring, state_names[i]) == 0) st = i;
     cJSON *jobmsg = cJSON_Duplicate(m, 1); /* the job fields, as a job message */
-    static const char *const extra[] = {"name", "state", "priority", "tile_size", "error", "submitted", "finished"};
+    static const char *const extra[] = {"name", "state", "priority", "tile_size", "error", "submitted", "finished",
+                                        "rendering_since"};
     for (size_t i = 0; jobmsg && i < sizeof extra / sizeof extra[0]; i++) cJSON_DeleteItemFromObject(jobmsg, extra[i]);
     if (!m || st < 0 || !cJSON_IsString(name) || !cJSON_IsNumber(pri) || !cJSON_IsNumber(ts) || !jobmsg ||
         proto_job_parse(jobmsg, path, &d, err, sizeof err) || !(j = store_job_new(s))) {
