@@ -606,7 +606,8 @@ TEST(service_status_shows_queued_jobs_and_speed_over_rendering_time) {
 }
 
 /* SIGINT while `submit --wait` waits: the job is cancelled on the
- * coordinator and the client exits with 130. */
+ * coordinator and the client exits with 130. Meanwhile its progress, with
+ * stderr not a terminal, is plain lines. */
 TEST(service_submit_wait_sigint_cancels_the_job) {
     service s = {0};
     service_start(&s, "svc-sigint");
@@ -620,10 +621,13 @@ TEST(service_submit_wait_sigint_cancels_the_job) {
     util_touch(hold);
     pid_t w = worker_start_held(&s, "sigint-w", hold, 0);
     const char *argv[] = {tessera, "submit", SCENE, "--wait", "-o", img, NULL};
-    const char *env[] = {env_addr, NULL};
+    const char *env[] = {env_addr, "TESSERA_PROGRESS_SECONDS=0.1", NULL};
     pid_t c = util_spawn_env(argv, clog, env);
     CHECK(util_wait_for_text(wlog, UTIL_HOLDING, LONG) == 0 && util_wait_for_text(clog, "job 1 submitted", LONG) == 0,
           "the job did not start; logs %s %s", wlog, clog);
+    /* stderr is a file: plain progress lines, not a bar */
+    CHECK(util_wait_for_text(clog, "progress: 0/4 tiles (0%)", LONG) == 0 && !util_file_count(clog, "\r"),
+          "no plain progress lines from submit --wait; log %s", clog);
     kill(c, SIGINT);
     int st = util_wait(c, LONG, NULL);
     unlink(hold);
