@@ -83,7 +83,7 @@ static const char *str(const cJSON *o, const char *k) {
 static int send_all(cli *c, const uint8_t *p, size_t len) {
     while (len > 0) {
         ssize_t n = send(c->fd, p, len, MSG_NOSIGNAL);
-        if (n < 0 && errno == EINTR) continue;
+        if (n < 0 && errno == EINTR) continue; /* poll's or recv's: a signal (SIGINT during --wait) */
         if (n <= 0) return cli_fail("lost the coordinator at %s: %s", c->where, strerror(errno));
         p += n;
         len -= (size_t)n;
@@ -95,10 +95,9 @@ static int read_all(cli *c, uint8_t *p, size_t len) {
     while (len > 0) {
         struct pollfd pf = {c->fd, POLLIN, 0};
         int r = poll(&pf, 1, IO_TIMEOUT_MS);
-        if (r < 0 && errno == EINTR) continue; /* a signal (SIGINT during --wait): acted on after this read */
         if (r == 0) return cli_fail("the coordinator at %s did not answer within %d s", c->where, IO_TIMEOUT_MS / 1000);
         ssize_t n = r > 0 ? recv(c->fd, p, len, 0) : -1;
-        if (n < 0 && errno == EINTR) continue;
+        if (n < 0 && errno == EINTR) continue; /* poll's or recv's: a signal (SIGINT during --wait) */
         if (n <= 0) return cli_fail("lost the coordinator at %s: %s", c->where, n == 0 ? "connection closed" : strerror(errno));
         p += n;
         len -= (size_t)n;
