@@ -414,7 +414,8 @@ static int do_submit(const cli_args *a, const char *scene_path) {
     long job = (long)num(r, "job");
     if (a->verbose && num(r, "width") > 0)
         fprintf(stderr, "job %ld: %gx%g%s\n", job, num(r, "width"), num(r, "height"),
-                (a->ov.width > 0) != (a->ov.height > 0) ? " (one side given: the other keeps the scene's aspect ratio)" : "");
+                (a->ov.width > 0) != (a->ov.height > 0) ? " (one side given: the other keeps the scene's aspect ratio)"
+                                                        : "");
     cJSON_Delete(r);
     if (!a->wait) {
         if (a->json) printf("{\"job\": %ld}\n", job);

@@ -350,7 +350,8 @@ static int save_image(const render_args *a, const scene *s, const image *img) {
     char err[1024];
     image_write_options wo = {.tonemap = a->tm, .jpeg_quality = a->jpeg_quality, .png16 = a->png16, .exr = a->exr};
     image_meta meta;
-    image_meta_apply(&meta, a->scene_path, s->settings.spp, s->settings.seed, &wo);
+    image_meta_apply(&meta, strcmp(a->scene_path, "-") ? a->scene_path : "<stdin>", s->settings.spp, s->settings.seed,
+                     &wo);
     if (image_write(a->out_path, img, &wo, err, sizeof err) == 0) return 0;
     fprintf(stderr, "tessera: %s\n", err);
     return -1;

@@ -54,7 +54,9 @@ int jf_check_object(json_ctx *ctx, const cJSON *obj, const char *where, const ch
             if (strcmp(*a, it->string) == 0) known = 1;
         if (!known) {
             const char *near = args_closest(it->string, allowed);
-            if (near) return jf_fail(ctx, where, it->string, "unknown field (did you mean %s%s%s?)", where, where[0] ? "." : "", near);
+            if (near)
+                return jf_fail(ctx, where, it->string, "unknown field (did you mean %s%s%s?)", where,
+                               where[0] ? "." : "", near);
             return jf_fail(ctx, where, it->string, "unknown field");
         }
         for (const cJSON *o = obj->child; o != it; o = o->next)
