@@ -393,7 +393,7 @@ static int do_submit(const cli_args *a, const char *scene_path) {
     cJSON *m = cJSON_CreateObject();
     cJSON_AddStringToObject(m, "type", "submit");
     cJSON_AddStringToObject(m, "scene", hash);
-    cJSON_AddStringToObject(m, "name", scene_path);
+    cJSON_AddStringToObject(m, "name", strcmp(scene_path, "-") ? scene_path : "<stdin>");
     if (a->ov.width > 0) cJSON_AddNumberToObject(m, "width", a->ov.width);
     if (a->ov.height > 0) cJSON_AddNumberToObject(m, "height", a->ov.height);
     if (a->ov.spp > 0) cJSON_AddNumberToObject(m, "spp", a->ov.spp);
@@ -437,7 +437,7 @@ static int do_submit(const cli_args *a, const char *scene_path) {
         rc = cli_fail("job %ld %s%s%s", job, str(fin, "state"), str(fin, "error")[0] ? ": " : "", str(fin, "error"));
     const char *out = a->out;
     if (!out) {
-        cli_default_output(scene_path, out_default, sizeof out_default);
+        cli_default_output(strcmp(scene_path, "-") ? scene_path : "stdin", out_default, sizeof out_default);
         out = out_default;
     }
     image_write_options wo = a->wo;
