@@ -10,13 +10,14 @@
 #include "cli_util.h"
 
 #include <errno.h>
-#include <getopt.h>
 #include <netdb.h>
 #include <poll.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <sys/socket.h>
 #include <time.h>
 #include <unistd.h>
@@ -31,6 +32,7 @@
 #include "render/scene_bundle.h"
 #include "net/wire.h"
 #include "limit.h"
+#include "log.h"
 #include "image/image_meta.h"
 
 #define DEFAULT_COORDINATOR "127.0.0.1:7000"
@@ -41,6 +43,7 @@ typedef struct {
     int fd;
     char where[300];
     double max_upload; /* from welcome: the largest scene bundle accepted */
+    int refused;       /* the last answer was "refused" (the handshake failed) */
 } cli;
 
 typedef struct {
@@ -49,6 +52,8 @@ typedef struct {
     int json;
     int wait;
     int partial; /* fetch: what is done so far of a running or cancelled job */
+    int quiet;   /* submit -q: errors and the final line only */
+    int verbose; /* submit -v: the job's size as the coordinator set it */
     const char *out;
     scene_overrides ov;
     int priority, tile_size;
@@ -80,6 +85,7 @@ static const char *str(const cJSON *o, const char *k) {
 static int send_all(cli *c, const uint8_t *p, size_t len) {
     while (len > 0) {
         ssize_t n = send(c->fd, p, len, MSG_NOSIGNAL);
+        if (n < 0 && errno == EINTR) continue; /* poll's or recv's: a signal (SIGINT during --wait) */
         if (n <= 0) return cli_fail("lost the coordinator at %s: %s", c->where, strerror(errno));
         p += n;
         len -= (size_t)n;
@@ -93,6 +99,7 @@ static int read_all(cli *c, uint8_t *p, size_t len) {
         int r = poll(&pf, 1, IO_TIMEOUT_MS);
         if (r == 0) return cli_fail("the coordinator at %s did not answer within %d s", c->where, IO_TIMEOUT_MS / 1000);
         ssize_t n = r > 0 ? recv(c->fd, p, len, 0) : -1;
+        if (n < 0 && errno == EINTR) continue; /* poll's or recv's: a signal (SIGINT during --wait) */
         if (n <= 0) return cli_fail("lost the coordinator at %s: %s", c->where, n == 0 ? "connection closed" : strerror(errno));
         p += n;
         len -= (size_t)n;
@@ -141,7 +148,10 @@ static cJSON *read_answer(cli *c, const char *want) {
     if (!m) return cli_fail("the coordinator at %s sent an unexpected answer", c->where), NULL;
     if (strcmp(type, want) == 0) return m;
     const cJSON *r = cJSON_GetObjectItemCaseSensitive(m, "reason");
-    cli_fail("%s", cJSON_IsString(r) ? r->valuestring : "the coordinator refused the request");
+    char reason[1100]; /* the peer's text, escaped (log.h) */
+    log_escape(cJSON_IsString(r) ? r->valuestring : "the coordinator refused the request", reason, sizeof reason);
+    c->refused = strcmp(type, "refused") == 0;
+    cli_fail("%s", reason);
     cJSON_Delete(m);
     return NULL;
 }
@@ -194,7 +204,13 @@ static int cli_open(cli *c, const cli_args *args) {
         cJSON_AddStringToObject(h, "nonce", nonce);
     }
     if (send_json(c, h)) return 1;
+    c->refused = 0;
     cJSON *w = read_answer(c, "welcome");
+    if (!w && c->refused && !key.enabled)
+        cli_fail("the coordinator at %s requires a token: give its token file with --token-file F or "
+                 "TESSERA_TOKEN_FILE=F", c->where);
+    else if (!w && c->refused)
+        cli_fail("the coordinator at %s did not accept the token in %s", c->where, token);
     int ok = w && (!key.enabled || auth_check(&key, nonce, "coordinator", str(w, "proof")));
     c->max_upload = num(w, "max_upload");
     if (w && !ok) cli_fail("the coordinator at %s could not prove it knows the token", c->where);
@@ -289,11 +305,42 @@ static int fetch_to(cli *c, long job, const char *out, image_write_options *wo, 
     return rc;
 }
 
+/* SIGINT while `submit --wait` waits: set by the handler, acted on between
+ * polls (the job is cancelled on the coordinator). */
+static volatile sig_atomic_t interrupted;
+
+static void on_interrupt(int sig) {
+    interrupted = sig;
+    signal(sig, SIG_DFL); /* a second Ctrl-C ends the client at once */
+}
+
+/* Catch (on = 1) or stop catching SIGINT and SIGTERM. */
+static void catch_interrupts(int on) {
+    struct sigaction sa = {.sa_handler = on ? on_interrupt : SIG_DFL}; /* no SA_RESTART: a sleep ends early */
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+}
+
+/* Cancel the job after an interrupt; returns 128 + the signal. */
+static int cancel_interrupted(cli *c, long job) {
+    int sig = interrupted;
+    cJSON *r = request(c, "cancel", job, "cancelled");
+    if (r) fprintf(stderr, "tessera: interrupted: job %ld cancelled on the coordinator\n", job);
+    else fprintf(stderr, "tessera: interrupted: job %ld could not be cancelled (see above); "
+                         "`tessera status %ld` shows it\n", job, job);
+    cJSON_Delete(r);
+    return 128 + sig;
+}
+
 /* Poll until the job ends; returns its final status object (caller frees)
- * or NULL (printed). */
-static cJSON *wait_job(cli *c, long job) {
-    int tty = isatty(STDERR_FILENO);
+ * or NULL (printed). A SIGINT or SIGTERM meanwhile returns NULL with
+ * `interrupted` set. */
+static cJSON *wait_job(cli *c, long job, int quiet) {
+    cli_progress_state ps;
+    cli_progress_init(&ps);
     for (;;) {
+        if (interrupted) return NULL;
         cJSON *st = request(c, "status", job, "status");
         if (!st) return NULL;
         cJSON *j = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(st, "jobs"), 0);
@@ -301,11 +348,11 @@ static cJSON *wait_job(cli *c, long job) {
             cJSON_Delete(st);
             return cli_fail("job %ld vanished from the coordinator", job), NULL;
         }
-        if (tty)
-            cli_progress((int)num(j, "tiles_done"), (int)num(j, "tiles_total"), num(j, "samples_per_s"),
-                         (int)num(st, "workers"), num(j, "eta_s"), 0);
-        if (strcmp(str(j, "state"), "running") != 0) {
-            if (tty) fputc('\n', stderr);
+        int ended = strcmp(str(j, "state"), "running") != 0 && strcmp(str(j, "state"), "queued") != 0;
+        if (!quiet)
+            cli_progress_show(&ps, (int)num(j, "tiles_done"), (int)num(j, "tiles_total"), num(j, "samples_per_s"),
+                              (int)num(st, "workers"), num(j, "eta_s"), ended);
+        if (ended) {
             cJSON *copy = cJSON_Duplicate(j, 1);
             cJSON_Delete(st);
             return copy;
@@ -352,7 +399,7 @@ static int do_submit(const cli_args *a, const char *scene_path) {
     cJSON *m = cJSON_CreateObject();
     cJSON_AddStringToObject(m, "type", "submit");
     cJSON_AddStringToObject(m, "scene", hash);
-    cJSON_AddStringToObject(m, "name", scene_path);
+    cJSON_AddStringToObject(m, "name", strcmp(scene_path, "-") ? scene_path : "<stdin>");
     if (a->ov.width > 0) cJSON_AddNumberToObject(m, "width", a->ov.width);
     if (a->ov.height > 0) cJSON_AddNumberToObject(m, "height", a->ov.height);
     if (a->ov.spp > 0) cJSON_AddNumberToObject(m, "spp", a->ov.spp);
@@ -371,6 +418,10 @@ static int do_submit(const cli_args *a, const char *scene_path) {
         return 1;
     }
     long job = (long)num(r, "job");
+    if (a->verbose && num(r, "width") > 0)
+        fprintf(stderr, "job %ld: %gx%g%s\n", job, num(r, "width"), num(r, "height"),
+                (a->ov.width > 0) != (a->ov.height > 0) ? " (one side given: the other keeps the scene's aspect ratio)"
+                                                        : "");
     cJSON_Delete(r);
     if (!a->wait) {
         if (a->json) printf("{\"job\": %ld}\n", job);
@@ -378,14 +429,21 @@ static int do_submit(const cli_args *a, const char *scene_path) {
         cli_close(&c);
         return 0;
     }
-    if (!a->json) fprintf(stderr, "job %ld submitted\n", job);
-    cJSON *fin = wait_job(&c, job);
+    if (!a->json && !a->quiet) fprintf(stderr, "job %ld submitted\n", job);
+    catch_interrupts(1);
+    cJSON *fin = wait_job(&c, job, a->quiet);
+    catch_interrupts(0);
+    if (!fin && interrupted) {
+        rc = cancel_interrupted(&c, job);
+        cli_close(&c);
+        return rc;
+    }
     rc = fin ? 0 : 1;
     if (fin && strcmp(str(fin, "state"), "done") != 0)
         rc = cli_fail("job %ld %s%s%s", job, str(fin, "state"), str(fin, "error")[0] ? ": " : "", str(fin, "error"));
     const char *out = a->out;
     if (!out) {
-        cli_default_output(scene_path, out_default, sizeof out_default);
+        cli_default_output(strcmp(scene_path, "-") ? scene_path : "stdin", out_default, sizeof out_default);
         out = out_default;
     }
     image_write_options wo = a->wo;
@@ -418,12 +476,15 @@ static int do_status(const cli_args *a, long job) {
         printf("%-5s %-9s %8s %13s %10s %7s  %s\n", "JOB", "STATE", "PRIORITY", "TILES", "MSAMPLES/S", "ETA", "SCENE");
         const cJSON *j;
         cJSON_ArrayForEach(j, cJSON_GetObjectItemCaseSensitive(st, "jobs")) {
-            char tiles[32], eta[32];
+            char tiles[32], eta[32], state[40], name[1100], error[2100]; /* peers' text, escaped (log.h) */
             snprintf(tiles, sizeof tiles, "%d/%d", (int)num(j, "tiles_done"), (int)num(j, "tiles_total"));
             snprintf(eta, sizeof eta, "%.0fs", num(j, "eta_s"));
-            printf("%-5d %-9s %8d %13s %10.3f %7s  %s%s%s\n", (int)num(j, "job"), str(j, "state"), (int)num(j, "priority"),
-                   tiles, num(j, "samples_per_s") / 1e6, strcmp(str(j, "state"), "running") ? "-" : eta,
-                   str(j, "name"), str(j, "error")[0] ? "  error: " : "", str(j, "error"));
+            log_escape(str(j, "state"), state, sizeof state);
+            log_escape(str(j, "name"), name, sizeof name);
+            log_escape(str(j, "error"), error, sizeof error);
+            printf("%-5d %-9s %8d %13s %10.3f %7s  %s%s%s\n", (int)num(j, "job"), state, (int)num(j, "priority"),
+                   tiles, num(j, "samples_per_s") / 1e6, strcmp(state, "running") ? "-" : eta,
+                   name, error[0] ? "  error: " : "", error);
         }
         printf("%d workers connected\n", (int)num(st, "workers"));
     }
@@ -440,10 +501,12 @@ static int do_workers(const cli_args *a) {
         printf("%-20s %-22s %7s %7s %10s %10s\n", "NAME", "ADDRESS", "THREADS", "TILES", "MSAMPLES/S", "LAST SEEN");
         const cJSON *w;
         cJSON_ArrayForEach(w, cJSON_GetObjectItemCaseSensitive(ws, "workers")) {
-            char seen[32];
+            char seen[32], name[300], address[300]; /* peers' text, escaped (log.h) */
             snprintf(seen, sizeof seen, "%.1fs ago%s", num(w, "last_seen_s"),
                      cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(w, "stalled")) ? " (stalled)" : "");
-            printf("%-20s %-22s %7d %7d %10.3f %10s\n", str(w, "name"), str(w, "address"), (int)num(w, "threads"),
+            log_escape(str(w, "name"), name, sizeof name);
+            log_escape(str(w, "address"), address, sizeof address);
+            printf("%-20s %-22s %7d %7d %10.3f %10s\n", name, address, (int)num(w, "threads"),
                    (int)num(w, "tiles"), num(w, "samples_per_s") / 1e6, seen);
         }
     }
@@ -473,86 +536,169 @@ static int do_fetch(const cli_args *a, long job) {
 
 /* ---- command line ------------------------------------------------------------------ */
 
-static void usage(FILE *f) {
-    fprintf(f,
-            "usage: tessera submit SCENE.json [--spp N] [--width W --height H] [--max-depth N] [--seed N]\n"
-            "                      [--tile-size N] [--priority P] [--wait] [-o OUT] [--tonemap NAME]\n"
-            "                      [--exposure S] [--quality Q] [--png16]\n"
-            "       tessera status [JOB]\n"
-            "       tessera workers\n"
-            "       tessera cancel JOB\n"
-            "       tessera fetch JOB -o OUT [--partial] [--tonemap NAME] [--exposure S] [--quality Q] [--png16]\n"
-            "\n"
-            "Talk to a running tessera-coordinator. Every command takes --coordinator HOST:PORT\n"
-            "(default: $TESSERA_COORDINATOR, else " DEFAULT_COORDINATOR "), --token-file F (default:\n"
-            "$TESSERA_TOKEN_FILE) and --json for scripts.\n"
-            "submit uploads the scene and its meshes and prints the job id; with --wait it shows\n"
-            "progress and writes the image to OUT on this machine (format from the extension).\n"
-            "fetch --partial writes what a running or cancelled job has done so far; the tiles\n"
-            "not yet rendered are black and named in a warning.\n");
+#define COMMON_OPTIONS_HELP                                                                              \
+    "      --coordinator HOST:PORT  the coordinator (default: $TESSERA_COORDINATOR, else " DEFAULT_COORDINATOR ")\n" \
+    "      --token-file F       the coordinator's shared secret (default: $TESSERA_TOKEN_FILE)\n"          \
+    "      --json               machine-readable output\n"                                             \
+    "  -h, --help               this text\n"
+
+#define IMAGE_OPTIONS_HELP                                                                               \
+    "  -o, --output OUT         the image to write; its extension names the format\n"                   \
+    "      --tonemap NAME       8-bit outputs: " TONEMAP_NAMES "\n"                                      \
+    "      --exposure STOPS     scale radiance by 2^STOPS before tone mapping\n"                         \
+    "      --quality Q          JPEG quality, 1 to 100\n"                                                \
+    "      --png16              16-bit PNG instead of 8-bit\n"
+
+static void usage_submit(FILE *f) {
+    fprintf(f, "usage: tessera submit SCENE.json|MODEL.glb|MODEL.gltf|MODEL.obj [--wait [-o OUT]] [options]\n"
+               "\n"
+               "Upload a scene and its meshes to a running tessera-coordinator and print the job id\n"
+               "(SCENE.json \"-\": from stdin, meshes relative to the current folder). With --wait,\n"
+               "show progress (a bar on a terminal, else a plain line every 5 s), then fetch the\n"
+               "image to OUT (default: SCENE's name with .png). SIGINT while waiting cancels the\n"
+               "job on the coordinator and exits with status 130.\n"
+               "\n"
+               "options:\n"
+               "      --spp N, --max-depth N, --seed N   override the scene's render settings\n"
+               "      --width W, --height H  image size; given one, the other keeps the aspect ratio\n"
+               "      --tile-size N        tile side in pixels (default: the coordinator's)\n"
+               "      --priority P         higher runs first (default 0)\n"
+               "      --camera NAME        glTF: render from this camera (default: the first)\n"
+               "      --wait               wait for the job and write its image\n"
+               "  -q, --quiet              errors and the final line only (no progress, no notes)\n"
+               "  -v, --verbose            say the job's size as the coordinator set it\n"
+               IMAGE_OPTIONS_HELP COMMON_OPTIONS_HELP);
 }
 
-static long parse_num(const char *what, const char *s, long lo, long hi) { return args_long("tessera", what, s, lo, hi); }
+static void usage_status(FILE *f) {
+    fprintf(f, "usage: tessera status [JOB] [options]\n"
+               "\n"
+               "The coordinator's jobs (or one): state (queued, running, done, failed, cancelled),\n"
+               "tiles, speed over the time the job rendered, and the time left.\n"
+               "\n"
+               "options:\n" COMMON_OPTIONS_HELP);
+}
 
-enum { C_COORD = 300, C_JSON, C_WAIT, C_SPP, C_WIDTH, C_HEIGHT, C_DEPTH, C_SEED, C_PRIORITY, C_TONEMAP, C_EXPOSURE,
-       C_TILE, C_TOKEN, C_QUALITY, C_PNG16, C_PARTIAL, C_CAMERA };
+static void usage_workers(FILE *f) {
+    fprintf(f, "usage: tessera workers [options]\n"
+               "\n"
+               "The workers connected to the coordinator: threads, tiles, speed, last heard from.\n"
+               "\n"
+               "options:\n" COMMON_OPTIONS_HELP);
+}
+
+static void usage_cancel(FILE *f) {
+    fprintf(f, "usage: tessera cancel JOB [options]\n"
+               "\n"
+               "Stop a queued or running job; its finished tiles stay (fetch --partial).\n"
+               "\n"
+               "options:\n" COMMON_OPTIONS_HELP);
+}
+
+static void usage_fetch(FILE *f) {
+    fprintf(f, "usage: tessera fetch JOB -o OUT [options]\n"
+               "\n"
+               "Write a finished job's image to OUT on this machine. --partial writes what a\n"
+               "running or cancelled job has done so far; the tiles not yet rendered are black\n"
+               "and named in a warning.\n"
+               "\n"
+               "options:\n"
+               "      --partial            what is done so far\n"
+               IMAGE_OPTIONS_HELP COMMON_OPTIONS_HELP);
+}
+
+static int parse_tonemap_opt(const char *v, void *dest, char *err, size_t n) {
+    if (tonemap_parse(v, dest) == 0) return 0;
+    snprintf(err, n, "unknown operator \"%s\" (known: %s)", v, TONEMAP_NAMES);
+    return -1;
+}
+
+/* One subcommand: its name, help, the options it takes (names in the table
+ * of all options) and how many positional arguments. */
+typedef struct {
+    const char *name;
+    void (*help)(FILE *out);
+    const char *const *options;
+    int min_args, max_args;
+    const char *args_error;
+} client_command;
+
+static const char *const common_opts[] = {"coordinator", "token-file", "json", NULL};
+static const char *const submit_opts[] = {"spp", "width", "height", "max-depth", "seed", "priority", "tile-size",
+                                          "wait", "quiet", "verbose", "output", "tonemap", "exposure", "quality",
+                                          "png16", "camera", NULL};
+static const char *const fetch_opts[] = {"partial", "output", "tonemap", "exposure", "quality", "png16", NULL};
+static const char *const no_opts[] = {NULL};
+
+static const client_command commands[] = {
+    {"submit", usage_submit, submit_opts, 1, 1, "expected exactly one scene file"},
+    {"status", usage_status, no_opts, 0, 1, "expected at most one job number"},
+    {"workers", usage_workers, no_opts, 0, 0, "takes no arguments"},
+    {"cancel", usage_cancel, no_opts, 1, 1, "expected one job number"},
+    {"fetch", usage_fetch, fetch_opts, 1, 1, "expected one job number"},
+};
+
+static int listed(const char *name, const char *const *names) {
+    for (; *names; names++)
+        if (strcmp(*names, name) == 0) return 1;
+    return 0;
+}
+
+/* Refuse image options that do not apply to out's format (exit 2). */
+static void check_image_options(const char *prog, const cli_args *a) {
+    const char *out = a->out ? a->out : "x.png", *dot = strrchr(out, '.');
+    const char *ext = dot ? dot + 1 : "";
+    if (a->wo.png16 && strcasecmp(ext, "png") != 0)
+        args_usage_error(prog, "--png16 applies to .png output, not \"%s\"", out);
+    if (a->wo.jpeg_quality && strcasecmp(ext, "jpg") != 0 && strcasecmp(ext, "jpeg") != 0)
+        args_usage_error(prog, "--quality applies to .jpg output, not \"%s\"", out);
+}
 
 int client_main(int argc, char **argv) {
-    static const struct option opts[] = {
-        {"coordinator", required_argument, 0, C_COORD}, {"json", no_argument, 0, C_JSON},
-        {"wait", no_argument, 0, C_WAIT}, {"spp", required_argument, 0, C_SPP},
-        {"width", required_argument, 0, C_WIDTH}, {"height", required_argument, 0, C_HEIGHT},
-        {"max-depth", required_argument, 0, C_DEPTH}, {"seed", required_argument, 0, C_SEED},
-        {"priority", required_argument, 0, C_PRIORITY}, {"tonemap", required_argument, 0, C_TONEMAP},
-        {"exposure", required_argument, 0, C_EXPOSURE}, {"output", required_argument, 0, 'o'},
-        {"tile-size", required_argument, 0, C_TILE}, {"token-file", required_argument, 0, C_TOKEN},
-        {"quality", required_argument, 0, C_QUALITY}, {"png16", no_argument, 0, C_PNG16}, {"partial", no_argument, 0, C_PARTIAL},
-        {"camera", required_argument, 0, C_CAMERA},
-        {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
-    const char *cmd = argv[0];
     cli_args a = {.ov = {-1, -1, -1, -1, 0, 0}, .wo = {.tonemap = {.kind = TONEMAP_REINHARD}}};
-    int c;
-    optind = 1;
-    while ((c = getopt_long(argc, argv, "o:h", opts, NULL)) != -1) {
-        switch (c) {
-        case C_COORD: a.coordinator = optarg; break;
-        case C_JSON: a.json = 1; break;
-        case C_WAIT: a.wait = 1; break;
-        case C_SPP: a.ov.spp = (int)parse_num("--spp", optarg, 1, LIMIT_SPP); break;
-        case C_WIDTH: a.ov.width = (int)parse_num("--width", optarg, 1, LIMIT_SIDE); break;
-        case C_HEIGHT: a.ov.height = (int)parse_num("--height", optarg, 1, LIMIT_SIDE); break;
-        case C_DEPTH: a.ov.max_depth = (int)parse_num("--max-depth", optarg, 1, LIMIT_DEPTH); break;
-        case C_SEED:
-            a.ov.seed = (uint64_t)parse_num("--seed", optarg, 0, 0x7fffffffffffffffL);
-            a.ov.has_seed = 1;
-            break;
-        case C_PRIORITY: a.priority = (int)parse_num("--priority", optarg, -1000000, 1000000); break;
-        case C_TONEMAP:
-            if (tonemap_parse(optarg, &a.wo.tonemap.kind)) {
-                fprintf(stderr, "tessera: --tonemap: unknown operator \"%s\" (known: %s)\n", optarg, TONEMAP_NAMES);
-                return 2;
-            }
-            break;
-        case C_EXPOSURE: a.wo.tonemap.exposure_stops = (float)parse_num("--exposure", optarg, -64, 64); break;
-        case C_TOKEN: a.token_file = optarg; break;
-        case C_CAMERA: a.camera = optarg; break;
-        case C_QUALITY: a.wo.jpeg_quality = (int)parse_num("--quality", optarg, 1, 100); break;
-        case C_PNG16: a.wo.png16 = 1; break;
-        case C_PARTIAL: a.partial = 1; break;
-        case C_TILE: a.tile_size = (int)parse_num("--tile-size", optarg, 1, 4096); break;
-        case 'o': a.out = optarg; break;
-        case 'h': usage(stdout); return 0;
-        default: usage(stderr); return 2;
-        }
-    }
-    int nargs = argc - optind;
-    const char *arg = nargs > 0 ? argv[optind] : NULL;
-    if (strcmp(cmd, "submit") == 0 && nargs == 1) return do_submit(&a, arg);
-    if (strcmp(cmd, "status") == 0 && nargs <= 1) return do_status(&a, arg ? parse_num("JOB", arg, 1, UINT32_MAX) : -1);
-    if (strcmp(cmd, "workers") == 0 && nargs == 0) return do_workers(&a);
-    if (strcmp(cmd, "cancel") == 0 && nargs == 1) return do_cancel(&a, parse_num("JOB", arg, 1, UINT32_MAX));
-    if (strcmp(cmd, "fetch") == 0 && nargs == 1) return do_fetch(&a, parse_num("JOB", arg, 1, UINT32_MAX));
-    fprintf(stderr, "tessera %s: wrong number of arguments\n", cmd);
-    usage(stderr);
-    return 2;
+    const arg_spec all[] = {
+        {.name = "coordinator", .kind = ARG_STRING, .dest = &a.coordinator},
+        {.name = "token-file", .kind = ARG_STRING, .dest = &a.token_file},
+        {.name = "json", .kind = ARG_FLAG, .dest = &a.json},
+        {.name = "wait", .kind = ARG_FLAG, .dest = &a.wait},
+        {.name = "quiet", .short_name = 'q', .kind = ARG_FLAG, .dest = &a.quiet},
+        {.name = "verbose", .short_name = 'v', .kind = ARG_FLAG, .dest = &a.verbose},
+        {.name = "spp", .kind = ARG_INT, .dest = &a.ov.spp, .lo = 1, .hi = LIMIT_SPP},
+        {.name = "width", .kind = ARG_INT, .dest = &a.ov.width, .lo = 1, .hi = LIMIT_SIDE},
+        {.name = "height", .kind = ARG_INT, .dest = &a.ov.height, .lo = 1, .hi = LIMIT_SIDE},
+        {.name = "max-depth", .kind = ARG_INT, .dest = &a.ov.max_depth, .lo = 1, .hi = LIMIT_DEPTH},
+        {.name = "seed", .kind = ARG_U64, .dest = &a.ov.seed, .given = &a.ov.has_seed},
+        {.name = "priority", .kind = ARG_INT, .dest = &a.priority, .lo = -1000000, .hi = 1000000},
+        {.name = "tile-size", .kind = ARG_INT, .dest = &a.tile_size, .lo = 1, .hi = 4096},
+        {.name = "output", .short_name = 'o', .kind = ARG_STRING, .dest = &a.out},
+        {.name = "tonemap", .kind = ARG_CUSTOM, .dest = &a.wo.tonemap.kind, .parse = parse_tonemap_opt},
+        {.name = "exposure", .kind = ARG_FLOAT, .dest = &a.wo.tonemap.exposure_stops, .lo = -64, .hi = 64},
+        {.name = "quality", .kind = ARG_INT, .dest = &a.wo.jpeg_quality, .lo = 1, .hi = 100},
+        {.name = "png16", .kind = ARG_FLAG, .dest = &a.wo.png16},
+        {.name = "partial", .kind = ARG_FLAG, .dest = &a.partial},
+        {.name = "camera", .kind = ARG_STRING, .dest = &a.camera},
+        {NULL}};
+    const client_command *cmd = NULL;
+    for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
+        if (strcmp(argv[0], commands[i].name) == 0) cmd = &commands[i];
+    if (!cmd) return 2; /* tessera.c only calls with the names above */
+    arg_spec specs[sizeof all / sizeof all[0]];
+    int n = 0;
+    for (const arg_spec *s = all; s->name; s++)
+        if (listed(s->name, common_opts) || listed(s->name, cmd->options)) specs[n++] = *s;
+    specs[n] = (arg_spec){NULL};
+    char prog[32];
+    snprintf(prog, sizeof prog, "tessera %s", cmd->name);
+    const char *pos[1];
+    int nargs = args_parse(prog, argc, argv, specs, cmd->help, pos, 1);
+    if (nargs < cmd->min_args || nargs > cmd->max_args) args_usage_error(prog, "%s", cmd->args_error);
+    check_image_options(prog, &a);
+    const char *arg = nargs > 0 ? pos[0] : NULL;
+    long job = arg && strcmp(cmd->name, "submit") != 0 ? args_long(prog, "JOB", arg, 1, UINT32_MAX) : -1;
+    if (strcmp(cmd->name, "submit") == 0) return do_submit(&a, arg);
+    if (strcmp(cmd->name, "status") == 0) return do_status(&a, job);
+    if (strcmp(cmd->name, "workers") == 0) return do_workers(&a);
+    if (strcmp(cmd->name, "cancel") == 0) return do_cancel(&a, job);
+    if (!a.out) args_usage_error(prog, "-o OUT is required");
+    return do_fetch(&a, job);
 }

@@ -38,6 +38,9 @@ typedef struct {
     scene_overrides ov;
     int threads, threads_given, workers, tile_size, verbose, progress, jpeg_quality, png16;
     int aov_samples; /* --aov samples: also write the per-pixel sample counts */
+    int quiet;       /* -q: errors and the summary line only */
+    int interrupted; /* the signal that stopped a farm render, or 0 */
+    cli_progress_state ps;
     const char *listen, *token_file;
     const char *camera; /* --camera NAME: a glTF's camera */
     char listen_host[256];
@@ -50,6 +53,8 @@ typedef struct {
 static void usage_render(FILE *f) {
     fprintf(f,
             "usage: tessera render SCENE.json|MODEL.glb|MODEL.gltf|MODEL.obj [-o OUT] [options]\n"
+            "       tessera render - [-o OUT] [options]   (the scene from stdin; mesh paths\n"
+            "                      relative to the current folder; default OUT stdin.png)\n"
             "\n"
             "Render a scene and save the image; the format follows OUT's extension:\n"
             "  .pfm .exr  linear float RGB (HDR); EXR records scene, spp, seed\n"
@@ -59,7 +64,8 @@ static void usage_render(FILE *f) {
             "  -o, --output PATH      image to write (default: SCENE's name with .png, in .)\n"
             "      --spp N            samples per pixel (overrides render.spp)\n"
             "      --width W          image width in pixels (overrides render.width)\n"
-            "      --height H         image height in pixels (overrides render.height)\n"
+            "      --height H         image height in pixels (overrides render.height); given\n"
+            "                         one of the two, the other keeps the scene's aspect ratio\n"
             "      --max-depth N      maximum bounces (overrides render.max_depth)\n"
             "      --seed N           random seed (overrides render.seed)\n"
             "      --camera NAME      glTF: render from this camera (node or camera name; default: the first)\n"
@@ -93,9 +99,15 @@ static void usage_render(FILE *f) {
             "                         relative error (and their neighbours') is below E\n"
             "      --min-spp N        adaptive: samples every pixel takes first (default 16)\n"
             "      --aov samples      also write the per-pixel sample counts to OUT-stem.samples.pfm\n"
-            "      --no-progress      no progress bar even on a terminal\n"
+            "      --no-progress      no progress: no bar on a terminal, no lines elsewhere\n"
+            "  -q, --quiet            print errors and the final summary line only\n"
             "  -v, --verbose          print scene and BVH statistics\n"
-            "  -h, --help             this text\n");
+            "  -h, --help             this text\n"
+            "\n"
+            "Progress goes to stderr: a bar on a terminal, else one plain line every 5 s\n"
+            "($TESSERA_PROGRESS_SECONDS). SIGINT or SIGTERM stops the render: the local\n"
+            "workers are stopped, remote ones let go of their tiles, no image is written,\n"
+            "and the exit status is 130 (143 for SIGTERM).\n");
 }
 
 /* arg_spec parsers (args.h) for the options whose values are names. */
@@ -217,12 +229,15 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         {.name = "aov", .kind = ARG_CUSTOM, .dest = &a->aov_samples, .parse = parse_aov_arg},
         {.name = "no-progress", .kind = ARG_FLAG, .dest = &no_progress},
         {.name = "verbose", .short_name = 'v', .kind = ARG_FLAG, .dest = &a->verbose},
+        {.name = "quiet", .short_name = 'q', .kind = ARG_FLAG, .dest = &a->quiet},
         {NULL}};
     const char *scene[1];
     if (args_parse("tessera render", argc, argv, opts, usage_render, scene, 1) != 1)
         args_usage_error("tessera render", "expected exactly one scene file");
     a->scene_path = scene[0];
-    a->progress = !no_progress;
+    a->progress = !no_progress && !a->quiet;
+    if (a->quiet) a->verbose = 0;
+    cli_progress_init(&a->ps);
     render_args_check(a);
 }
 
@@ -235,6 +250,7 @@ static double now_seconds(void) {
 typedef struct {
     double start;
     uint64_t total_samples;
+    cli_progress_state *ps;
 } progress_state;
 
 /* The threaded renderer's progress: tiles, samples/s, ETA. */
@@ -243,7 +259,7 @@ static void show_progress(void *ctx, int done, int total, const trace_stats *so_
     double el = now_seconds() - p->start;
     double rate = el > 0 ? (double)so_far->samples / el : 0;
     double eta = rate > 0 ? (double)(p->total_samples - so_far->samples) / rate : 0;
-    cli_progress(done, total, rate, -1, eta, done == total);
+    cli_progress_show(p->ps, done, total, rate, -1, eta, done == total);
 }
 
 static void print_scene_info(const scene *s) {
@@ -268,10 +284,11 @@ static void print_scene_info(const scene *s) {
 /* Render in this process with a thread pool. Returns 0 or -1 (printed). */
 static int render_in_process(render_args *a, const scene *s, image *img, trace_stats *st) {
     progress_state ps = {now_seconds(),
-                         (uint64_t)s->settings.width * (uint64_t)s->settings.height * (uint64_t)s->settings.spp};
+                         (uint64_t)s->settings.width * (uint64_t)s->settings.height * (uint64_t)s->settings.spp,
+                         &a->ps};
     a->ro.threads = a->threads;
     a->ro.tile_size = a->tile_size;
-    if (a->progress && isatty(STDERR_FILENO)) {
+    if (a->progress) {
         a->ro.progress = show_progress;
         a->ro.progress_ctx = &ps;
     }
@@ -283,8 +300,7 @@ static int render_in_process(render_args *a, const scene *s, image *img, trace_s
 /* local_farm_options.progress: the bar on stderr. */
 static void farm_progress(void *ctx, int done, int total, double samples_per_s, int workers, double eta_s,
                           int final) {
-    (void)ctx;
-    cli_progress(done, total, samples_per_s, workers, eta_s, final);
+    cli_progress_show(ctx, done, total, samples_per_s, workers, eta_s, final);
 }
 
 /* Render on a farm: local worker processes and/or remote ones. Returns 0 or
@@ -304,15 +320,20 @@ static int render_on_farm(render_args *a, const scene *s, const scene_bundle *b,
     local_farm_options lo = {.workers = a->workers, .threads_per_worker = a->threads_given ? a->threads : 1,
                              .tile_size = a->tile_size, .farm = a->farm, .listening = a->listen != NULL,
                              .token_file = a->token_file,
-                             .progress = a->progress && isatty(STDERR_FILENO) ? farm_progress : NULL,
+                             .progress = a->progress ? farm_progress : NULL, .progress_ctx = &a->ps,
                              .verbose = a->verbose,
                              .noise_threshold = a->ro.noise_threshold, .min_spp = a->ro.min_spp,
                              .samples = a->ro.samples};
     lo.farm.verbose = a->verbose;
-    local_farm_report rep;
+    local_farm_report rep = {0};
     char err[700];
     int rc = local_farm_render(&lo, &job, bytes, len, img->rgb, &rep, err, sizeof err);
     free(bytes);
+    if (rc && rep.interrupted) {
+        a->interrupted = rep.interrupted;
+        fprintf(stderr, "tessera: %s: the workers were stopped; no image written\n", err);
+        return -1;
+    }
     if (rc) {
         fprintf(stderr, "tessera: %s\n", err);
         return -1;
@@ -333,7 +354,8 @@ static int save_image(const render_args *a, const scene *s, const image *img) {
     char err[1024];
     image_write_options wo = {.tonemap = a->tm, .jpeg_quality = a->jpeg_quality, .png16 = a->png16, .exr = a->exr};
     image_meta meta;
-    image_meta_apply(&meta, a->scene_path, s->settings.spp, s->settings.seed, &wo);
+    image_meta_apply(&meta, strcmp(a->scene_path, "-") ? a->scene_path : "<stdin>", s->settings.spp, s->settings.seed,
+                     &wo);
     if (image_write(a->out_path, img, &wo, err, sizeof err) == 0) return 0;
     fprintf(stderr, "tessera: %s\n", err);
     return -1;
@@ -366,7 +388,7 @@ static int cmd_render(int argc, char **argv) {
     char err[1024], out_default[512];
     parse_render_args(argc, argv, &a);
     if (!a.out_path) {
-        cli_default_output(a.scene_path, out_default, sizeof out_default);
+        cli_default_output(strcmp(a.scene_path, "-") ? a.scene_path : "stdin", out_default, sizeof out_default);
         a.out_path = out_default;
     }
     scene_bundle b;
@@ -383,6 +405,10 @@ static int cmd_render(int argc, char **argv) {
         return 1;
     }
     if (a.verbose) print_scene_info(s);
+    if (a.verbose && (a.ov.width > 0) != (a.ov.height > 0))
+        fprintf(stderr, "size: %dx%d: --%s given alone, so the %s keeps the scene's aspect ratio\n",
+                s->settings.width, s->settings.height, a.ov.width > 0 ? "width" : "height",
+                a.ov.width > 0 ? "height" : "width");
     image img;
     int rc = image_alloc(&img, s->settings.width, s->settings.height);
     if (rc) fprintf(stderr, "tessera: out of memory for a %dx%d image\n", s->settings.width, s->settings.height);
@@ -406,7 +432,7 @@ static int cmd_render(int argc, char **argv) {
     if (rc == 0 && a.aov_samples) rc = save_samples_aov(&a, s, samples, aov_path, sizeof aov_path);
     if (rc == 0)
         printf("rendered %s: %.2f s, %.3f Msamples/s, %.2f Mrays/s, %llu NaN/Inf samples, image: %s%s%s\n",
-               a.scene_path, secs, (double)st.samples / secs / 1e6,
+               strcmp(a.scene_path, "-") ? a.scene_path : "<stdin>", secs, (double)st.samples / secs / 1e6,
                (double)(st.rays + st.shadow_rays) / secs / 1e6, (unsigned long long)st.bad_samples, a.out_path,
                aov_path[0] ? ", samples: " : "", aov_path);
     if (rc == 0 && samples)
@@ -418,7 +444,7 @@ static int cmd_render(int argc, char **argv) {
     if (img.rgb) image_free(&img);
     scene_free(s);
     scene_bundle_free(&b);
-    return rc ? 1 : 0;
+    return a.interrupted ? 128 + a.interrupted : rc ? 1 : 0;
 }
 
 static void usage_tonemap(FILE *f) {

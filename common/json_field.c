@@ -1,6 +1,8 @@
 /* json_field.c - typed, validated reads of cJSON fields with precise errors. */
 #include "json_field.h"
 
+#include "args.h"
+
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -50,7 +52,13 @@ int jf_check_object(json_ctx *ctx, const cJSON *obj, const char *where, const ch
         int known = 0;
         for (const char *const *a = allowed; *a; a++)
             if (strcmp(*a, it->string) == 0) known = 1;
-        if (!known) return jf_fail(ctx, where, it->string, "unknown field");
+        if (!known) {
+            const char *near = args_closest(it->string, allowed);
+            if (near)
+                return jf_fail(ctx, where, it->string, "unknown field (did you mean %s%s%s?)", where,
+                               where[0] ? "." : "", near);
+            return jf_fail(ctx, where, it->string, "unknown field");
+        }
         for (const cJSON *o = obj->child; o != it; o = o->next)
             if (strcmp(o->string, it->string) == 0) return jf_fail(ctx, where, it->string, "field given twice");
     }

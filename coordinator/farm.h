@@ -85,6 +85,9 @@ typedef struct {
     int priority;          /* higher first; equal priorities in submission order */
     const uint8_t *done;   /* tiles already in rgb (resumed jobs), one byte each, or NULL */
     farm_tile_cb on_tile;  /* may be NULL */
+    /* Called (with the job's ctx) when the job's first tile is handed out,
+     * so the caller can tell queued from rendering; may be NULL. */
+    void (*on_first_assign)(void *ctx);
     /* Adaptive rounds (desc->adaptive): the pixels to render (one byte per
      * pixel of the frame, the caller's, kept until the job ends) and the
      * sample range; rgb then receives ADAPTIVE_CHANNELS sums per pixel. */

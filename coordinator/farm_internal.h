@@ -72,6 +72,7 @@ struct job {
     uint32_t first, count; /* the sample range every assignment carries */
     farm_job_cb cb;
     farm_tile_cb on_tile;
+    void (*on_first_assign)(void *ctx); /* cleared once called */
     void *ctx;
     int priority;
     farm_report rep;

@@ -93,7 +93,9 @@ static int on_hello(peer *p, const cJSON *m) {
             farm_log(f, "peer %s (calling itself %s %.60s): authentication failed (%s token); refused", p->rec.addr,
                      is_client ? "client" : "worker", name->valuestring, cJSON_IsString(proof) ? "wrong" : "no");
             p->rec.name[0] = '\0';
-            return peer_refuse(p, "refused", "authentication failed");
+            /* The same words whatever the proof: a stranger learns that a
+             * token is needed, never whether one was close. */
+            return peer_refuse(p, "refused", "authentication failed: this coordinator requires a token");
         }
     }
     if (is_client) {

@@ -169,6 +169,11 @@ static int peer_assign(peer *p, job *j, uint32_t t, int backup) {
     LIST_INSERT_HEAD(&p->leases, l, link);
     if (j->holders[t]++ == 0) j->first_start[t] = now;
     if (backup) j->rep.backups++;
+    if (j->on_first_assign) {
+        void (*first)(void *) = j->on_first_assign;
+        j->on_first_assign = NULL;
+        first(j->ctx);
+    }
     p->credits--;
     peer_tell_job(p, j);
     peer_send_json(p, proto_assign_json(&a));
@@ -205,6 +210,7 @@ int farm_submit(farm *f, const proto_job *desc, const uint8_t *bundle, size_t bu
     j->tile_size = o->tile_size;
     j->priority = o->priority;
     j->on_tile = o->on_tile;
+    j->on_first_assign = o->on_first_assign;
     j->film = (film){rgb, desc->width, desc->height, desc->adaptive ? ADAPTIVE_CHANNELS : 3};
     j->mask = desc->adaptive ? o->mask : NULL;
     j->first = desc->adaptive ? o->first : 0;

@@ -30,6 +30,7 @@ int store_save_job(sjob *j, char *err, size_t err_len) {
     cJSON_AddStringToObject(m, "error", j->error);
     cJSON_AddNumberToObject(m, "submitted", j->submitted);
     cJSON_AddNumberToObject(m, "finished", j->finished);
+    if (j->first_tile > 0) cJSON_AddNumberToObject(m, "rendering_since", j->first_tile);
     char *text = cJSON_Print(m);
     cJSON_Delete(m);
     store_job_path(j->svc, j->desc.id, "json", path, sizeof path);
@@ -99,6 +100,12 @@ static int store_on_tile_done(void *ctx, uint32_t tile, const tile_rect *r, char
     return rc;
 }
 
+/* The farm handed out the job's first tile: it is rendering, not queued. */
+static void store_on_first_assign(void *ctx) {
+    sjob *j = ctx;
+    j->first_tile = svc_wall_now();
+}
+
 void store_on_job_event(void *ctx, const farm_report *r, int done) {
     sjob *j = ctx;
     service *s = j->svc;
@@ -141,8 +148,9 @@ int store_job_start(service *s, sjob *j, const uint8_t *bundle, size_t len, char
         return -1;
     }
     farm_job_options fo = {.tile_size = j->tile_size, .priority = j->priority, .done = j->journaled,
-                           .on_tile = store_on_tile_done};
+                           .on_tile = store_on_tile_done, .on_first_assign = store_on_first_assign};
     j->started = svc_wall_now();
+    j->first_tile = 0;
     if (farm_submit(s->f, &j->desc, bundle, len, &fo, j->rgb, store_on_job_event, j)) {
         snprintf(err, err_len, "out of memory for job %u", j->desc.id);
         return -1;
@@ -206,7 +214,8 @@ static void load_job(service *s, const char *file) {
     for (int i = 0; cJSON_IsString(state) && i < 4; i++)
         if (strcmp(state->valuestring, state_names[i]) == 0) st = i;
     cJSON *jobmsg = cJSON_Duplicate(m, 1); /* the job fields, as a job message */
-    static const char *const extra[] = {"name", "state", "priority", "tile_size", "error", "submitted", "finished"};
+    static const char *const extra[] = {"name", "state", "priority", "tile_size", "error", "submitted", "finished",
+                                        "rendering_since"};
     for (size_t i = 0; jobmsg && i < sizeof extra / sizeof extra[0]; i++) cJSON_DeleteItemFromObject(jobmsg, extra[i]);
     if (!m || st < 0 || !cJSON_IsString(name) || !cJSON_IsNumber(pri) || !cJSON_IsNumber(ts) || !jobmsg ||
         proto_job_parse(jobmsg, path, &d, err, sizeof err) || !(j = store_job_new(s))) {

@@ -45,7 +45,7 @@ struct local_run {
     char connect[300];
     uv_signal_t sigint, sigterm;
     uv_timer_t grace;
-    int finished, failed;
+    int finished, failed, interrupted;
     char err[600];
     farm_report last;
     uint64_t total_samples;
@@ -144,8 +144,11 @@ static int spawn_worker(local_run *r, int slot) {
     }
     uv_stdio_container_t stdio[3] = {{.flags = UV_IGNORE}, {.flags = UV_IGNORE},
                                      {.flags = UV_INHERIT_FD, .data.fd = STDERR_FILENO}};
+    /* Detached (a session of their own): a Ctrl-C at the terminal reaches
+     * only this process, which then stops them (render_stop), rather than
+     * racing it and being restarted. */
     uv_process_options_t po = {.exit_cb = on_worker_exit, .file = r->exe, .args = args,
-                               .stdio_count = 3, .stdio = stdio};
+                               .stdio_count = 3, .stdio = stdio, .flags = UV_PROCESS_DETACHED};
     int rc = uv_spawn(&r->loop, &lp->proc, &po);
     if (rc) {
         fprintf(stderr, "tessera: cannot start %s: %s\n", r->exe, uv_strerror(rc));
@@ -271,6 +274,7 @@ static void on_signal(uv_signal_t *s, int signum) {
     local_run *r = s->data;
     snprintf(r->err, sizeof r->err, "interrupted by %s", signum == SIGINT ? "SIGINT" : "SIGTERM");
     r->failed = 1;
+    r->interrupted = signum;
     render_stop(r);
 }
 
@@ -349,6 +353,7 @@ static void report_fill(const local_run *r, local_farm_report *rep, double cpu0)
     rep->duplicates = r->last.duplicates;
     rep->requeued = r->last.requeued;
     rep->backups = r->last.backups;
+    rep->interrupted = r->interrupted;
 }
 
 /* Free r and everything it owns (the loop is already closed). */

@@ -36,6 +36,7 @@ typedef struct {
     uint64_t bytes_in, bytes_out;
     int tiles;
     uint64_t duplicates, requeued, backups;
+    int interrupted; /* the signal (SIGINT, SIGTERM) that stopped the render, or 0 */
 } local_farm_report;
 
 /* Render job over the farm; bundle is the serialised scene bundle (sent to

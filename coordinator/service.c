@@ -114,15 +114,21 @@ static void on_submit(client *cl, const cJSON *m) {
     cJSON *r = cJSON_CreateObject();
     cJSON_AddStringToObject(r, "type", "submitted");
     cJSON_AddNumberToObject(r, "job", j->desc.id);
+    cJSON_AddNumberToObject(r, "width", j->desc.width);
+    cJSON_AddNumberToObject(r, "height", j->desc.height);
     client_send_json(cl, r);
 }
 
 static cJSON *job_status_json(const sjob *j) {
     cJSON *o = cJSON_CreateObject();
-    double now = svc_wall_now(), el = (j->state == SJOB_RUNNING ? now : j->finished) - j->started;
+    /* Speed and ETA over the time the job rendered: from its first tile
+     * handed out (in this run), not from its submission. */
+    int queued = j->state == SJOB_RUNNING && j->first_tile == 0;
+    double now = svc_wall_now();
+    double el = j->first_tile > 0 ? (j->state == SJOB_RUNNING ? now : j->finished) - j->first_tile : 0;
     cJSON_AddNumberToObject(o, "job", j->desc.id);
     cJSON_AddStringToObject(o, "name", j->name);
-    cJSON_AddStringToObject(o, "state", state_names[j->state]);
+    cJSON_AddStringToObject(o, "state", queued ? "queued" : state_names[j->state]);
     cJSON_AddNumberToObject(o, "priority", j->priority);
     cJSON_AddNumberToObject(o, "width", j->desc.width);
     cJSON_AddNumberToObject(o, "height", j->desc.height);
@@ -139,6 +145,7 @@ static cJSON *job_status_json(const sjob *j) {
     double left = j->tile_count - j->tiles_done;
     cJSON_AddNumberToObject(o, "eta_s", j->state == SJOB_RUNNING && rendered > 0 ? el / rendered * left : 0);
     cJSON_AddNumberToObject(o, "submitted", j->submitted);
+    if (j->first_tile > 0) cJSON_AddNumberToObject(o, "rendering_since", j->first_tile);
     cJSON_AddStringToObject(o, "error", j->error);
     return o;
 }

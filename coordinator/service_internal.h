@@ -63,6 +63,7 @@ typedef struct sjob {
     uint8_t *journaled; /* tiles on disk before this run */
     int tiles_done, tiles_resumed;
     trace_stats stats;
+    double first_tile; /* wall clock when this run handed out its first tile (0: queued so far) */
     double submitted, started, finished; /* wall clock, seconds */
     int tiles_fd;
     TAILQ_ENTRY(sjob) link; /* on the service's jobs, oldest first */

@@ -1,8 +1,10 @@
 /* test_cli.c - the command line's manners: the usual spellings of help and
  * version, one-line usage errors with a "did you mean", options that do not
  * apply refused rather than ignored. */
+#include <signal.h>
 #include <stdio.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "harness.h"
 #include "util.h"
@@ -78,4 +80,142 @@ TEST(cli_tonemap_writes_16_bit_png_like_render) {
     size_t n = f ? fread(head, 1, sizeof head, f) : 0;
     if (f) fclose(f);
     CHECK(n == 26 && head[24] == 16, "%s is not a 16-bit PNG (bit depth %d)", png, n == 26 ? head[24] : -1);
+}
+
+TEST(cli_client_commands_have_their_own_help_and_one_line_errors) {
+    char out[8192];
+    static const char *const cmds[][2] = {{"status --help", "usage: tessera status"},
+                                          {"workers --help", "usage: tessera workers"},
+                                          {"cancel --help", "usage: tessera cancel"},
+                                          {"fetch -h", "usage: tessera fetch"},
+                                          {"submit --help", "usage: tessera submit"}};
+    for (int i = 0; i < 5; i++) {
+        int rc = tessera(cmds[i][0], out, sizeof out);
+        CHECK(rc == 0 && strncmp(out, cmds[i][1], strlen(cmds[i][1])) == 0, "tessera %s (%d): %s", cmds[i][0], rc, out);
+    }
+    int rc = tessera("status --jsn", out, sizeof out);
+    CHECK(rc == 2 && strstr(out, "tessera status: unknown option --jsn (did you mean --json?)") &&
+              strstr(out, "see tessera status --help") && lines(out) == 2,
+          "status --jsn (%d): %s", rc, out);
+    rc = tessera("fetch 3", out, sizeof out);
+    CHECK(rc == 2 && strstr(out, "tessera fetch: -o OUT is required") && lines(out) == 2, "fetch 3 (%d): %s", rc, out);
+    rc = tessera("cancel", out, sizeof out);
+    CHECK(rc == 2 && strstr(out, "expected one job number") && lines(out) == 2, "cancel (%d): %s", rc, out);
+    rc = tessera("workers --wait", out, sizeof out);
+    CHECK(rc == 2 && strstr(out, "unknown option --wait") && lines(out) == 2, "workers --wait (%d): %s", rc, out);
+    rc = tessera("fetch 3 -o x.jpg --png16", out, sizeof out);
+    CHECK(rc == 2 && strstr(out, "--png16 applies to .png output"), "fetch --png16 with .jpg (%d): %s", rc, out);
+}
+
+TEST(cli_worker_usage_errors_are_one_line) {
+    char out[8192], cmd[4096];
+    snprintf(cmd, sizeof cmd, "%s --conect 127.0.0.1:1 2>&1", util_bin("tessera-worker"));
+    int rc = util_run(cmd, out, sizeof out);
+    CHECK(rc == 2 && strstr(out, "unknown option --conect (did you mean --connect?)") && lines(out) == 2,
+          "tessera-worker --conect (%d): %s", rc, out);
+    snprintf(cmd, sizeof cmd, "%s 2>&1", util_bin("tessera-worker"));
+    rc = util_run(cmd, out, sizeof out);
+    CHECK(rc == 2 && strstr(out, "--connect HOST:PORT is required") && lines(out) == 2, "no --connect (%d): %s", rc, out);
+    snprintf(cmd, sizeof cmd, "%s -V 2>&1", util_bin("tessera-worker"));
+    rc = util_run(cmd, out, sizeof out);
+    CHECK(rc == 0 && strncmp(out, "tessera-worker ", 15) == 0, "tessera-worker -V (%d): %s", rc, out);
+}
+
+/* A 64x32 scene: the Cornell box of tests/scenes, wider than tall. */
+static const char *wide_scene(void) {
+    static char path[512];
+    char out[65536];
+    util_run("sed 's/\"height\": 64/\"height\": 32/' tests/scenes/cornell-small.json", out, sizeof out);
+    snprintf(path, sizeof path, "%s", util_write_temp("wide.json", out));
+    return path;
+}
+
+/* Width and height of a PFM file, or 0x0. */
+static void pfm_size(const char *path, int *w, int *h) {
+    FILE *f = fopen(path, "rb");
+    *w = *h = 0;
+    if (f && fscanf(f, "PF %d %d", w, h) != 2) *w = *h = 0;
+    if (f) fclose(f);
+}
+
+TEST(cli_one_side_keeps_the_aspect_ratio) {
+    char out[8192], args[2048], pfm[512];
+    int w, h;
+    snprintf(pfm, sizeof pfm, "%s", util_temp_path("cli-aspect.pfm"));
+    snprintf(args, sizeof args, "render %s --workers 0 --spp 1 --width 16 -v -o %s", wide_scene(), pfm);
+    int rc = tessera(args, out, sizeof out);
+    pfm_size(pfm, &w, &h);
+    CHECK(rc == 0 && w == 16 && h == 8, "--width 16 of a 64x32 scene gave %dx%d (%d): %s", w, h, rc, out);
+    CHECK(strstr(out, "size: 16x8: --width given alone, so the height keeps the scene's aspect ratio"),
+          "-v does not say the height was derived: %s", out);
+    snprintf(args, sizeof args, "render %s --workers 0 --spp 1 --height 8 -o %s", wide_scene(), pfm);
+    rc = tessera(args, out, sizeof out);
+    pfm_size(pfm, &w, &h);
+    CHECK(rc == 0 && w == 16 && h == 8, "--height 8 of a 64x32 scene gave %dx%d (%d): %s", w, h, rc, out);
+    snprintf(args, sizeof args, "render %s --workers 0 --spp 1 --width 10 --height 30 -o %s", wide_scene(), pfm);
+    rc = tessera(args, out, sizeof out);
+    pfm_size(pfm, &w, &h);
+    CHECK(rc == 0 && w == 10 && h == 30, "both sides given: %dx%d (%d): %s", w, h, rc, out);
+}
+
+TEST(cli_render_reads_the_scene_from_stdin_and_quiet_prints_one_line) {
+    char out[8192], cmd[4096], pfm[512];
+    int w, h;
+    snprintf(pfm, sizeof pfm, "%s", util_temp_path("cli-stdin.pfm"));
+    snprintf(cmd, sizeof cmd, "%s render - --spp 1 --workers 1 -q -o %s < %s 2>&1", harness_tessera(), pfm,
+             wide_scene());
+    int rc = util_run(cmd, out, sizeof out);
+    pfm_size(pfm, &w, &h);
+    CHECK(rc == 0 && w == 64 && h == 32, "render - from stdin (%d, %dx%d): %s", rc, w, h, out);
+    CHECK(lines(out) == 1 && strncmp(out, "rendered <stdin>: ", 18) == 0, "-q printed more than the summary: %s", out);
+    snprintf(cmd, sizeof cmd, "sed 's/\"width\"/\"widht\"/' %s | %s render - --workers 0 -o %s 2>&1", wide_scene(),
+             harness_tessera(), pfm);
+    rc = util_run(cmd, out, sizeof out);
+    CHECK(rc == 1 && strstr(out, "<stdin>: render.widht: unknown field (did you mean render.width?)"),
+          "a misspelt field from stdin (%d): %s", rc, out);
+}
+
+TEST(cli_progress_is_plain_lines_when_stderr_is_not_a_terminal) {
+    char out[16384], cmd[4096], pfm[512];
+    snprintf(pfm, sizeof pfm, "%s", util_temp_path("cli-progress.pfm"));
+    static const char *const modes[] = {"--workers 0 --threads 1", "--workers 1"};
+    for (int i = 0; i < 2; i++) {
+        snprintf(cmd, sizeof cmd,
+                 "TESSERA_PROGRESS_SECONDS=0.001 %s render tests/scenes/cornell-small.json --spp 2 --tile-size 8 %s "
+                 "-o %s 2>&1",
+                 harness_tessera(), modes[i], pfm);
+        int rc = util_run(cmd, out, sizeof out);
+        CHECK(rc == 0 && strstr(out, "progress: ") && strstr(out, "progress: 64/64 tiles (100%)") && !strchr(out, '\r'),
+              "%s: no plain progress lines (%d): %s", modes[i], rc, out);
+        snprintf(cmd, sizeof cmd,
+                 "TESSERA_PROGRESS_SECONDS=0.001 %s render tests/scenes/cornell-small.json --spp 2 --tile-size 8 %s "
+                 "-q -o %s 2>&1",
+                 harness_tessera(), modes[i], pfm);
+        rc = util_run(cmd, out, sizeof out);
+        CHECK(rc == 0 && !strstr(out, "progress: ") && lines(out) == 1, "%s -q (%d): %s", modes[i], rc, out);
+    }
+}
+
+TEST(cli_sigint_stops_a_farm_render_with_130_and_no_image) {
+    char hold[512], log[512], png[512], bin[4096], hold_env[600];
+    snprintf(hold, sizeof hold, "%s", util_temp_path("cli-sigint.hold"));
+    snprintf(log, sizeof log, "%s", util_temp_path("cli-sigint.log"));
+    snprintf(png, sizeof png, "%s", util_temp_path("cli-sigint.png"));
+    snprintf(bin, sizeof bin, "%s", harness_tessera());
+    snprintf(hold_env, sizeof hold_env, "TESSERA_TEST_HOLD_FILE=%s", hold);
+    unlink(png);
+    util_touch(hold);
+    const char *argv[] = {bin, "render", "tests/scenes/cornell-small.json", "--workers", "2", "-o", png, NULL};
+    const char *env[] = {hold_env, NULL};
+    pid_t pid = util_spawn_env(argv, log, env);
+    CHECK(util_wait_for_text(log, UTIL_HOLDING, 120) == 0, "no tile was held; log %s", log);
+    kill(pid, SIGINT);
+    int st = util_wait(pid, 60, NULL);
+    unlink(hold);
+    CHECK(st == 130, "render exited with %d after SIGINT, not 130; log %s", st, log);
+    CHECK(util_file_count(log, "interrupted by SIGINT: the workers were stopped; no image written"),
+          "no message saying what happened; log %s", log);
+    CHECK(!util_file_count(log, "killing them") && !util_file_count(log, "starting local-"),
+          "the workers did not stop cleanly; log %s", log);
+    CHECK(access(png, F_OK) != 0, "%s was written after SIGINT", png);
 }

@@ -294,9 +294,12 @@ TEST(service_token_required_of_workers_and_clients) {
           "the refused worker should learn nothing but the refusal");
     /* Clients: no token or the wrong one are refused; the right one works. */
     int st = cli(&s, out, sizeof out, "status");
-    CHECK(st == 1 && strstr(out, "authentication failed"), "client without a token (%d): %s", st, out);
+    CHECK(st == 1 && strstr(out, "authentication failed") && strstr(out, "requires a token") &&
+              strstr(out, "--token-file F or TESSERA_TOKEN_FILE"),
+          "client without a token is not told a token is required (%d): %s", st, out);
     st = cli(&s, out, sizeof out, "status --token-file %s", bad);
-    CHECK(st == 1 && strstr(out, "authentication failed"), "client with a wrong token (%d): %s", st, out);
+    CHECK(st == 1 && strstr(out, "authentication failed") && strstr(out, "did not accept the token in"),
+          "client with a wrong token (%d): %s", st, out);
     pid_t w = worker_start_token(&s, "member", "0", good);
     snprintf(img, sizeof img, "%s", util_temp_path("svc-auth.pfm"));
     char cmd[4096];
@@ -389,7 +392,7 @@ TEST(service_second_coordinator_on_a_data_dir_is_refused) {
     util_wait(s.pid, LONG, NULL);
     service_start(&s, "svc-lock");
     st = cli(&s, out, sizeof out, "status 1");
-    CHECK(st == 0 && strstr(out, "running"), "restart after kill -9 with the lock file left (%d): %s; log %s", st, out,
+    CHECK(st == 0 && strstr(out, "queued"), "restart after kill -9 with the lock file left (%d): %s; log %s", st, out,
           s.log);
     service_stop(&s);
 }
@@ -554,6 +557,85 @@ TEST(service_fetch_partial_of_a_running_then_cancelled_job) {
     }
     image_free(&ref);
     unlink(hold);
+    worker_stop(w);
+    service_stop(&s);
+}
+
+/* A number field of `tessera status --json` output, or -1. */
+static double json_number(const char *out, const char *key) {
+    char want[64];
+    snprintf(want, sizeof want, "\"%s\":", key);
+    const char *p = strstr(out, want);
+    return p ? atof(p + strlen(want)) : -1;
+}
+
+/* A job behind a higher-priority one is queued, not running with ETA 0 s;
+ * its speed counts from its first tile handed out; peers' text in the table
+ * is escaped; submit -v says the size the coordinator set. */
+TEST(service_status_shows_queued_jobs_and_speed_over_rendering_time) {
+    service s = {0};
+    service_start(&s, "svc-queued");
+    char hold[256], wlog[256], out[8192], scene_text[65536], esc_scene[512];
+    snprintf(hold, sizeof hold, "%s", util_temp_path("svc-queued.hold"));
+    snprintf(wlog, sizeof wlog, "%s", util_temp_path("queued-w.log"));
+    util_touch(hold);
+    pid_t w = worker_start_held(&s, "queued-w", hold, 0); /* 1 thread + 1 prefetch: two tiles of job 1 */
+    int a = job_id((cli(&s, out, sizeof out, "submit " SCENE " --priority 5"), out));
+    CHECK(util_wait_for_text(wlog, UTIL_HOLDING, LONG) == 0, "the worker holds no tile; log %s", wlog);
+    util_run("cat " SCENE, scene_text, sizeof scene_text);
+    snprintf(esc_scene, sizeof esc_scene, "%s", util_write_temp("esc\033[2Jname.json", scene_text));
+    int st = cli(&s, out, sizeof out, "submit '%s' --width 32 -v", esc_scene);
+    int b = job_id(out);
+    CHECK(a == 1 && b == 2 && strstr(out, "job 2: 32x32 (one side given"), "submit -v (%d): %s", st, out);
+    st = cli(&s, out, sizeof out, "status");
+    CHECK(st == 0 && strstr(out, "queued") && strstr(out, "running"), "status of a queued job (%d): %s", st, out);
+    CHECK(!strchr(out, '\033') && strstr(out, "esc\\x1b[2Jname.json"), "a job name was printed unescaped: %s", out);
+    st = cli(&s, out, sizeof out, "status 2 --json");
+    CHECK(st == 0 && strstr(out, "\"state\":\t\"queued\"") && json_number(out, "eta_s") == 0 &&
+              json_number(out, "samples_per_s") == 0,
+          "status --json of the queued job: %s", out);
+    util_sleep(1.5); /* job 2 waits; its speed must not count this */
+    unlink(hold);
+    CHECK(util_wait_for_text(s.log, "job 2 done", LONG) == 0, "job 2 did not finish; log %s", s.log);
+    st = cli(&s, out, sizeof out, "status 2 --json");
+    double submitted = json_number(out, "submitted"), since = json_number(out, "rendering_since");
+    CHECK(st == 0 && since > 0 && since - submitted >= 1.4,
+          "job 2's rendering time starts at submission (%.3f) not at its first tile (%.3f): %s", submitted, since, out);
+    worker_stop(w);
+    service_stop(&s);
+}
+
+/* SIGINT while `submit --wait` waits: the job is cancelled on the
+ * coordinator and the client exits with 130. Meanwhile its progress, with
+ * stderr not a terminal, is plain lines. */
+TEST(service_submit_wait_sigint_cancels_the_job) {
+    service s = {0};
+    service_start(&s, "svc-sigint");
+    char hold[256], wlog[256], clog[256], img[256], out[8192], tessera[4096], env_addr[128];
+    snprintf(hold, sizeof hold, "%s", util_temp_path("svc-sigint.hold"));
+    snprintf(wlog, sizeof wlog, "%s", util_temp_path("sigint-w.log"));
+    snprintf(clog, sizeof clog, "%s", util_temp_path("sigint-client.log"));
+    snprintf(img, sizeof img, "%s", util_temp_path("svc-sigint.pfm"));
+    snprintf(tessera, sizeof tessera, "%s", harness_tessera());
+    snprintf(env_addr, sizeof env_addr, "TESSERA_COORDINATOR=%s", s.addr);
+    util_touch(hold);
+    pid_t w = worker_start_held(&s, "sigint-w", hold, 0);
+    const char *argv[] = {tessera, "submit", SCENE, "--wait", "-o", img, NULL};
+    const char *env[] = {env_addr, "TESSERA_PROGRESS_SECONDS=0.1", NULL};
+    pid_t c = util_spawn_env(argv, clog, env);
+    CHECK(util_wait_for_text(wlog, UTIL_HOLDING, LONG) == 0 && util_wait_for_text(clog, "job 1 submitted", LONG) == 0,
+          "the job did not start; logs %s %s", wlog, clog);
+    /* stderr is a file: plain progress lines, not a bar */
+    CHECK(util_wait_for_text(clog, "progress: 0/4 tiles (0%)", LONG) == 0 && !util_file_count(clog, "\r"),
+          "no plain progress lines from submit --wait; log %s", clog);
+    kill(c, SIGINT);
+    int st = util_wait(c, LONG, NULL);
+    unlink(hold);
+    CHECK(st == 130 && util_file_count(clog, "interrupted: job 1 cancelled on the coordinator"),
+          "submit --wait after SIGINT exited %d; log %s", st, clog);
+    CHECK(access(img, F_OK) != 0, "%s was written after SIGINT", img);
+    st = cli(&s, out, sizeof out, "status 1");
+    CHECK(st == 0 && strstr(out, "cancelled"), "job 1 after the client's SIGINT (%d): %s", st, out);
     worker_stop(w);
     service_stop(&s);
 }

@@ -12,6 +12,7 @@
 #include "net/address.h"
 #include "args.h"
 #include "net/protocol.h"
+#include "version.h"
 #include "worker.h"
 
 static void usage(FILE *f) {
@@ -43,6 +44,24 @@ static void usage(FILE *f) {
             "others) and exit with status 0.\n");
 }
 
+/* getopt_long found a bad option (c is '?' or ':', getopt's optopt and
+ * optind as it left them): one line naming it, with the nearest long
+ * option for a near miss, then "see tessera-worker --help"; exit(2). */
+static void bad_option(const struct option *opts, int c, char **argv) {
+    const char *arg = argv[optind - 1], *names[32];
+    if (c == ':') args_usage_error("tessera-worker", "%s needs a value", arg);
+    if (optopt) args_usage_error("tessera-worker", "unknown option -%c", optopt);
+    int n = 0;
+    for (; opts[n].name && n < 31; n++) names[n] = opts[n].name;
+    names[n] = NULL;
+    char want[100];
+    const char *eq = strchr(arg, '=');
+    snprintf(want, sizeof want, "%.*s", eq ? (int)(eq - arg - 2) : (int)strlen(arg + 2), arg + 2);
+    const char *near = args_closest(want, names);
+    if (near) args_usage_error("tessera-worker", "unknown option --%s (did you mean --%s?)", want, near);
+    args_usage_error("tessera-worker", "unknown option %s", arg);
+}
+
 static long parse_long(const char *opt, const char *s, long lo, long hi) {
     return args_long("tessera-worker", opt, s, lo, hi);
 }
@@ -62,7 +81,8 @@ int main(int argc, char **argv) {
     const char *connect = NULL, *token = getenv("TESSERA_TOKEN_FILE");
     char host[256], name[128], err[256] = "";
     int c;
-    while ((c = getopt_long(argc, argv, "c:t:n:vqh", opts, NULL)) != -1) {
+    opterr = 0; /* bad_option says it in one line */
+    while ((c = getopt_long(argc, argv, ":c:t:n:vqhV", opts, NULL)) != -1) {
         switch (c) {
         case 'c': connect = optarg; break;
         case 't': cfg.threads = (int)parse_long("--threads", optarg, 1, 1024); break;
@@ -75,16 +95,16 @@ int main(int argc, char **argv) {
         case 'v': cfg.verbose = 1; break;
         case 'q': cfg.quiet = 1; break;
         case OPT_TOKEN: token = optarg; break;
-        case OPT_VERSION: printf("tessera-worker %s (protocol %d)\n", protocol_build_id(), PROTOCOL_VERSION); return 0;
+        case OPT_VERSION:
+        case 'V':
+            printf("tessera-worker %s (build %s, protocol %d)\n", TESSERA_VERSION, protocol_build_id(), PROTOCOL_VERSION);
+            return 0;
         case 'h': usage(stdout); return 0;
-        default: usage(stderr); return 2;
+        default: bad_option(opts, c, argv);
         }
     }
-    if (!connect || optind != argc) {
-        fprintf(stderr, "tessera-worker: %s\n", connect ? "unexpected arguments" : "--connect HOST:PORT is required");
-        usage(stderr);
-        return 2;
-    }
+    if (optind != argc) args_usage_error("tessera-worker", "unexpected argument \"%s\"", argv[optind]);
+    if (!connect) args_usage_error("tessera-worker", "--connect HOST:PORT is required");
     if (address_parse(connect, host, sizeof host, &cfg.port, err, sizeof err) || cfg.port == 0) {
         fprintf(stderr, "tessera-worker: --connect %s\n", cfg.port == 0 && !err[0] ? "port 0" : err);
         return 2;

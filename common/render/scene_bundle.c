@@ -98,23 +98,55 @@ static int bundle_read_meshes(scene_bundle *b, const char *dir) {
     return rc;
 }
 
+/* Read all of stdin (a pipe or a file) up to max bytes into a malloc'd,
+ * NUL-terminated buffer; NULL with "<stdin>: reason" in err. */
+static char *read_stdin(size_t max, size_t *len, char *err, size_t err_len) {
+    size_t n = 0, cap = 65536;
+    char *buf = malloc(cap + 1);
+    while (buf) {
+        size_t got = fread(buf + n, 1, cap - n, stdin);
+        n += got;
+        if (got == 0) break;
+        if (n == cap) {
+            char *bigger = cap < max ? realloc(buf, 2 * cap + 1) : NULL;
+            if (!bigger) {
+                snprintf(err, err_len, "<stdin>: %s", cap < max ? "out of memory" : "more than the limit of 64 MiB");
+                free(buf);
+                return NULL;
+            }
+            buf = bigger;
+            cap *= 2;
+        }
+    }
+    if (!buf || ferror(stdin)) {
+        snprintf(err, err_len, "<stdin>: %s", buf ? "read error" : "out of memory");
+        free(buf);
+        return NULL;
+    }
+    buf[n] = '\0';
+    *len = n;
+    return buf;
+}
+
 int scene_bundle_read(const char *path, scene_bundle *out, char *err, size_t err_len) {
     memset(out, 0, sizeof *out);
-    scene_bundle_file *f = bundle_add(out, path);
+    int from_stdin = strcmp(path, "-") == 0; /* meshes then resolve against "." */
+    scene_bundle_file *f = bundle_add(out, from_stdin ? "<stdin>" : path);
     if (!f) goto oom;
     model_kind mk = model_kind_of(path);
-    if (mk == MODEL_GLTF || mk == MODEL_GLB || mk == MODEL_OBJ) { /* a model alone: import it whole */
+    if (!from_stdin && (mk == MODEL_GLTF || mk == MODEL_GLB || mk == MODEL_OBJ)) { /* a model alone: import it whole */
         f->data = model_scene_json(path, NULL, &f->len);
         if (!f->data) goto oom;
     } else {
-        f->data = file_read_all(path, BUNDLE_SCENE_MAX, &f->len, err, err_len);
+        f->data = from_stdin ? read_stdin(BUNDLE_SCENE_MAX, &f->len, err, err_len)
+                             : file_read_all(path, BUNDLE_SCENE_MAX, &f->len, err, err_len);
     }
     if (!f->data) {
         scene_bundle_free(out);
         return -1;
     }
     char dir[4096];
-    const char *slash = strrchr(path, '/');
+    const char *slash = from_stdin ? NULL : strrchr(path, '/');
     if (slash)
         snprintf(dir, sizeof dir, "%.*s", (int)(slash - path), path);
     else

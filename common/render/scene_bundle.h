@@ -35,8 +35,9 @@ typedef struct {
 } scene_bundle;
 
 /* Read the scene at path and every mesh it names (relative names are
- * relative to the scene's folder). Returns 0, or -1 with "PATH: reason" in
- * err when the scene file itself can't be read. A mesh that can't be read is
+ * relative to the scene's folder; path "-" reads the scene from stdin, names
+ * it "<stdin>" and resolves them against the current folder). Returns 0, or
+ * -1 with "PATH: reason" in err when the scene file itself can't be read. A mesh that can't be read is
  * kept as an entry with data NULL and its error, so that scene loading
  * reports it against the field that names it. Free with scene_bundle_free. */
 int scene_bundle_read(const char *path, scene_bundle *out, char *err, size_t err_len);

@@ -129,6 +129,9 @@ static int load_render(loader *L, const cJSON *root, const scene_overrides *ov) 
     st->max_depth = (int)depth;
     st->seed = (uint64_t)seed;
     if (ov) {
+        /* One side given: the other keeps the scene's aspect ratio. */
+        if (ov->width > 0 && ov->height <= 0) st->height = (int)fmax(1, floor((double)ov->width * h / w + 0.5));
+        if (ov->height > 0 && ov->width <= 0) st->width = (int)fmax(1, floor((double)ov->height * w / h + 0.5));
         if (ov->width > 0) st->width = ov->width;
         if (ov->height > 0) st->height = ov->height;
         if (ov->spp > 0) st->spp = ov->spp;
