@@ -464,7 +464,10 @@ static int cmd_tonemap(int argc, char **argv) {
     }
     char err[1024];
     image img;
-    if (image_read(argv[optind], &img, err, sizeof err) != 0 || image_write(out, &img, &wo, err, sizeof err) != 0) {
+    image_meta meta; /* an EXR input's tessera:* header goes to the output too */
+    int read_rc = image_read(argv[optind], &img, err, sizeof err);
+    if (read_rc == 0) image_meta_from_exr(&meta, argv[optind], &wo);
+    if (read_rc != 0 || image_write(out, &img, &wo, err, sizeof err) != 0) {
         fprintf(stderr, "tessera: %s\n", err);
         image_free(&img);
         return 1;

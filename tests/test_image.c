@@ -210,14 +210,23 @@ TEST(tonemap_photographic_auto_exposure) {
 }
 
 TEST(cli_tonemap_matches_render) {
-    char cmd[1024], out[4096];
+    char cmd[4096], out[4096], dir[128];
     const char *t = harness_tessera();
+    snprintf(dir, sizeof dir, "%.120s", util_temp_path("")); /* this run's own folder, not one shared with other runs */
+    /* From an EXR, which carries the render's tessera:* header, the PNG is
+     * the same bytes, tEXt chunks included; from a PFM, the same pixels. */
     snprintf(cmd, sizeof cmd,
-             "%s render tests/scenes/cornell-small.json --spp 2 -o /tmp/tessera-tm.pfm && "
-             "%s render tests/scenes/cornell-small.json --spp 2 --tonemap photographic -o /tmp/tessera-tm1.png && "
-             "%s tonemap /tmp/tessera-tm.pfm --tonemap photographic -o /tmp/tessera-tm2.png && "
-             "cmp /tmp/tessera-tm1.png /tmp/tessera-tm2.png", t, t, t);
+             "%s render tests/scenes/cornell-small.json --spp 2 -o %stm.exr && "
+             "%s render tests/scenes/cornell-small.json --spp 2 --tonemap photographic -o %stm1.png && "
+             "%s tonemap %stm.exr --tonemap photographic -o %stm2.png && cmp %stm1.png %stm2.png && "
+             "%s render tests/scenes/cornell-small.json --spp 2 -o %stm.pfm && "
+             "%s tonemap %stm.pfm --tonemap photographic -o %stm3.png && "
+             "idiff -fail 0 -failpercent 0 %stm1.png %stm3.png", t, dir, t, dir, t, dir, dir, dir, dir, t, dir, t, dir,
+             dir, dir, dir);
     CHECK(util_run(cmd, out, sizeof out) == 0, "re-tone-mapping differs from rendering: %s", out);
+    snprintf(cmd, sizeof cmd, "iinfo -v %stm2.png", dir);
+    CHECK(util_run(cmd, out, sizeof out) == 0 && strstr(out, "tessera:scene: \"tests/scenes/cornell-small.json\""),
+          "tonemap dropped the EXR's header: %s", out);
     snprintf(cmd, sizeof cmd, "%s tonemap /tmp/tessera-tm.pfm --tonemap sepia -o /tmp/x.png", t);
     CHECK(util_run(cmd, out, sizeof out) == 2 && strstr(out, "unknown operator \"sepia\""), "bad operator: %s", out);
     snprintf(cmd, sizeof cmd, "%s tonemap /tmp/nothing.pfm -o /tmp/x.png", t);
