@@ -473,7 +473,10 @@ static int cmd_tonemap(int argc, char **argv) {
         args_usage_error("tessera tonemap", "expected one input image and -o OUT");
     char err[1024];
     image img;
-    if (image_read(in[0], &img, err, sizeof err) != 0 || image_write(out, &img, &wo, err, sizeof err) != 0) {
+    image_meta meta; /* an EXR input's tessera:* header goes to the output too */
+    int read_rc = image_read(in[0], &img, err, sizeof err);
+    if (read_rc == 0) image_meta_from_exr(&meta, in[0], &wo);
+    if (read_rc != 0 || image_write(out, &img, &wo, err, sizeof err) != 0) {
         fprintf(stderr, "tessera: %s\n", err);
         image_free(&img);
         return 1;

@@ -14,6 +14,7 @@
 
 typedef struct {
     char spp[24], seed[24];
+    char scene[1024]; /* image_meta_from_exr's copy */
     codec_attribute attrs[IMAGE_META_COUNT];
 } image_meta;
 
@@ -21,5 +22,12 @@ typedef struct {
  * spp samples per pixel and seed, and point wo's attributes at m (so m
  * must outlive the image_write that uses wo). Can't fail. */
 void image_meta_apply(image_meta *m, const char *scene, int spp, uint64_t seed, image_write_options *wo);
+
+/* Read tessera:scene, tessera:spp and tessera:seed from the header of the
+ * EXR file at path and apply them as image_meta_apply does (`tessera
+ * tonemap` keeps the header of its input). Returns 0, or -1 with wo
+ * untouched when path is not an EXR file holding all three (a PFM has no
+ * header). */
+int image_meta_from_exr(image_meta *m, const char *path, image_write_options *wo);
 
 #endif
