@@ -286,7 +286,7 @@ TEST(image_exr_half_and_alpha) {
  * oiiotool, is the red corner: the right way up. */
 TEST(image_formats_read_by_openimageio) {
     image a;
-    char err[256], out[4096], cmd[512];
+    char err[256], out[4096], cmd[1400];
     image_alloc(&a, 40, 30);
     for (int i = 0; i < 40 * 30 * 3; i++) a.rgb[i] = 0.1f;
     for (int y = 0; y < 6; y++)
@@ -296,16 +296,18 @@ TEST(image_formats_read_by_openimageio) {
         }
     const char *exts[] = {"exr", "pfm", "png", "ppm", "jpg"};
     for (int e = 0; e < 5; e++) {
-        char path[64];
-        snprintf(path, sizeof path, "/tmp/tessera-oiio.%s", exts[e]);
+        char path[600], px_path[600], name[32];
+        snprintf(name, sizeof name, "oiio.%s", exts[e]);
+        snprintf(path, sizeof path, "%s", util_temp_path(name));
+        snprintf(px_path, sizeof px_path, "%s", util_temp_path("oiio-px.exr"));
         image_write_options wo = {.tonemap = {.kind = TONEMAP_CLAMP}, .jpeg_quality = 95};
         CHECK(image_write(path, &a, &wo, err, sizeof err) == 0, "%s", err);
         snprintf(cmd, sizeof cmd, "iinfo %s", path);
         CHECK(util_run(cmd, out, sizeof out) == 0 && strstr(out, "40 x   30"), "iinfo on .%s: %s", exts[e], out);
-        snprintf(cmd, sizeof cmd, "oiiotool %s --cut 1x1+2+2 -d float -o /tmp/tessera-oiio-px.exr", path);
+        snprintf(cmd, sizeof cmd, "oiiotool %s --cut 1x1+2+2 -d float -o %s", path, px_path);
         CHECK(util_run(cmd, out, sizeof out) == 0, "oiiotool on .%s: %s", exts[e], out);
         image px;
-        if (image_read("/tmp/tessera-oiio-px.exr", &px, err, sizeof err) == 0) {
+        if (image_read(px_path, &px, err, sizeof err) == 0) {
             CHECK(px.rgb[0] > 0.9f && px.rgb[1] < 0.05f && px.rgb[2] < 0.05f, ".%s: top-left pixel (%g, %g, %g) is not red",
                   exts[e], px.rgb[0], px.rgb[1], px.rgb[2]);
             image_free(&px);
@@ -313,7 +315,9 @@ TEST(image_formats_read_by_openimageio) {
             CHECK(0, "%s", err);
         }
     }
-    snprintf(cmd, sizeof cmd, "idiff /tmp/tessera-oiio.exr /tmp/tessera-oiio.pfm");
+    char exr_path[600];
+    snprintf(exr_path, sizeof exr_path, "%s", util_temp_path("oiio.exr"));
+    snprintf(cmd, sizeof cmd, "idiff %s %s", exr_path, util_temp_path("oiio.pfm"));
     CHECK(util_run(cmd, out, sizeof out) == 0 && strstr(out, "PASS"), "idiff: EXR and PFM differ: %s", out);
     image_free(&a);
 }
@@ -326,11 +330,16 @@ TEST(image_png16) {
     image_alloc(&a, 8, 4);
     for (int i = 0; i < 8 * 4 * 3; i++) a.rgb[i] = 0.3f;
     image_write_options wo = {.tonemap = {.kind = TONEMAP_CLAMP}, .png16 = 1};
-    CHECK(image_write("/tmp/tessera-16.png", &a, &wo, err, sizeof err) == 0, "%s", err);
-    CHECK(util_run("iinfo -v /tmp/tessera-16.png", out, sizeof out) == 0 && strstr(out, "8 x    4, 3 channel, uint16 png") &&
+    char png[600], px_exr[600], cmd[1400];
+    snprintf(png, sizeof png, "%s", util_temp_path("16.png"));
+    snprintf(px_exr, sizeof px_exr, "%s", util_temp_path("16px.exr"));
+    CHECK(image_write(png, &a, &wo, err, sizeof err) == 0, "%s", err);
+    snprintf(cmd, sizeof cmd, "iinfo -v %s", png);
+    CHECK(util_run(cmd, out, sizeof out) == 0 && strstr(out, "8 x    4, 3 channel, uint16 png") &&
               strstr(out, "sRGB"), "iinfo: %s", out);
-    CHECK(util_run("oiiotool /tmp/tessera-16.png --cut 1x1+3+2 -d float -o /tmp/tessera-16px.exr", out, sizeof out) == 0, "%s", out);
-    if (image_read("/tmp/tessera-16px.exr", &px, err, sizeof err) == 0) {
+    snprintf(cmd, sizeof cmd, "oiiotool %s --cut 1x1+3+2 -d float -o %s", png, px_exr);
+    CHECK(util_run(cmd, out, sizeof out) == 0, "%s", out);
+    if (image_read(px_exr, &px, err, sizeof err) == 0) {
         float want = (float)lrintf(tonemap_srgb_encode(0.3f) * 65535.0f) / 65535.0f;
         CHECK(fabsf(px.rgb[0] - want) < 1e-6f, "16-bit value %.7f, want %.7f", px.rgb[0], want);
         image_free(&px);

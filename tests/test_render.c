@@ -81,11 +81,12 @@ static double rel_mse(const float *x, const float *y, const float *ref, size_t n
 }
 
 static int load_reference(image *ref) {
-    char out[256];
-    if (util_run("gzip -dc tests/data/cornell-ref-64.pfm.gz > /tmp/tessera-cornell-ref.pfm", out, sizeof out) != 0)
-        return -1;
+    char out[256], cmd[1024], path[512];
+    snprintf(path, sizeof path, "%s", util_temp_path("cornell-ref.pfm"));
+    snprintf(cmd, sizeof cmd, "gzip -dc tests/data/cornell-ref-64.pfm.gz > %s", path);
+    if (util_run(cmd, out, sizeof out) != 0) return -1;
     char err[256];
-    return image_read("/tmp/tessera-cornell-ref.pfm", ref, err, sizeof err);
+    return image_read(path, ref, err, sizeof err);
 }
 
 /* Error of a 64x64 render against the reference, relative to its own noise
