@@ -198,3 +198,24 @@ fuzz: $(FUZZ_BINS)
 
 -include $(FUZZ_COMMON_OBJ:.o=.d)
 -include $(COMMON_OBJ:.o=.d) $(TEST_OBJ:.o=.d) $(COORD_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(BUILD)/bench/loadgen.d
+
+# ---- Tessera against Blender Cycles in the same run (issue 15) ----
+#   make bench-cycles        both scenes at 64 and 256 spp, median of 3, against 8192-spp Cycles
+#                            references (cached in bench/ref/; ~10-20 min each the first time);
+#                            bench/results/cycles-same-run.{csv,md,png}. Also part of make bench.
+#   make bench-cycles-depth  variance by path length, Tessera and Cycles (docs/performance.md)
+# Needs Blender (Debian's blender, installed here if missing): a benchmark dependency only.
+BENCH_DEB_PACKAGES := blender
+BENCH_CYCLES_SCENES := scenes/cornell-box.json scenes/cornell-spheres.json
+BENCH_CYCLES_SPP := 64 256
+BENCH_CYCLES_REPEATS := 3
+.PHONY: bench-cycles bench-cycles-depth bench-deps
+bench-deps:
+	@command -v blender > /dev/null || { SUDO=""; [ "$$(id -u)" -ne 0 ] && SUDO=sudo; \
+	  $$SUDO apt-get -o DPkg::Lock::Timeout=900 update -qq && DEBIAN_FRONTEND=noninteractive \
+	  $$SUDO apt-get install -y -qq -o DPkg::Lock::Timeout=900 $(BENCH_DEB_PACKAGES); }
+bench-cycles: $(TESSERA) $(WORKER) bench-deps
+	bench/cycles.sh $(TESSERA) "$(BENCH_CYCLES_SCENES)" "$(BENCH_CYCLES_SPP)" $(BENCH_CYCLES_REPEATS)
+bench-cycles-depth: $(TESSERA) $(WORKER) bench-deps
+	bench/cycles-depth.sh $(TESSERA) "$(BENCH_CYCLES_SCENES)" "1 2 3 4 5 6 8" 64
+bench: bench-cycles
