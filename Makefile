@@ -200,13 +200,13 @@ fuzz: $(FUZZ_BINS)
 -include $(COMMON_OBJ:.o=.d) $(TEST_OBJ:.o=.d) $(COORD_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(BUILD)/bench/loadgen.d
 
 # ---- Tessera against Blender Cycles in the same run (issue 15) ----
-#   make bench-cycles        both scenes at 64 and 256 spp, median of 3, against 8192-spp Cycles
-#                            references (cached in bench/ref/; ~10-20 min each the first time);
+#   make bench-cycles        both scenes at 64 and 256 spp, median of 3, against Cycles references
+#                            (box 8192 spp, spheres 4096; cached in bench/ref/; 5-10 min each idle);
 #                            bench/results/cycles-same-run.{csv,md,png}. Also part of make bench.
 #   make bench-cycles-depth  variance by path length, Tessera and Cycles (docs/performance.md)
 # Needs Blender (Debian's blender, installed here if missing): a benchmark dependency only.
 BENCH_DEB_PACKAGES := blender
-BENCH_CYCLES_SCENES := scenes/cornell-box.json scenes/cornell-spheres.json
+BENCH_CYCLES_SCENES := scenes/cornell-box.json scenes/cornell-spheres.json@4096
 BENCH_CYCLES_SPP := 64 256
 BENCH_CYCLES_REPEATS := 3
 .PHONY: bench-cycles bench-cycles-depth bench-deps
@@ -217,5 +217,5 @@ bench-deps:
 bench-cycles: $(TESSERA) $(WORKER) bench-deps
 	bench/cycles.sh $(TESSERA) "$(BENCH_CYCLES_SCENES)" "$(BENCH_CYCLES_SPP)" $(BENCH_CYCLES_REPEATS)
 bench-cycles-depth: $(TESSERA) $(WORKER) bench-deps
-	bench/cycles-depth.sh $(TESSERA) "$(BENCH_CYCLES_SCENES)" "1 2 3 4 5 6 8" 64
+	bench/cycles-depth.sh $(TESSERA) "$(BENCH_CYCLES_SCENES)" "1 2 3 4 5 6 7 8" 64
 bench: bench-cycles

@@ -45,9 +45,11 @@ echo "scene,depth,tessera_mean,tessera_var,tessera_inc_var,cycles_mean,cycles_va
 echo "variance by depth limit, ${size}x$size, $spp spp, relative to the converged Cycles image"
 printf "%-16s %5s | %9s %10s %10s | %9s %10s %10s | %s\n" scene depth "T mean" "T var" "T inc var" "C mean" "C var" \
   "C inc var" "inc T/C"
-for scene in $scenes; do
+for entry in $scenes; do # FILE or FILE@REF_SPP, as in cycles.sh
+  scene=${entry%@*} rs=$ref_spp
+  [[ $entry == *@* ]] && rs=${entry##*@}
   name=$(basename "$scene" .json)
-  ref=$("$here/cycles/reference.sh" "$scene" "$size" "$ref_spp")
+  ref=$("$here/cycles/reference.sh" "$scene" "$size" "$rs")
   "$bin" tonemap "$ref" -o "$tmp/ref.pfm" > /dev/null
   prev=""
   for d in $depths full; do

@@ -17,6 +17,8 @@
 # asserted.
 #
 # usage: bench/cycles.sh TESSERA_BIN "SCENES" "SPPS" [REPEATS [REF_SPP [SUFFIX]]]
+# A scene may be given as FILE@SPP to use a reference of SPP samples for it
+# (default REF_SPP, 8192).
 set -euo pipefail
 bin=$1 scenes=$2 spps=$3 repeats=${4:-3} ref_spp=${5:-8192} suffix=${6:+-$6}
 size=256
@@ -36,9 +38,13 @@ echo "scene,spp,run,cycles_s,cycles_relmse,tessera_s,tessera_relmse" > "$runs"
 echo "scene,spp,cycles_s,cycles_relmse,tessera_s,tessera_relmse,efficiency_ratio,per_sample_ratio" > "$csv"
 echo "same run: Tessera (local farm, $(nproc) workers) against $cycles_version (CPU, 2 threads), ${size}x$size"
 printf "%-16s %5s %9s %11s %10s %11s %10s %10s\n" scene spp "Cycles s" "relMSE" "Tessera s" "relMSE" "eff.ratio" "per-sample"
-for scene in $scenes; do
+refs_used=""
+for entry in $scenes; do
+  scene=${entry%@*} rs=$ref_spp
+  [[ $entry == *@* ]] && rs=${entry##*@}
   name=$(basename "$scene" .json)
-  ref=$(bench/cycles/reference.sh "$scene" "$size" "$ref_spp")
+  ref=$(bench/cycles/reference.sh "$scene" "$size" "$rs")
+  refs_used="$refs_used $name $rs spp,"
   for spp in $spps; do
     for ((r = 1; r <= repeats; r++)); do
       line=$(bench/cycles/render.sh "$scene" -o "$tmp/c.exr" --width $size --height $size --spp "$spp" --seed 1)
@@ -66,7 +72,7 @@ done
   echo
   echo "${size}x$size, same run, interleaved, median of $repeats; Cycles: $cycles_version, CPU 2 threads,"
   echo "render time inside Blender (BVH build included, start-up excluded); Tessera: wall time of \`tessera render\`"
-  echo "with its defaults (local farm, $(nproc) workers). relMSE against a $ref_spp-spp Cycles reference (seed 9001)."
+  echo "with its defaults (local farm, $(nproc) workers). relMSE against Cycles references (seed 9001):${refs_used%,}."
   echo "efficiency ratio = Tessera s x relMSE / (Cycles s x relMSE); per-sample ratio = Tessera relMSE / Cycles relMSE."
   echo "Made by \`make bench-cycles\` (bench/cycles.sh) on $(date -u +%Y-%m-%d), load average before: $(cut -d' ' -f1-3 /proc/loadavg)."
 } > "$md"
@@ -84,8 +90,8 @@ if command -v gnuplot > /dev/null; then
     echo "set datafile separator ','"
     plot="plot"
     pt=7
-    for scene in $scenes; do
-      name=$(basename "$scene" .json)
+    for entry in $scenes; do
+      name=$(basename "${entry%@*}" .json)
       awk -F, -v n="$name" '$1 == n {print $3 "," $4}' "$csv" > "$tmp/$name-c.dat"
       awk -F, -v n="$name" '$1 == n {print $5 "," $6}' "$csv" > "$tmp/$name-t.dat"
       plot="$plot '$tmp/$name-t.dat' using 1:2 with linespoints pt $pt lw 2 lc rgb 'red' title 'Tessera $name',"
