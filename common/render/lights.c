@@ -2,7 +2,6 @@
 #include "lights.h"
 
 #include "intersect.h"
-#include "spherical.h"
 #include "warp.h"
 
 /* Index i with cdf[i] <= u < cdf[i+1], skipping lights of zero weight. */
@@ -71,15 +70,8 @@ static int sample_sphere(const scene *s, const light *l, vec3 ref, float u1, flo
 
 static int sample_triangle(const scene *s, const light *l, vec3 ref, float u1, float u2, light_sample *out) {
     const triangle *t = &s->triangles[l->prim];
-    float b1, b2, omega;
-    /* By solid angle where that is precise (pdf select / omega), else by
-     * area (pdf select d^2 / (|cos_l| A)); spherical.h. */
-    int by_angle = spherical_triangle_use(t->v0, t->v1, t->v2, ref, &omega);
-    if (by_angle) {
-        if (!spherical_triangle_sample(t->v0, t->v1, t->v2, ref, u1, u2, &b1, &b2)) return 0;
-    } else {
-        warp_uniform_triangle(u1, u2, &b1, &b2);
-    }
+    float b1, b2;
+    warp_uniform_triangle(u1, u2, &b1, &b2);
     out->p = vec3_add(vec3_add(vec3_scale(t->v0, 1.0f - b1 - b2), vec3_scale(t->v1, b1)), vec3_scale(t->v2, b2));
     out->n = s->triangle_normals[l->prim];
     vec3 d = vec3_sub(out->p, ref);
@@ -88,7 +80,7 @@ static int sample_triangle(const scene *s, const light *l, vec3 ref, float u1, f
     out->wi = vec3_scale(d, 1.0f / out->dist);
     float cos_l = fabsf(vec3_dot(out->n, out->wi));
     if (!(cos_l > 0.0f)) return 0;
-    out->pdf = by_angle ? l->select_pdf / omega : l->select_pdf * out->dist * out->dist / (cos_l * l->area);
+    out->pdf = l->select_pdf * out->dist * out->dist / (cos_l * l->area);
     out->radiance = lights_emitted(l, out->n, vec3_neg(out->wi));
     return 1;
 }
@@ -133,11 +125,6 @@ float lights_pdf(const scene *s, const light *l, vec3 ref, vec3 p, vec3 n, float
     if (l->kind == LIGHT_SPHERE) {
         float dc, one_minus_cos = sphere_cone(&s->spheres[l->prim], ref, &dc);
         if (one_minus_cos > 0.0f) return l->select_pdf / (2.0f * TS_PI * one_minus_cos);
-    }
-    if (l->kind == LIGHT_TRIANGLE) {
-        const triangle *t = &s->triangles[l->prim];
-        float omega;
-        if (spherical_triangle_use(t->v0, t->v1, t->v2, ref, &omega)) return l->select_pdf / omega;
     }
     vec3 w = vec3_scale(vec3_sub(p, ref), 1.0f / dist);
     float cos_l = fabsf(vec3_dot(n, w));

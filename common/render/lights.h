@@ -3,10 +3,7 @@
  *
  * A light is picked with probability select_pdf (proportional to power, see
  * scene_load.c), then a point on it:
- *   triangle: uniform in the solid angle omega it subtends (spherical.h),
- *                                  pdf = select / omega,
- *             or, where omega is too small or too large for that to be
- *             precise, uniform by area, pdf = select * d^2 / (|cos_l| A)
+ *   triangle: uniform by area,     pdf = select * d^2 / (|cos_l| A)
  *   sphere, from outside: uniform in the subtended cone,
  *                                  pdf = select / (2 pi (1 - cos_max))
  *   sphere, from inside: uniform by area, as a triangle

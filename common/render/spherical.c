@@ -27,6 +27,15 @@ float spherical_triangle_solid_angle(vec3 v0, vec3 v1, vec3 v2, vec3 p) {
 }
 
 int spherical_triangle_use(vec3 v0, vec3 v1, vec3 v2, vec3 p, float *omega) {
+    /* Cheap test first (Cycles' rule): only a point closer to the
+     * triangle's plane than its longest edge is long sees the area pdf
+     * d^2 / (|cos_l| A) vary enough to be worth the trigonometry. */
+    vec3 e0 = vec3_sub(v1, v0), e1 = vec3_sub(v2, v1), e2 = vec3_sub(v0, v2);
+    float longest2 = max_f(vec3_dot(e0, e0), max_f(vec3_dot(e1, e1), vec3_dot(e2, e2)));
+    vec3 n = vec3_cross(e0, vec3_neg(e2));
+    float h = vec3_dot(vec3_sub(p, v0), n); /* distance to the plane times |n| */
+    *omega = 0.0f;
+    if (!(longest2 * vec3_dot(n, n) > h * h)) return 0;
     *omega = spherical_triangle_solid_angle(v0, v1, v2, p);
     return *omega >= SPHERICAL_MIN_SOLID_ANGLE && *omega <= SPHERICAL_MAX_SOLID_ANGLE;
 }

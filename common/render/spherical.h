@@ -6,12 +6,20 @@
  * instead of area sampling's d^2 / (|cos_l| A), which spikes near the light
  * and at grazing angles.
  *
- * Arvo's map loses precision in single precision when the triangle subtends
- * almost nothing or almost a hemisphere, so a light uses it only when
- * SPHERICAL_MIN_SOLID_ANGLE <= Omega <= SPHERICAL_MAX_SOLID_ANGLE and area
- * sampling otherwise. The choice depends on the geometry only (the same
- * Omega computed the same way), so light sampling and the MIS density agree
- * on it and every worker makes the same choice. */
+ * It costs trigonometry, and far from a triangle (farther from its plane
+ * than its longest edge, Cycles' rule) area sampling's density is nearly
+ * uniform in solid angle anyway; Arvo's map also loses precision in single
+ * precision when the triangle subtends almost nothing or almost a
+ * hemisphere. So it is meant only for points nearer the plane than the
+ * longest edge where SPHERICAL_MIN_SOLID_ANGLE <= Omega <=
+ * SPHERICAL_MAX_SOLID_ANGLE (spherical_triangle_use: geometry only, so a
+ * light sampler and its MIS density would agree, and so would every worker),
+ * area sampling otherwise.
+ *
+ * NOT USED by lights.c: measured on the Cornell box and spheres (64 spp,
+ * docs/performance.md) it lowered the image's variance by 0.5-2% and cost
+ * 18-54% more CPU time. Kept, with its test, for scenes with large lights
+ * close to what they light. */
 #ifndef TESSERA_SPHERICAL_H
 #define TESSERA_SPHERICAL_H
 
@@ -26,9 +34,9 @@
  * triangle's plane or a vertex). */
 float spherical_triangle_solid_angle(vec3 v0, vec3 v1, vec3 v2, vec3 p);
 
-/* 1 when triangle v0 v1 v2 is sampled by solid angle from p (its solid
- * angle omega, returned in *omega, is within the bounds above), 0 when by
- * area. */
+/* 1 when triangle v0 v1 v2 is sampled by solid angle from p (the rule
+ * above; its solid angle in *omega), 0 when by area (*omega then 0 or the
+ * solid angle). */
 int spherical_triangle_use(vec3 v0, vec3 v1, vec3 v2, vec3 p, float *omega);
 
 /* A direction from p uniform over the triangle's solid angle, given as the
