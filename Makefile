@@ -232,3 +232,27 @@ DEB_PACKAGES += libassimp-dev
 LDLIBS += -lassimp
 FUZZ_TARGETS += gltf
 fuzz: $(FUZZ_BUILD)/fuzz_gltf
+# ---- Tessera against Blender Cycles in the same run (issue 15) ----
+#   make bench-cycles        both scenes at 64 and 256 spp, median of 3, against Cycles references
+#                            (box 8192 spp, spheres 4096; cached in bench/ref/; 5-10 min each idle);
+#                            bench/results/cycles-same-run.{csv,md,png}. Also part of make bench.
+#   make bench-cycles-depth  variance by path length, Tessera and Cycles (docs/performance.md)
+#   make bench-cycles-seeds  the same-run table without a converged reference (two seeds each;
+#                            for a busy machine where the big references cannot be made in time)
+# Needs Blender (Debian's blender, installed here if missing): a benchmark dependency only.
+BENCH_DEB_PACKAGES := blender
+BENCH_CYCLES_SCENES := scenes/cornell-box.json scenes/cornell-spheres.json@4096
+BENCH_CYCLES_SPP := 64 256
+BENCH_CYCLES_REPEATS := 3
+.PHONY: bench-cycles bench-cycles-depth bench-cycles-seeds bench-deps
+bench-deps:
+	@command -v blender > /dev/null || { SUDO=""; [ "$$(id -u)" -ne 0 ] && SUDO=sudo; \
+	  $$SUDO apt-get -o DPkg::Lock::Timeout=900 update -qq && DEBIAN_FRONTEND=noninteractive \
+	  $$SUDO apt-get install -y -qq -o DPkg::Lock::Timeout=900 $(BENCH_DEB_PACKAGES); }
+bench-cycles: $(TESSERA) $(WORKER) bench-deps
+	bench/cycles.sh $(TESSERA) "$(BENCH_CYCLES_SCENES)" "$(BENCH_CYCLES_SPP)" $(BENCH_CYCLES_REPEATS)
+bench-cycles-depth: $(TESSERA) $(WORKER) bench-deps
+	bench/cycles-depth.sh $(TESSERA) "$(BENCH_CYCLES_SCENES)" "1 2 3 4 5 6 7 8" 64
+bench-cycles-seeds: $(TESSERA) $(WORKER) bench-deps
+	bench/cycles-seeds.sh $(TESSERA) "$(BENCH_CYCLES_SCENES)" "$(BENCH_CYCLES_SPP)"
+bench: bench-cycles
