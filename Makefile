@@ -15,7 +15,7 @@
 
 # Debian packages the build needs; `make deps` installs what is missing.
 DEB_PACKAGES := gcc make pkg-config libcjson-dev libuv1-dev libjpeg-dev libopenexr-dev libpng-dev libsodium-dev \
-                openexr openimageio-tools clang libclang-rt-14-dev gnuplot-nox
+                openexr openimageio-tools clang libclang-rt-14-dev gnuplot-nox libembree-dev
 
 SHELL := /bin/bash
 CC ?= cc
@@ -36,11 +36,11 @@ else
   CFLAGS_OPT := -O2
   LDFLAGS_V :=
 endif
-CFLAGS := $(CFLAGS_COMMON) $(CFLAGS_OPT) -I$(BUILD)
-LDLIBS := -lcjson -lpng16 -ljpeg -lOpenEXRCore-3_1 -lsodium -luv -lpthread -lm
+CFLAGS := $(CFLAGS_COMMON) $(CFLAGS_OPT) -I$(BUILD) -Icommon -Icommon/render
+LDLIBS := -lcjson -lpng16 -ljpeg -lOpenEXRCore-3_1 -lsodium -luv -lembree3 -lpthread -lm
 LDFLAGS := $(LDFLAGS_V)
 
-COMMON_SRC := $(wildcard common/*.c)
+COMMON_SRC := $(wildcard common/*.c) $(wildcard common/render/*.c)
 COMMON_OBJ := $(COMMON_SRC:%.c=$(BUILD)/%.o)
 TEST_SRC := $(wildcard tests/*.c)
 TEST_OBJ := $(TEST_SRC:%.c=$(BUILD)/%.o)
@@ -155,7 +155,7 @@ FUZZ_TARGETS := scene obj frames image
 FUZZ_SECONDS ?= 20
 FUZZ_BUILD := build/fuzz
 FUZZ_CFLAGS := $(CFLAGS_COMMON) -O1 -fno-omit-frame-pointer -fsanitize=fuzzer-no-link,address,undefined \
-               -fno-sanitize-recover=all -I$(FUZZ_BUILD)
+               -fno-sanitize-recover=all -I$(FUZZ_BUILD) -Icommon -Icommon/render
 FUZZ_COMMON_OBJ := $(COMMON_SRC:%.c=$(FUZZ_BUILD)/%.o)
 FUZZ_BINS := $(addprefix $(FUZZ_BUILD)/fuzz_,$(FUZZ_TARGETS))
 

@@ -261,13 +261,18 @@ static void show_progress(void *ctx, int done, int total, const trace_stats *so_
 
 static void print_scene_info(const scene *s) {
     bvh_stats bs;
+    accel_embree_stats es;
     char features[256];
     scene_feature_names(s->features, features, sizeof features);
     fprintf(stderr, "scene %s: %u triangles, %u spheres, %u lights, %u materials, %zu degenerate triangles skipped\n",
             s->path, s->triangle_count, s->sphere_count, s->light_count, s->material_count - 1,
             s->degenerate_triangles);
     fprintf(stderr, "features: %s\n", features);
-    if (accel_get_bvh_stats(s->accel, &bs) == 0)
+    if (accel_get_embree_stats(s->accel, &es) == 0)
+        fprintf(stderr, "intersector: embree (Tessera's tests at the leaves; device \"%s\"), %.1f KiB, peak %.1f KiB "
+                "while building, built in %.3f ms\n", es.config, (double)es.final_bytes / 1024.0,
+                (double)es.memory_bytes / 1024.0, es.build_seconds * 1e3);
+    else if (accel_get_bvh_stats(s->accel, &bs) == 0)
         fprintf(stderr, "intersector: bvh, %zu nodes, %zu leaves, depth %zu, %.1f KiB, built in %.3f ms\n",
                 bs.node_count, bs.leaf_count, bs.max_depth, (double)bs.memory_bytes / 1024.0,
                 bs.build_seconds * 1e3);
