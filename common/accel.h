@@ -25,7 +25,7 @@
 #define ACCEL_FLAT_MAX_TRIANGLES 96
 #define ACCEL_FLAT_MAX_SPHERES 8
 /* ... and ACCEL_EMBREE from this many primitives (ACCEL_BVH between). */
-#define ACCEL_EMBREE_MIN_PRIMITIVES 4096
+#define ACCEL_EMBREE_MIN_PRIMITIVES 1024
 
 typedef struct accel accel;
 

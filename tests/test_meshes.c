@@ -1,0 +1,190 @@
+/* test_meshes.c - the Embree intersector against the BVH: the same hit, bit
+ * for bit, on every ray (both pick the smallest (t, index), accel_embree.h),
+ * with every Embree ISA this CPU has forced, in renders with any threads and
+ * workers, and under an emulated CPU without SSE4.2's successors (qemu). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "../common/accel.h"
+#include "../common/rng.h"
+#include "../common/scene.h"
+#include "harness.h"
+#include "util.h"
+
+#define ICO_SCENE "tests/scenes/icospheres.json" /* 2,572 triangles and a sphere */
+
+static vec3 unit_direction(rng_stream *r) {
+    float z = 1.0f - 2.0f * rng_next(r), phi = 6.2831853f * rng_next(r), s = sqrtf(fmaxf(0.0f, 1.0f - z * z));
+    return vec3_make(s * cosf(phi), s * sinf(phi), z);
+}
+
+/* Ray i of a test set over s: leaving a triangle, aimed at a vertex or an
+ * edge midpoint (the rays where two triangles nearly tie), or random with a
+ * random tmax. */
+static ray test_ray(const scene *s, uint64_t i, float *tmax) {
+    rng_stream rng = rng_stream_start(13, i, 0);
+    uint32_t t = (uint32_t)(rng_next(&rng) * (float)s->triangle_count) % s->triangle_count;
+    const triangle *tr = &s->triangles[t];
+    *tmax = INFINITY;
+    if (i % 3 == 0) {
+        float b1 = rng_next(&rng), b2 = rng_next(&rng) * (1 - b1);
+        vec3 p = vec3_add(tr->v0, vec3_add(vec3_scale(vec3_sub(tr->v1, tr->v0), b1),
+                                           vec3_scale(vec3_sub(tr->v2, tr->v0), b2)));
+        return (ray){p, unit_direction(&rng), t};
+    }
+    if (i % 3 == 1) {
+        vec3 target = (i / 3) % 2 ? tr->v1 : vec3_scale(vec3_add(tr->v0, tr->v2), 0.5f);
+        vec3 o = vec3_scale(unit_direction(&rng), 0.9f);
+        return (ray){o, vec3_normalize(vec3_sub(target, o)), PRIM_NONE};
+    }
+    if (i % 2) *tmax = 2.0f * rng_next(&rng);
+    return (ray){vec3_scale(unit_direction(&rng), 0.9f * rng_next(&rng)), unit_direction(&rng), PRIM_NONE};
+}
+
+/* How many of n test rays a and b answer differently (hit, prim, t, b1, b2
+ * compared as bits; occlusion). */
+static int count_differences(const scene *s, const accel *a, const accel *b, uint64_t n, int *hits) {
+    int differ = 0;
+    *hits = 0;
+    for (uint64_t i = 0; i < n; i++) {
+        float tmax;
+        ray r = test_ray(s, i, &tmax);
+        hit ha, hb;
+        int fa = accel_intersect(a, s, &r, tmax, &ha), fb = accel_intersect(b, s, &r, tmax, &hb);
+        *hits += fa;
+        if (fa != fb || (fa && (ha.prim != hb.prim || memcmp(&ha.t, &hb.t, 4) || memcmp(&ha.b1, &hb.b1, 4) ||
+                                memcmp(&ha.b2, &hb.b2, 4)))) {
+            if (differ < 3)
+                fprintf(stderr, "  ray %llu: %d prim %u t %.9g | %d prim %u t %.9g\n", (unsigned long long)i, fa,
+                        ha.prim, ha.t, fb, hb.prim, hb.t);
+            differ++;
+        } else if (accel_occluded(a, s, &r, tmax) != fa || accel_occluded(b, s, &r, tmax) != fb) {
+            differ++;
+        }
+    }
+    return differ;
+}
+
+static void embree_matches_bvh(const char *path) {
+    char err[512];
+    scene *s = scene_load(path, NULL, err, sizeof err);
+    CHECK(s != NULL, "%s", err);
+    if (!s) return;
+    accel *tree = accel_build(s, ACCEL_BVH), *emb = accel_build_err(s, ACCEL_EMBREE, err, sizeof err);
+    CHECK(tree && emb && accel_get_kind(emb) == ACCEL_EMBREE, "build: %s", err);
+    int hits = 0;
+    int differ = tree && emb ? count_differences(s, tree, emb, 150000, &hits) : -1;
+    CHECK(differ == 0, "%s: %d of 150000 rays differ between the BVH and Embree", path, differ);
+    CHECK(hits > 50000, "%s: only %d rays hit (test rays not aimed at the scene?)", path, hits);
+    accel_free(tree);
+    accel_free(emb);
+    scene_free(s);
+}
+
+TEST(mesh_embree_matches_bvh_icospheres) { embree_matches_bvh(ICO_SCENE); }
+TEST(mesh_embree_matches_bvh_features) { embree_matches_bvh("scenes/features.json"); }
+
+/* Every Embree kernel this CPU can run, forced: the same answers as the BVH
+ * (the tests at the leaves are Tessera's; Embree's arithmetic only orders
+ * them). */
+TEST(mesh_embree_every_isa_agrees) {
+    static const struct {
+        const char *isa, *cpu;
+    } isas[] = {{"sse2", "sse2"}, {"sse4.2", "sse4.2"}, {"avx", "avx"}, {"avx2", "avx2"}, {"avx512", "avx512f"}};
+    char err[512], cfg[64];
+    scene *s = scene_load(ICO_SCENE, NULL, err, sizeof err);
+    CHECK(s != NULL, "%s", err);
+    if (!s) return;
+    accel *tree = accel_build(s, ACCEL_BVH);
+    int tried = 0;
+    for (size_t k = 0; k < sizeof isas / sizeof isas[0]; k++) {
+        __builtin_cpu_init();
+        int have = strcmp(isas[k].cpu, "sse2") == 0     ? __builtin_cpu_supports("sse2")
+                   : strcmp(isas[k].cpu, "sse4.2") == 0 ? __builtin_cpu_supports("sse4.2")
+                   : strcmp(isas[k].cpu, "avx") == 0    ? __builtin_cpu_supports("avx")
+                   : strcmp(isas[k].cpu, "avx2") == 0   ? __builtin_cpu_supports("avx2")
+                                                        : __builtin_cpu_supports("avx512f");
+        if (!have) continue;
+        snprintf(cfg, sizeof cfg, "isa=%s", isas[k].isa);
+        setenv("TESSERA_EMBREE_CONFIG", cfg, 1);
+        accel *emb = accel_build_err(s, ACCEL_EMBREE, err, sizeof err);
+        unsetenv("TESSERA_EMBREE_CONFIG");
+        accel_embree_stats st;
+        CHECK(emb && accel_get_embree_stats(emb, &st) == 0 && strcmp(st.config, cfg) == 0, "%s: %s", cfg, err);
+        int hits = 0, differ = emb && tree ? count_differences(s, tree, emb, 60000, &hits) : -1;
+        CHECK(differ == 0, "%s: %d of 60000 rays differ from the BVH", cfg, differ);
+        accel_free(emb);
+        tried++;
+    }
+    CHECK(tried >= 2, "only %d ISAs tried", tried);
+    accel_free(tree);
+    scene_free(s);
+}
+
+/* The picture through Embree is the BVH's, bit for bit, with 1 and 2 render
+ * threads, and in a local farm of 1, 2 and 3 workers. */
+TEST(mesh_embree_same_image_threads_and_workers) {
+    char err[512];
+    scene *s = scene_load(ICO_SCENE, NULL, err, sizeof err);
+    CHECK(s && accel_get_kind(s->accel) == ACCEL_EMBREE, "auto should pick Embree for %u triangles: %s",
+          s ? s->triangle_count : 0, s ? "" : err);
+    if (!s) return;
+    size_t bytes = (size_t)s->settings.width * (size_t)s->settings.height * 3 * sizeof(float);
+    trace_stats st;
+    float *e1 = util_render(s, 1, 16, 1, &st), *e2 = util_render(s, 2, 7, 1, &st);
+    accel_free(s->accel);
+    s->accel = accel_build(s, ACCEL_BVH);
+    float *b1 = util_render(s, 1, 16, 1, &st);
+    CHECK(e1 && e2 && b1 && memcmp(e1, b1, bytes) == 0, "Embree (1 thread) and BVH images differ");
+    CHECK(e1 && e2 && memcmp(e1, e2, bytes) == 0, "Embree images differ with 1 and 2 threads");
+    free(e1);
+    free(e2);
+    free(b1);
+    scene_free(s);
+
+    char ref[512], cmd[2048], out[8192];
+    snprintf(ref, sizeof ref, "%s", util_temp_path("ico-ref.pfm"));
+    snprintf(cmd, sizeof cmd, "%s render " ICO_SCENE " --workers 0 --threads 1 --no-progress -o %s", harness_tessera(),
+             ref);
+    CHECK(util_run(cmd, out, sizeof out) == 0, "%s: %s", cmd, out);
+    static const char *const runs[][2] = {{"1", "1"}, {"2", "2"}, {"3", "1"}};
+    for (size_t i = 0; i < sizeof runs / sizeof runs[0]; i++) {
+        const char *img = util_temp_path("ico-farm.pfm");
+        snprintf(cmd, sizeof cmd, "%s render " ICO_SCENE " --workers %s --threads %s --tile-size 11 --no-progress -o %s",
+                 harness_tessera(), runs[i][0], runs[i][1], img);
+        int rc = util_run(cmd, out, sizeof out);
+        CHECK(rc == 0 && !strstr(out, "Sanitizer") && !strstr(out, "runtime error"), "%s (%d): %s", cmd, rc, out);
+        CHECK(util_same_file(img, ref), "%s: image differs from the in-process one", cmd);
+    }
+}
+
+/* The whole program under qemu emulating a Nehalem (SSE4.2, no AVX): Embree
+ * picks its SSE kernels, the flat kernel its 4 lanes, and the picture is the
+ * one this machine makes natively. Skipped without qemu-x86_64, and under
+ * the sanitizers (their runtimes do not run under qemu-user). */
+TEST(mesh_embree_same_image_under_qemu_nehalem) {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+    return;
+#else
+    struct stat sb;
+    if (stat("/usr/bin/qemu-x86_64", &sb) != 0) {
+        fprintf(stderr, "  (skipped: no /usr/bin/qemu-x86_64)\n");
+        return;
+    }
+    char ref[512], img[512], cmd[2048], out[8192];
+    snprintf(ref, sizeof ref, "%s", util_temp_path("ico-native.pfm"));
+    snprintf(img, sizeof img, "%s", util_temp_path("ico-nehalem.pfm"));
+    snprintf(cmd, sizeof cmd, "%s render " ICO_SCENE " --workers 0 --threads 2 --spp 4 --no-progress -o %s",
+             harness_tessera(), ref);
+    CHECK(util_run(cmd, out, sizeof out) == 0, "%s: %s", cmd, out);
+    snprintf(cmd, sizeof cmd,
+             "/usr/bin/qemu-x86_64 -cpu Nehalem-v1 %s render " ICO_SCENE
+             " --workers 0 --threads 2 --spp 4 --no-progress -v -o %s",
+             harness_tessera(), img);
+    int rc = util_run(cmd, out, sizeof out);
+    CHECK(rc == 0 && strstr(out, "intersector: embree"), "%s (%d): %s", cmd, rc, out);
+    CHECK(util_same_file(img, ref), "the image under qemu (Nehalem) differs from the native one");
+#endif
+}
