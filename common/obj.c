@@ -29,6 +29,56 @@ static int grow(void **arr, size_t *cap, size_t need, size_t size) {
     return 0;
 }
 
+/* strtod(s, end), faster for the plain decimals OBJ writers print
+ * ("-0.5257311", "1e-3"), with exactly strtod's result: when the digits
+ * form an integer m < 2^53 and the power of ten p has |p| <= 22, both m and
+ * 10^|p| are exact doubles and one IEEE multiplication or division rounds
+ * m * 10^p correctly, as strtod does (Clinger's fast path). Anything else
+ * (more digits, big exponents, inf, nan, hex, a number not followed by
+ * a blank) goes to strtod itself. */
+static double parse_double(const char *s, char **end) {
+    static const double pow10[23] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,  1e10, 1e11,
+                                     1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
+    const char *p = s;
+    while (*p == ' ' || *p == '\t') p++;
+    int neg = *p == '-';
+    if (*p == '-' || *p == '+') p++;
+    uint64_t m = 0;
+    int digits = 0, frac = 0, exp = 0;
+    for (; *p >= '0' && *p <= '9'; p++, digits++) m = m * 10 + (uint64_t)(*p - '0');
+    if (*p == '.')
+        for (p++; *p >= '0' && *p <= '9'; p++, digits++, frac++) m = m * 10 + (uint64_t)(*p - '0');
+    if (digits == 0 || digits > 19) return strtod(s, end);
+    if (*p == 'e' || *p == 'E') {
+        const char *q = p + 1;
+        int eneg = *q == '-';
+        if (*q == '-' || *q == '+') q++;
+        if (!(*q >= '0' && *q <= '9')) return strtod(s, end);
+        for (; *q >= '0' && *q <= '9' && exp < 1000; q++) exp = exp * 10 + (*q - '0');
+        if (eneg) exp = -exp;
+        p = q;
+    }
+    if (!(*p == ' ' || *p == '\t' || *p == '\0' || *p == '\r' || *p == '\n' || *p == '#')) return strtod(s, end);
+    int p10 = exp - frac;
+    if (m > (1ull << 53) || p10 > 22 || p10 < -22) return strtod(s, end);
+    double v = p10 >= 0 ? (double)m * pow10[p10] : (double)m / pow10[-p10];
+    *end = (char *)p;
+    return neg ? -v : v;
+}
+
+/* strtol(s, end, 10), with a fast path for plain digits; same results. */
+static long parse_long(const char *s, char **end) {
+    const char *p = s;
+    int neg = *p == '-';
+    if (neg) p++;
+    long v = 0;
+    int digits = 0;
+    for (; *p >= '0' && *p <= '9' && digits < 18; p++, digits++) v = v * 10 + (*p - '0');
+    if (digits == 0 || (*p >= '0' && *p <= '9')) return strtol(s, end, 10);
+    *end = (char *)p;
+    return neg ? -v : v;
+}
+
 typedef struct {
     const char *name;
     size_t line;
@@ -48,7 +98,7 @@ static int read_vertex(obj_reader *r, const char *s) {
     double p[3];
     for (int i = 0; i < 3; i++) {
         char *end;
-        p[i] = strtod(s, &end);
+        p[i] = parse_double(s, &end);
         if (end == s) return obj_fail(r, "vertex needs three numbers");
         if (!isfinite(p[i])) return obj_fail(r, "vertex coordinate is not finite");
         s = end;
@@ -69,7 +119,7 @@ static int read_corner(obj_reader *r, const char **s, uint32_t *out) {
     while (*p == ' ' || *p == '\t') p++;
     if (*p == '\0' || *p == '\r' || *p == '\n' || *p == '#') return 0;
     char *end;
-    long v = strtol(p, &end, 10);
+    long v = parse_long(p, &end);
     if (end == p) return obj_fail(r, "face corner is not an index");
     long n = (long)r->m->vertex_count;
     long idx = v > 0 ? v - 1 : n + v;

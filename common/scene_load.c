@@ -55,6 +55,8 @@ typedef struct {
     size_t emitter_count, emitter_cap;
     point_d *points;
     size_t point_count;
+    const scene_bundle_file *obj_file; /* the OBJ parsed last, kept for the next shape naming it */
+    obj_mesh obj;
     scene *s;
 } loader;
 
@@ -347,8 +349,20 @@ static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat
     if (!f) return jf_fail(&L->j, where, "file", "%s: not in the scene bundle", file);
     if (!f->data) return jf_fail(&L->j, where, "file", "%s", f->error);
     char oerr[512];
-    obj_mesh m;
-    if (obj_parse(f->data, f->len, file, &m, oerr, sizeof oerr)) return jf_fail(&L->j, where, "file", "%s", oerr);
+    if (L->obj_file != f) { /* instances of one file parse it once */
+        obj_mesh_free(&L->obj);
+        L->obj_file = NULL;
+        if (obj_parse(f->data, f->len, file, &L->obj, oerr, sizeof oerr))
+            return jf_fail(&L->j, where, "file", "%s", oerr);
+        L->obj_file = f;
+    }
+    const obj_mesh m = L->obj;
+    if (L->tri_cap < L->tri_count + m.triangle_count) { /* one allocation, not a doubling per mesh */
+        tri_d *p = realloc(L->tris, (L->tri_count + m.triangle_count) * sizeof *p);
+        if (!p) return jf_fail(&L->j, where, NULL, "out of memory (%zu triangles)", L->tri_count + m.triangle_count);
+        L->tris = p;
+        L->tri_cap = L->tri_count + m.triangle_count;
+    }
     int rc = 0;
     for (size_t t = 0; t < m.triangle_count && !rc; t++) {
         double p[3][3];
@@ -356,7 +370,6 @@ static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat
             for (int a = 0; a < 3; a++) p[k][a] = m.positions[3 * m.indices[3 * t + k] + a] * scale + translate[a];
         rc = add_triangle(L, p[0], p[1], p[2], mat, em, 0, where);
     }
-    obj_mesh_free(&m);
     return rc;
 }
 
@@ -667,6 +680,7 @@ scene *scene_load_bundle(const scene_bundle *b, const scene_overrides *ov, char 
     free(L.spheres);
     free(L.emitters);
     free(L.points);
+    obj_mesh_free(&L.obj);
     if (rc != 0 || !L.s->path) {
         scene_free(L.s);
         return NULL;

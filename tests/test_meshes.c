@@ -8,6 +8,7 @@
 #include <sys/stat.h>
 
 #include "../common/accel.h"
+#include "../common/obj.h"
 #include "../common/rng.h"
 #include "../common/scene.h"
 #include "harness.h"
@@ -187,4 +188,43 @@ TEST(mesh_embree_same_image_under_qemu_nehalem) {
     CHECK(rc == 0 && strstr(out, "intersector: embree"), "%s (%d): %s", cmd, rc, out);
     CHECK(util_same_file(img, ref), "the image under qemu (Nehalem) differs from the native one");
 #endif
+}
+
+/* The OBJ reader's own number parser gives exactly strtod's doubles, on
+ * numbers printed every way a writer might (%g, %f, %e at every precision,
+ * signs, no leading digit, exponents, long mantissas that need strtod). */
+TEST(mesh_obj_numbers_are_strtods) {
+    enum { N = 30000 };
+    size_t cap = (size_t)N * 100 + 64, n = 0;
+    char *text = malloc(cap);
+    double *want = malloc(sizeof(double) * 3 * N);
+    for (int i = 0; i < N; i++) {
+        rng_stream rng = rng_stream_start(21, (uint64_t)i, 0);
+        n += (size_t)snprintf(text + n, cap - n, "v");
+        for (int k = 0; k < 3; k++) {
+            char num[64];
+            double x = ldexp((double)rng_next(&rng) - 0.5, (int)(rng_next(&rng) * 60.0f) - 30);
+            int style = (int)(rng_next(&rng) * 6.0f), prec = (int)(rng_next(&rng) * 19.0f);
+            if (style == 0) snprintf(num, sizeof num, "%.*g", prec, x);
+            else if (style == 1) snprintf(num, sizeof num, "%.*f", prec % 10, x);
+            else if (style == 2) snprintf(num, sizeof num, "%.*e", prec, x);
+            else if (style == 3) snprintf(num, sizeof num, "%+.*f", prec % 8, x);
+            else if (style == 4) snprintf(num, sizeof num, "%.17g", x);
+            else snprintf(num, sizeof num, "%s.%d", x < 0 ? "-" : "", (int)(rng_next(&rng) * 1e6f));
+            want[3 * i + k] = strtod(num, NULL);
+            n += (size_t)snprintf(text + n, cap - n, " %s", num);
+        }
+        n += (size_t)snprintf(text + n, cap - n, "%s", i % 7 ? "\n" : " \r\n");
+    }
+    n += (size_t)snprintf(text + n, cap - n, "f 1 2 3\n");
+    obj_mesh m;
+    char err[256];
+    int rc = obj_parse(text, n, "numbers.obj", &m, err, sizeof err);
+    CHECK(rc == 0 && m.vertex_count == N, "%s", err);
+    int differ = 0;
+    for (size_t i = 0; rc == 0 && i < 3 * (size_t)N; i++) differ += memcmp(&m.positions[i], &want[i], sizeof(double)) != 0;
+    CHECK(differ == 0, "%d of %d coordinates differ from strtod's", differ, 3 * N);
+    if (rc == 0) obj_mesh_free(&m);
+    free(text);
+    free(want);
 }
