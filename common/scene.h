@@ -61,6 +61,7 @@ typedef struct {
     int width, height, spp, max_depth;
     int has_seed;
     uint64_t seed;
+    int no_accel; /* 1: leave scene.accel NULL (a coordinator that only hands the scene out) */
 } scene_overrides;
 
 typedef struct {

@@ -655,6 +655,7 @@ static int load_root(loader *L, const cJSON *root, const scene_overrides *ov) {
     choose_units(L);
     if (load_camera(L, root) || assemble(L)) return -1;
     record_features(L->s);
+    if (ov && ov->no_accel) return 0;
     char aerr[256];
     L->s->accel = accel_build_err(L->s, L->s->settings.accel, aerr, sizeof aerr);
     if (!L->s->accel) return jf_fail(&L->j, "shapes", NULL, "building the intersector: %s", aerr);

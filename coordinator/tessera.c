@@ -268,7 +268,9 @@ static void print_scene_info(const scene *s) {
             s->path, s->triangle_count, s->sphere_count, s->light_count, s->material_count - 1,
             s->degenerate_triangles);
     fprintf(stderr, "features: %s\n", features);
-    if (accel_get_embree_stats(s->accel, &es) == 0)
+    if (!s->accel)
+        fprintf(stderr, "intersector: built by each worker (workers print theirs with -v)\n");
+    else if (accel_get_embree_stats(s->accel, &es) == 0)
         fprintf(stderr, "intersector: embree (Tessera's tests at the leaves; device \"%s\"), %.1f KiB, peak %.1f KiB "
                 "while building, built in %.3f ms\n", es.config, (double)es.final_bytes / 1024.0,
                 (double)es.memory_bytes / 1024.0, es.build_seconds * 1e3);
@@ -388,6 +390,7 @@ static int cmd_render(int argc, char **argv) {
         fprintf(stderr, "tessera: %s\n", err);
         return 1;
     }
+    a.ov.no_accel = a.listen || a.workers > 0; /* the workers build their own */
     scene *s = scene_load_bundle(&b, &a.ov, err, sizeof err);
     if (!s) {
         fprintf(stderr, "tessera: %s\n", err);
