@@ -87,9 +87,9 @@ static void embree_matches_bvh(const char *path) {
 TEST(mesh_embree_matches_bvh_icospheres) { embree_matches_bvh(ICO_SCENE); }
 TEST(mesh_embree_matches_bvh_features) { embree_matches_bvh("scenes/features.json"); }
 
-/* Every Embree kernel this CPU can run, forced: the same answers as the BVH
- * (the tests at the leaves are Tessera's; Embree's arithmetic only orders
- * them). */
+/* Every Embree kernel this CPU can run, forced, and every build quality:
+ * the same answers as the BVH (the tests at the leaves are Tessera's;
+ * Embree's arithmetic and tree only order them). */
 TEST(mesh_embree_every_isa_agrees) {
     static const struct {
         const char *isa, *cpu;
@@ -120,6 +120,15 @@ TEST(mesh_embree_every_isa_agrees) {
         tried++;
     }
     CHECK(tried >= 2, "only %d ISAs tried", tried);
+    static const char *const qualities[] = {"medium", "high"}; /* low is the default, tested above */
+    for (size_t k = 0; k < 2; k++) {
+        setenv("TESSERA_EMBREE_QUALITY", qualities[k], 1);
+        accel *emb = accel_build_err(s, ACCEL_EMBREE, err, sizeof err);
+        unsetenv("TESSERA_EMBREE_QUALITY");
+        int hits = 0, differ = emb && tree ? count_differences(s, tree, emb, 60000, &hits) : -1;
+        CHECK(differ == 0, "build quality %s: %d of 60000 rays differ from the BVH", qualities[k], differ);
+        accel_free(emb);
+    }
     accel_free(tree);
     scene_free(s);
 }

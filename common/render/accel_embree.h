@@ -18,7 +18,8 @@
  * threads, and equal to the BVH's (bvh.c applies the same rule).
  *
  * TESSERA_EMBREE_CONFIG, if set, is passed to rtcNewDevice (e.g. "isa=sse2"
- * to force a kernel in tests). Built once per scene, then read-only. */
+ * to force a kernel in tests); TESSERA_EMBREE_QUALITY = "medium" or "high"
+ * asks for a slower SAH build instead of the default Morton build. Built once per scene, then read-only. */
 #ifndef TESSERA_ACCEL_EMBREE_H
 #define TESSERA_ACCEL_EMBREE_H
 
