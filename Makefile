@@ -180,3 +180,15 @@ fuzz: $(FUZZ_BINS)
 
 -include $(FUZZ_COMMON_OBJ:.o=.d)
 -include $(COMMON_OBJ:.o=.d) $(TEST_OBJ:.o=.d) $(COORD_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(BUILD)/bench/loadgen.d
+
+# ---- big meshes (issue 13) ----------------------------------------------------
+# `make bench-meshes`: cornell-spheres with icosphere meshes of 41k to 10.5M
+# triangles (bench/meshes.sh; MESH_LEVELS, MESH_SPP, MESH_ROUNDS to change),
+# table printed, CSV in bench/results/meshes.csv (cycles_s column left for
+# bench/cycles/ to fill).
+MESH_LEVELS ?= 5 6 7 8 9
+MESH_SPP ?= 64
+MESH_ROUNDS ?= 1
+.PHONY: bench-meshes
+bench-meshes: $(TESSERA) $(WORKER)
+	bench/meshes.sh $(BUILD)/bin "$(MESH_LEVELS)" $(MESH_SPP) $(MESH_ROUNDS)
