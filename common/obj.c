@@ -15,6 +15,7 @@
 
 #define OBJ_MAX_FILE (1u << 30) /* 1 GiB of text */
 #define OBJ_MAX_POLY 64         /* vertices per face */
+#define OBJ_MAX_TRIANGLES (1u << 25) /* 33.5M: a scene's memory stays within a machine's */
 
 /* Make room for `need` elements of `size` bytes in *arr (capacity *cap).
  * Returns 0, or -1 when out of memory (then *arr is unchanged). */
@@ -85,7 +86,7 @@ typedef struct {
     char *err;
     size_t err_len;
     obj_mesh *m;
-    size_t pos_cap, idx_cap;
+    size_t pos_cap, idx_cap, n_cap, uv_cap, nidx_cap, uvidx_cap;
 } obj_reader;
 
 static int obj_fail(obj_reader *r, const char *what) {
@@ -111,51 +112,122 @@ static int read_vertex(obj_reader *r, const char *s) {
     return 0;
 }
 
-/* Parse one face corner "i", "i/t", "i//n" or "i/t/n" into a 0-based vertex
- * index; *s is advanced past it. Returns 1 for a corner, 0 at the end of the
- * line, -1 on error. */
-static int read_corner(obj_reader *r, const char **s, uint32_t *out) {
+/* Parse "vn x y z" (dims 3) or "vt u [v [w]]" (dims 2: u and v, v = 0 when
+ * absent) into *arr (count entries so far, capacity *cap). */
+static int read_attribute(obj_reader *r, const char *s, int dims, float **arr, size_t *count, size_t *cap) {
+    float p[3] = {0, 0, 0};
+    for (int i = 0; i < dims; i++) {
+        char *end;
+        double x = parse_double(s, &end);
+        if (end == s) {
+            if (dims == 2 && i == 1) break;
+            return obj_fail(r, dims == 3 ? "normal needs three numbers" : "texture coordinate needs a number");
+        }
+        if (!isfinite(x) || !isfinite((float)x))
+            return obj_fail(r, dims == 3 ? "normal is not finite" : "texture coordinate is not finite");
+        p[i] = (float)x;
+        s = end;
+    }
+    if (grow((void **)arr, cap, (size_t)dims * (*count + 1), sizeof(float))) return obj_fail(r, "out of memory");
+    memcpy(*arr + (size_t)dims * *count, p, (size_t)dims * sizeof(float));
+    (*count)++;
+    return 0;
+}
+
+/* Resolve a 1-based or negative OBJ index against n entries. Returns the
+ * 0-based index, or -1 when it names nothing. */
+static long resolve_index(long v, size_t n) {
+    long idx = v > 0 ? v - 1 : (long)n + v;
+    return v == 0 || idx < 0 || idx >= (long)n ? -1 : idx;
+}
+
+/* One face corner: 0-based indices, OBJ_NONE where the corner names none. */
+typedef struct {
+    uint32_t v, t, n;
+} obj_corner;
+
+/* Parse one face corner "i", "i/t", "i//n" or "i/t/n"; *s is advanced past
+ * it. Returns 1 for a corner, 0 at the end of the line, -1 on error. */
+static int read_corner(obj_reader *r, const char **s, obj_corner *out) {
     const char *p = *s;
     while (*p == ' ' || *p == '\t') p++;
     if (*p == '\0' || *p == '\r' || *p == '\n' || *p == '#') return 0;
     char *end;
     long v = parse_long(p, &end);
     if (end == p) return obj_fail(r, "face corner is not an index");
-    long n = (long)r->m->vertex_count;
-    long idx = v > 0 ? v - 1 : n + v;
-    if (v == 0 || idx < 0 || idx >= n) return obj_fail(r, "face refers to a vertex that does not exist");
-    while (*end && !isspace((unsigned char)*end)) end++; /* skip /t/n */
+    long idx = resolve_index(v, r->m->vertex_count);
+    if (idx < 0) return obj_fail(r, "face refers to a vertex that does not exist");
+    out->v = (uint32_t)idx;
+    out->t = out->n = OBJ_NONE;
+    for (int part = 0; part < 2 && *end == '/'; part++) {
+        p = end + 1;
+        if (part == 0 && *p == '/') { /* i//n */
+            end = (char *)p;
+            continue;
+        }
+        v = 0;
+        end = (char *)p;
+        if (isdigit((unsigned char)*p) || *p == '-') v = parse_long(p, &end);
+        if (end == p) return obj_fail(r, part ? "face corner's normal index is missing" : "face corner's texture index is missing");
+        idx = resolve_index(v, part ? r->m->normal_count : r->m->uv_count);
+        if (idx < 0)
+            return obj_fail(r, part ? "face refers to a normal that does not exist"
+                                    : "face refers to a texture coordinate that does not exist");
+        *(part ? &out->n : &out->t) = (uint32_t)idx;
+    }
+    if (*end && !isspace((unsigned char)*end)) return obj_fail(r, "face corner is not of the form v, v/t, v//n or v/t/n");
     *s = end;
-    *out = (uint32_t)idx;
     return 1;
+}
+
+/* Append 3 indices per new triangle to *arr (allocated on first use, earlier
+ * triangles then get OBJ_NONE). */
+static int push_attribute_indices(obj_reader *r, uint32_t **arr, size_t *cap, const uint32_t *tri, size_t first) {
+    if (!*arr) {
+        if (grow((void **)arr, cap, 3 * (first + 1), sizeof(uint32_t))) return -1;
+        for (size_t i = 0; i < 3 * first; i++) (*arr)[i] = OBJ_NONE;
+    } else if (grow((void **)arr, cap, 3 * (first + 1), sizeof(uint32_t))) {
+        return -1;
+    }
+    memcpy(*arr + 3 * first, tri, 3 * sizeof(uint32_t));
+    (void)r;
+    return 0;
 }
 
 /* Parse "f a b c ..." and fan-triangulate it. */
 static int read_face(obj_reader *r, const char *s) {
-    uint32_t corner[OBJ_MAX_POLY];
+    obj_corner corner[OBJ_MAX_POLY], c;
     int count = 0, rc;
-    uint32_t idx = 0;
-    while ((rc = read_corner(r, &s, &idx)) == 1) {
+    while ((rc = read_corner(r, &s, &c)) == 1) {
         if (count == OBJ_MAX_POLY) return obj_fail(r, "face has more than 64 vertices");
-        corner[count++] = idx;
+        if (count && ((c.n == OBJ_NONE) != (corner[0].n == OBJ_NONE) || (c.t == OBJ_NONE) != (corner[0].t == OBJ_NONE)))
+            return obj_fail(r, "face mixes corners with and without normals or texture coordinates");
+        corner[count++] = c;
     }
     if (rc < 0) return -1;
     if (count < 3) return obj_fail(r, "face needs at least three vertices");
     obj_mesh *m = r->m;
     size_t tris = (size_t)count - 2;
+    if (m->triangle_count + tris > OBJ_MAX_TRIANGLES) return obj_fail(r, "more than 33554432 triangles");
     if (grow((void **)&m->indices, &r->idx_cap, 3 * (m->triangle_count + tris), sizeof(uint32_t)))
         return obj_fail(r, "out of memory");
     for (int i = 1; i + 1 < count; i++) {
-        uint32_t *t = m->indices + 3 * m->triangle_count++;
-        t[0] = corner[0];
-        t[1] = corner[i];
-        t[2] = corner[i + 1];
+        const obj_corner *k[3] = {&corner[0], &corner[i], &corner[i + 1]};
+        uint32_t v[3] = {k[0]->v, k[1]->v, k[2]->v}, n[3] = {k[0]->n, k[1]->n, k[2]->n},
+                 t[3] = {k[0]->t, k[1]->t, k[2]->t};
+        if ((n[0] != OBJ_NONE || m->normal_indices) &&
+            push_attribute_indices(r, &m->normal_indices, &r->nidx_cap, n, m->triangle_count))
+            return obj_fail(r, "out of memory");
+        if ((t[0] != OBJ_NONE || m->uv_indices) &&
+            push_attribute_indices(r, &m->uv_indices, &r->uvidx_cap, t, m->triangle_count))
+            return obj_fail(r, "out of memory");
+        memcpy(m->indices + 3 * m->triangle_count++, v, sizeof v);
     }
     return 0;
 }
 
 int obj_parse(const char *buf, size_t len, const char *name, obj_mesh *out, char *err, size_t err_len) {
-    obj_reader r = {name, 0, err, err_len, out, 0, 0};
+    obj_reader r = {name, 0, err, err_len, out, 0, 0, 0, 0, 0, 0};
     memset(out, 0, sizeof *out);
     char line[4096];
     size_t pos = 0;
@@ -182,6 +254,10 @@ int obj_parse(const char *buf, size_t len, const char *name, obj_mesh *out, char
             rc = read_vertex(&r, s + 2);
         else if (s[0] == 'f' && (s[1] == ' ' || s[1] == '\t'))
             rc = read_face(&r, s + 2);
+        else if (s[0] == 'v' && s[1] == 'n' && (s[2] == ' ' || s[2] == '\t'))
+            rc = read_attribute(&r, s + 3, 3, &out->normals, &out->normal_count, &r.n_cap);
+        else if (s[0] == 'v' && s[1] == 't' && (s[2] == ' ' || s[2] == '\t'))
+            rc = read_attribute(&r, s + 3, 2, &out->uvs, &out->uv_count, &r.uv_cap);
         if (rc) goto fail;
     }
     if (out->triangle_count == 0) {
@@ -206,5 +282,9 @@ int obj_load(const char *path, obj_mesh *out, char *err, size_t err_len) {
 void obj_mesh_free(obj_mesh *m) {
     free(m->positions);
     free(m->indices);
+    free(m->normals);
+    free(m->uvs);
+    free(m->normal_indices);
+    free(m->uv_indices);
     memset(m, 0, sizeof *m);
 }

@@ -68,6 +68,8 @@ typedef struct {
     vec3 v0, v1, v2;
 } triangle;
 
+#define SCENE_NONE UINT32_MAX /* no per-corner attribute (scene.triangle_vertex_normals, triangle_uvs) */
+
 typedef struct {
     vec3 center;
     float radius;
@@ -129,6 +131,16 @@ typedef struct scene {
     light *lights;
     float *light_cdf; /* light_count + 1 entries, last is 1 */
     uint32_t light_count;
+
+    /* Per-corner shading attributes of meshes (OBJ vn and vt; other importers
+     * fill the same), NULL when no triangle has any. Normals are unit length
+     * (world and internal frames differ only by a uniform scale). */
+    vec3 *vertex_normals;
+    uint32_t vertex_normal_count;
+    uint32_t *triangle_vertex_normals; /* 3 per triangle into vertex_normals, SCENE_NONE for a triangle without */
+    float *uvs;                        /* 2 per texture coordinate: u, v */
+    uint32_t uv_count;
+    uint32_t *triangle_uvs;            /* 3 per triangle into uvs, SCENE_NONE for a triangle without */
 
     struct accel *accel; /* the ray intersector chosen for this scene */
     uint32_t features;   /* FEATURE_* bits */

@@ -57,6 +57,13 @@ typedef struct {
     size_t point_count;
     const scene_bundle_file *obj_file; /* the OBJ parsed last, kept for the next shape naming it */
     obj_mesh obj;
+    size_t obj_vn_base, obj_vt_base; /* where its normals and uvs start in vn, vt */
+    vec3 *vn;                        /* all meshes' shading normals (unit; zero for an unusable one) */
+    size_t vn_count, vn_cap;
+    float *vt; /* 2 per uv */
+    size_t vt_count, vt_cap;
+    uint32_t *tri_vn, *tri_vt; /* 3 per triangle, as long as the last triangle that has any */
+    size_t tri_vn_len, tri_vn_cap, tri_vt_len, tri_vt_cap;
     scene *s;
 } loader;
 
@@ -336,6 +343,97 @@ static int load_sphere(loader *L, const cJSON *sh, const char *where, uint32_t m
     return 0;
 }
 
+/* Give triangle `tri` the corner attribute indices idx in *arr (3 per
+ * triangle, *len triangles so far); triangles in between get SCENE_NONE.
+ * Returns 0 or -1 when out of memory. */
+static int set_corners(uint32_t **arr, size_t *len, size_t *cap, size_t tri, const uint32_t idx[3]) {
+    if (3 * (tri + 1) > *cap) {
+        size_t n = *cap ? *cap : 768;
+        while (n < 3 * (tri + 1)) n *= 2;
+        uint32_t *p = realloc(*arr, n * sizeof *p);
+        if (!p) return -1;
+        *arr = p;
+        *cap = n;
+    }
+    for (size_t i = 3 * *len; i < 3 * tri; i++) (*arr)[i] = SCENE_NONE;
+    memcpy(*arr + 3 * tri, idx, 3 * sizeof *idx);
+    *len = tri + 1;
+    return 0;
+}
+
+/* Append the parsed OBJ's normals (made unit; zero when they cannot be) and
+ * uvs to the loader's. Returns 0 or -1 when out of memory. */
+static int add_mesh_attributes(loader *L, const obj_mesh *m) {
+    L->obj_vn_base = L->vn_count;
+    L->obj_vt_base = L->vt_count;
+    if (m->normal_count) {
+        vec3 *p = realloc(L->vn, (L->vn_count + m->normal_count) * sizeof *p);
+        if (!p) return -1;
+        L->vn = p;
+        for (size_t i = 0; i < m->normal_count; i++) {
+            const float *n = m->normals + 3 * i;
+            double len = sqrt((double)n[0] * n[0] + (double)n[1] * n[1] + (double)n[2] * n[2]);
+            L->vn[L->vn_count++] = len > 1e-30 && isfinite(len)
+                                       ? vec3_make((float)(n[0] / len), (float)(n[1] / len), (float)(n[2] / len))
+                                       : vec3_make(0, 0, 0);
+        }
+    }
+    if (m->uv_count) {
+        float *p = realloc(L->vt, 2 * (L->vt_count + m->uv_count) * sizeof *p);
+        if (!p) return -1;
+        L->vt = p;
+        memcpy(L->vt + 2 * L->vt_count, m->uvs, 2 * m->uv_count * sizeof *p);
+        L->vt_count += m->uv_count;
+    }
+    return 0;
+}
+
+/* Record mesh triangle t's normals and uvs for the triangle just added as
+ * number tri. A triangle with an unusable (zero) normal keeps none. */
+static int add_triangle_attributes(loader *L, const obj_mesh *m, size_t t, size_t tri) {
+    if (m->normal_indices && m->normal_indices[3 * t] != OBJ_NONE) {
+        uint32_t idx[3];
+        int usable = 1;
+        for (int k = 0; k < 3; k++) {
+            idx[k] = (uint32_t)(L->obj_vn_base + m->normal_indices[3 * t + k]);
+            usable &= !vec3_is_zero(L->vn[idx[k]]);
+        }
+        if (usable && set_corners(&L->tri_vn, &L->tri_vn_len, &L->tri_vn_cap, tri, idx)) return -1;
+    }
+    if (m->uv_indices && m->uv_indices[3 * t] != OBJ_NONE) {
+        uint32_t idx[3];
+        for (int k = 0; k < 3; k++) idx[k] = (uint32_t)(L->obj_vt_base + m->uv_indices[3 * t + k]);
+        if (set_corners(&L->tri_vt, &L->tri_vt_len, &L->tri_vt_cap, tri, idx)) return -1;
+    }
+    return 0;
+}
+
+/* Move the per-corner attributes into the scene (SCENE_NONE past the last
+ * triangle that has any). Returns 0 or -1 when out of memory. */
+static int assemble_attributes(loader *L) {
+    scene *s = L->s;
+    static const uint32_t none[3] = {SCENE_NONE, SCENE_NONE, SCENE_NONE};
+    if (L->tri_vn_len) {
+        if (L->tri_count > L->tri_vn_len && set_corners(&L->tri_vn, &L->tri_vn_len, &L->tri_vn_cap, L->tri_count - 1, none))
+            return -1;
+        s->vertex_normals = L->vn;
+        s->vertex_normal_count = (uint32_t)L->vn_count;
+        s->triangle_vertex_normals = L->tri_vn;
+        L->vn = NULL;
+        L->tri_vn = NULL;
+    }
+    if (L->tri_vt_len) {
+        if (L->tri_count > L->tri_vt_len && set_corners(&L->tri_vt, &L->tri_vt_len, &L->tri_vt_cap, L->tri_count - 1, none))
+            return -1;
+        s->uvs = L->vt;
+        s->uv_count = (uint32_t)L->vt_count;
+        s->triangle_uvs = L->tri_vt;
+        L->vt = NULL;
+        L->tri_vt = NULL;
+    }
+    return 0;
+}
+
 static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat, int em) {
     static const double zero[3] = {0, 0, 0};
     const char *file;
@@ -355,6 +453,7 @@ static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat
         if (obj_parse(f->data, f->len, file, &L->obj, oerr, sizeof oerr))
             return jf_fail(&L->j, where, "file", "%s", oerr);
         L->obj_file = f;
+        if (add_mesh_attributes(L, &L->obj)) return jf_fail(&L->j, where, NULL, "out of memory");
     }
     const obj_mesh m = L->obj;
     if (L->tri_cap < L->tri_count + m.triangle_count) { /* one allocation, not a doubling per mesh */
@@ -368,7 +467,10 @@ static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat
         double p[3][3];
         for (int k = 0; k < 3; k++)
             for (int a = 0; a < 3; a++) p[k][a] = m.positions[3 * m.indices[3 * t + k] + a] * scale + translate[a];
+        size_t before = L->tri_count;
         rc = add_triangle(L, p[0], p[1], p[2], mat, em, 0, where);
+        if (!rc && L->tri_count > before && add_triangle_attributes(L, &m, t, before))
+            rc = jf_fail(&L->j, where, NULL, "out of memory");
     }
     return rc;
 }
@@ -608,6 +710,7 @@ static int assemble(loader *L) {
         s->sphere_info[i].material = L->spheres[i].material;
         s->sphere_info[i].light = -1;
     }
+    if (assemble_attributes(L)) return jf_fail(&L->j, "shapes", NULL, "out of memory");
     return build_lights(L);
 }
 
@@ -682,6 +785,10 @@ scene *scene_load_bundle(const scene_bundle *b, const scene_overrides *ov, char 
     free(L.emitters);
     free(L.points);
     obj_mesh_free(&L.obj);
+    free(L.vn);
+    free(L.vt);
+    free(L.tri_vn);
+    free(L.tri_vt);
     if (rc != 0 || !L.s->path) {
         scene_free(L.s);
         return NULL;
@@ -705,6 +812,10 @@ void scene_free(scene *s) {
     free(s->triangles);
     free(s->triangle_info);
     free(s->triangle_normals);
+    free(s->vertex_normals);
+    free(s->triangle_vertex_normals);
+    free(s->uvs);
+    free(s->triangle_uvs);
     free(s->spheres);
     free(s->sphere_info);
     free(s->lights);

@@ -237,3 +237,67 @@ TEST(mesh_obj_numbers_are_strtods) {
     free(text);
     free(want);
 }
+
+/* Bad OBJ input: each a clear error naming the file and the line. */
+TEST(mesh_obj_bad_input_names_file_and_line) {
+    static const struct {
+        const char *text, *want;
+    } cases[] = {
+        {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1//1 2//1 3//1\n", "bad.obj:4: face refers to a normal that does not exist"},
+        {"v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//2 3//1\n", "bad.obj:5: face refers to a normal"},
+        {"v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//-2 2//1 3//1\n", "bad.obj:5: face refers to a normal"},
+        {"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/2 2/1 3/1\n", "bad.obj:5: face refers to a texture coordinate"},
+        {"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/0 2/1 3/1\n", "bad.obj:5: face refers to a texture coordinate"},
+        {"v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2 3//1\n", "bad.obj:5: face mixes corners"},
+        {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1// 2 3\n", "bad.obj:4: face corner's normal index is missing"},
+        {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/x 2 3\n", "bad.obj:4: face corner's texture index is missing"},
+        {"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf 1/1/1/1 2 3\n", "bad.obj:6: face corner is not of the form"},
+        {"v 0 0 0\nv nan 0 0\n", "bad.obj:2: vertex coordinate is not finite"},
+        {"v 0 0 0\nvn 0 inf 1\n", "bad.obj:2: normal is not finite"},
+        {"v 0 0 0\nvn 0 1\n", "bad.obj:2: normal needs three numbers"},
+        {"vt 1e300\n", "bad.obj:1: texture coordinate is not finite"},
+        {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2", "bad.obj:4: face needs at least three vertices"}, /* truncated */
+        {"v 0 0 0\nv 1 0 0\nv 0 1", "bad.obj:3: vertex needs three numbers"},                /* truncated */
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        obj_mesh m;
+        char err[256] = "";
+        int rc = obj_parse(cases[i].text, strlen(cases[i].text), "bad.obj", &m, err, sizeof err);
+        CHECK(rc == -1 && strstr(err, cases[i].want), "case %zu: got %d \"%s\", want \"%s\"", i, rc, err, cases[i].want);
+        if (rc == 0) obj_mesh_free(&m);
+    }
+}
+
+/* vn and vt reach the scene: unit normals and uvs with per-corner indices
+ * (a quad's fan shares corner 1); a mesh without them leaves its triangles
+ * SCENE_NONE, and a scene with none has NULL arrays. */
+TEST(mesh_obj_normals_and_uvs_reach_the_scene) {
+    util_write_temp("flat.obj", "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nf 1 3 2\n");
+    util_write_temp("quad.obj", "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nvn 0 2 0\nvn 0 1 1\nvt 0 0\nvt 1 0\n"
+                                "vt 1 1\nvt 0 1\nf 1/1/1 4/4/2 3/3/1 2/2/2\n");
+    const char *json = "{\"camera\": {\"type\": \"perspective\", \"position\": [0, 3, -3], \"look_at\": [0, 0, 0], "
+                       "\"fov\": 40}, \"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo\": [0.5, 0.5, 0.5]}},"
+                       " \"shapes\": [{\"type\": \"mesh\", \"file\": \"flat.obj\", \"material\": \"m\"},"
+                       " {\"type\": \"mesh\", \"file\": \"quad.obj\", \"material\": \"m\", \"translate\": [0, 1, 0]}]}";
+    char err[512];
+    scene *s = scene_load(util_write_temp("attrs.json", json), NULL, err, sizeof err);
+    CHECK(s != NULL, "%s", err);
+    if (!s) return;
+    CHECK(s->triangle_count == 3 && s->vertex_normal_count == 2 && s->uv_count == 4, "%u triangles, %u normals, %u uvs",
+          s->triangle_count, s->vertex_normal_count, s->uv_count);
+    CHECK(s->triangle_vertex_normals && s->triangle_uvs, "no attribute arrays");
+    if (s->triangle_vertex_normals && s->triangle_uvs && s->triangle_count == 3) {
+        const uint32_t *n = s->triangle_vertex_normals, *t = s->triangle_uvs;
+        CHECK(n[0] == SCENE_NONE && n[1] == SCENE_NONE && n[2] == SCENE_NONE && t[0] == SCENE_NONE, "flat mesh got attributes");
+        CHECK(n[3] == 0 && n[4] == 1 && n[5] == 0 && n[6] == 0 && n[7] == 0 && n[8] == 1, "normal indices %u %u %u / %u %u %u",
+              n[3], n[4], n[5], n[6], n[7], n[8]);
+        CHECK(t[3] == 0 && t[4] == 3 && t[5] == 2 && t[6] == 0 && t[7] == 2 && t[8] == 1, "uv indices");
+        vec3 a = s->vertex_normals[0], b = s->vertex_normals[1];
+        CHECK(a.x == 0 && a.y == 1 && a.z == 0 && fabsf(b.y - 0.70710678f) < 1e-6f && b.y == b.z, "normals not unit");
+        CHECK(s->uvs[2 * 2] == 1 && s->uvs[2 * 2 + 1] == 1, "uv 3 is (%g, %g)", s->uvs[4], s->uvs[5]);
+    }
+    scene_free(s);
+    s = scene_load("scenes/cornell-box.json", NULL, err, sizeof err);
+    CHECK(s && !s->vertex_normals && !s->triangle_vertex_normals && !s->uvs && !s->triangle_uvs, "cornell box has attributes");
+    scene_free(s);
+}
