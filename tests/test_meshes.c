@@ -5,6 +5,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <limits.h>
 #include <sys/stat.h>
 
 #include "../common/accel.h"
@@ -300,4 +301,60 @@ TEST(mesh_obj_normals_and_uvs_reach_the_scene) {
     s = scene_load("scenes/cornell-box.json", NULL, err, sizeof err);
     CHECK(s && !s->vertex_normals && !s->triangle_vertex_normals && !s->uvs && !s->triangle_uvs, "cornell box has attributes");
     scene_free(s);
+}
+
+/* White furnace: a diffuse sphere mesh of albedo 0.8 under a uniform sky of
+ * 1. Every path that leaves the (convex) sphere returns exactly 0.8, so a
+ * pixel covered by the sphere can only be 0.8 times the share of paths not
+ * ended by the leak guard: never more (no energy gained, no light through
+ * the surface), and not much less (no black facets where the shading and
+ * geometric normals disagree, e.g. at the silhouette of a low-poly sphere
+ * with vertex normals). Returns the mean of the covered pixels, -1 on
+ * failure. */
+static double furnace(const char *obj, int level_poly, float *min_out) {
+    char path[PATH_MAX], json[PATH_MAX + 1024], err[512];
+    CHECK(realpath(obj, path) != NULL, "%s missing", obj);
+    snprintf(json, sizeof json,
+             "{\"render\": {\"width\": 40, \"height\": 40, \"spp\": 64, \"max_depth\": 8, \"seed\": 3},"
+             " \"camera\": {\"type\": \"perspective\", \"position\": [0, 0.3, -4], \"look_at\": [0, 0, 0], \"fov\": 32},"
+             " \"background\": [1, 1, 1], \"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo\": [0.8, 0.8, 0.8]}},"
+             " \"shapes\": [{\"type\": \"mesh\", \"file\": \"%s\", \"material\": \"m\"}]}",
+             path);
+    scene *s = util_scene_from_text(json, err, sizeof err);
+    CHECK(s != NULL, "%s", err);
+    if (!s) return -1;
+    trace_stats st;
+    float *img = util_render(s, 2, 16, 1, &st);
+    double sum = 0;
+    int covered = 0, gained = 0;
+    float lo = 1;
+    for (int i = 0; img && i < 40 * 40; i++) {
+        float v = img[3 * i + 1];
+        if (v > 1.0f + 1e-5f) gained++; /* brighter than the sky: energy from nowhere */
+        if (v > 0.8f + 1e-4f) continue; /* sky, or a pixel the silhouette crosses */
+        sum += v;
+        covered++;
+        lo = fminf(lo, v);
+    }
+    CHECK(img && covered > 300, "%s: only %d pixels on the sphere", obj, covered);
+    CHECK(gained == 0, "%s: %d pixels brighter than the albedo allows (energy gained)", obj, gained);
+    CHECK(s->triangle_vertex_normals || level_poly < 0, "%s: no vertex normals loaded", obj);
+    free(img);
+    scene_free(s);
+    *min_out = lo;
+    return covered ? sum / covered : -1;
+}
+
+TEST(mesh_smooth_normals_white_furnace) {
+    float lo;
+    double smooth = furnace("tests/scenes/icosphere3n.obj", 3, &lo); /* 1,280 triangles with vn */
+    CHECK(smooth > 0.79 && lo > 0.7f, "smooth sphere: mean %.4f, darkest pixel %.4f of 0.8", smooth, lo);
+    float lo_smooth = lo;
+    double low = furnace("tests/scenes/icosphere1n.obj", 1, &lo); /* 80 triangles with vn */
+    CHECK(low > 0.74 && lo > 0.5f, "low-poly smooth sphere: mean %.4f, darkest pixel %.4f of 0.8", low, lo);
+    float lo_low = lo;
+    double flat = furnace("tests/scenes/icosphere3.obj", -1, &lo); /* no vn: flat facets lose nothing */
+    CHECK(flat > 0.7999, "flat-shaded sphere: mean %.5f", flat);
+    fprintf(stderr, "  furnace (albedo 0.8), mean / darkest covered pixel: smooth %.4f / %.4f, low-poly smooth %.4f / %.4f, flat %.4f\n",
+            smooth, lo_smooth, low, lo_low, flat);
 }
