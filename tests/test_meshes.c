@@ -13,6 +13,7 @@
 #include "../common/rng.h"
 #include "../common/scene.h"
 #include "harness.h"
+#include "scene_memory.h"
 #include "util.h"
 
 #define ICO_SCENE "tests/scenes/icospheres.json" /* 2,572 triangles and a sphere */
@@ -357,4 +358,26 @@ TEST(mesh_smooth_normals_white_furnace) {
     CHECK(flat > 0.7999, "flat-shaded sphere: mean %.5f", flat);
     fprintf(stderr, "  furnace (albedo 0.8), mean / darkest covered pixel: smooth %.4f / %.4f, low-poly smooth %.4f / %.4f, flat %.4f\n",
             smooth, lo_smooth, low, lo_low, flat);
+}
+
+/* A worker that cannot hold a scene says so with the figures and gives its
+ * tiles back (here: the only worker, so the render fails with that reason)
+ * instead of being killed by the kernel; the estimate counts instances. */
+TEST(mesh_worker_refuses_a_scene_it_cannot_hold) {
+    char cmd[2048], out[16384];
+    const char *img = util_temp_path("refused.pfm");
+    snprintf(cmd, sizeof cmd,
+             "TESSERA_MEMORY_AVAILABLE_MB=0 timeout 120 %s render " ICO_SCENE
+             " --workers 1 --width 8 --height 8 --worker-timeout 30 --no-progress -o %s", /* one tile */
+             harness_tessera(), img);
+    int rc = util_run(cmd, out, sizeof out);
+    CHECK(rc != 0 && strstr(out, "cannot hold the scene: loading 2560 triangles needs about 0 MiB, only 0 MiB"),
+          "%s (%d): %s", cmd, rc, out);
+    scene_bundle b;
+    char err[256];
+    CHECK(scene_bundle_read(ICO_SCENE, &b, err, sizeof err) == 0, "%s", err);
+    uint64_t tris = 0, bytes = scene_memory_estimate(&b, &tris);
+    CHECK(tris == 2560 && bytes > 2560 * SCENE_MEMORY_BYTES_PER_TRIANGLE, "estimate: %llu triangles, %llu bytes",
+          (unsigned long long)tris, (unsigned long long)bytes);
+    scene_bundle_free(&b);
 }

@@ -13,6 +13,7 @@
 #include <time.h>
 
 #include "../common/scene.h"
+#include "scene_memory.h"
 
 struct pool_job {
     proto_job desc;
@@ -73,7 +74,8 @@ static int job_ensure_scene(pool_job *j) {
     if (j->load_state == 0) {
         const proto_job *d = &j->desc;
         scene_overrides ov = {d->width, d->height, d->spp, d->max_depth, 1, d->seed, 0};
-        j->s = scene_load_bundle(&j->bundle, &ov, j->load_error, sizeof j->load_error);
+        j->s = scene_memory_check(&j->bundle, j->load_error, sizeof j->load_error) ? NULL
+               : scene_load_bundle(&j->bundle, &ov, j->load_error, sizeof j->load_error);
         j->load_state = j->s ? 1 : -1;
     }
     int rc = j->load_state == 1 ? 0 : -1;
