@@ -381,3 +381,27 @@ TEST(mesh_worker_refuses_a_scene_it_cannot_hold) {
           (unsigned long long)tris, (unsigned long long)bytes);
     scene_bundle_free(&b);
 }
+
+/* No light leaks: a one-sided floor whose vertex normals lean 60 degrees,
+ * lit only by a point light under it, seen from above. Light directions
+ * below the surface but above the tilted shading hemisphere must be
+ * refused: the picture is black (it is not without the guard). */
+TEST(mesh_smooth_normals_do_not_leak_light) {
+    util_write_temp("tilted.obj", "v -2 0 -2\nv 2 0 -2\nv 2 0 2\nv -2 0 2\nvn 0.866 0.5 0\nf 1//1 4//1 3//1 2//1\n");
+    const char *json = "{\"render\": {\"width\": 16, \"height\": 16, \"spp\": 16, \"max_depth\": 4, \"seed\": 1},"
+                       " \"camera\": {\"type\": \"perspective\", \"position\": [0, 3, -0.1], \"look_at\": [0, 0, 0], \"fov\": 40},"
+                       " \"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo\": [0.8, 0.8, 0.8]}},"
+                       " \"shapes\": [{\"type\": \"mesh\", \"file\": \"tilted.obj\", \"material\": \"m\"}],"
+                       " \"lights\": [{\"type\": \"point\", \"position\": [3, -0.5, 0], \"intensity\": [50, 50, 50]}]}";
+    char err[512];
+    scene *s = scene_load(util_write_temp("leak.json", json), NULL, err, sizeof err);
+    CHECK(s && s->triangle_vertex_normals, "%s", s ? "no vertex normals" : err);
+    if (!s) return;
+    trace_stats st;
+    float *img = util_render(s, 1, 16, 1, &st);
+    int lit = 0;
+    for (int i = 0; img && i < 16 * 16 * 3; i++) lit += img[i] != 0.0f;
+    CHECK(img && lit == 0, "%d channels lit through the floor", lit);
+    free(img);
+    scene_free(s);
+}
