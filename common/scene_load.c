@@ -12,6 +12,7 @@
 
 #include "accel.h"
 #include "json_field.h"
+#include "mesh_normals.h"
 #include "obj.h"
 #include "scene_bundle.h"
 #include "scene.h"
@@ -58,6 +59,7 @@ typedef struct {
     const scene_bundle_file *obj_file; /* the OBJ parsed last, kept for the next shape naming it */
     obj_mesh obj;
     size_t obj_vn_base, obj_vt_base; /* where its normals and uvs start in vn, vt */
+    double obj_smooth;               /* the smooth_angle it was read with (-1: none) */
     vec3 *vn;                        /* all meshes' shading normals (unit; zero for an unusable one) */
     size_t vn_count, vn_cap;
     float *vt; /* 2 per uv */
@@ -437,9 +439,10 @@ static int assemble_attributes(loader *L) {
 static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat, int em) {
     static const double zero[3] = {0, 0, 0};
     const char *file;
-    double scale, translate[3];
+    double scale, translate[3], smooth;
     if (jf_string(&L->j, sh, where, "file", 1, &file) ||
         jf_number(&L->j, sh, where, "scale", 0, 1, 0, BIG, &scale) ||
+        jf_number(&L->j, sh, where, "smooth_angle", 0, -1, 0, 180, &smooth) ||
         jf_vec3(&L->j, sh, where, "translate", 0, zero, -BIG, BIG, translate))
         return -1;
     if (!(scale > 0)) return jf_fail(&L->j, where, "scale", "must be greater than 0");
@@ -447,13 +450,16 @@ static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat
     if (!f) return jf_fail(&L->j, where, "file", "%s: not in the scene bundle", file);
     if (!f->data) return jf_fail(&L->j, where, "file", "%s", f->error);
     char oerr[512];
-    if (L->obj_file != f) { /* instances of one file parse it once */
+    if (L->obj_file != f || L->obj_smooth != smooth) { /* instances of one file parse it once */
         obj_mesh_free(&L->obj);
         L->obj_file = NULL;
         if (obj_parse(f->data, f->len, file, &L->obj, oerr, sizeof oerr))
             return jf_fail(&L->j, where, "file", "%s", oerr);
         L->obj_file = f;
-        if (add_mesh_attributes(L, &L->obj)) return jf_fail(&L->j, where, NULL, "out of memory");
+        L->obj_smooth = smooth;
+        if ((smooth >= 0 && !L->obj.normal_indices && mesh_normals_from_faces(&L->obj, smooth)) ||
+            add_mesh_attributes(L, &L->obj))
+            return jf_fail(&L->j, where, NULL, "out of memory");
     }
     const obj_mesh m = L->obj;
     if (L->tri_cap < L->tri_count + m.triangle_count) { /* one allocation, not a doubling per mesh */
@@ -477,7 +483,7 @@ static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat
 
 static int load_shape(loader *L, const cJSON *sh, const char *where) {
     static const char *const keys[] = {"type", "name", "material", "emission", "two_sided", "vertices",
-                                       "center", "radius", "file", "scale", "translate", NULL};
+                                       "center", "radius", "file", "scale", "translate", "smooth_angle", NULL};
     const char *type, *name;
     int em = -1;
     uint32_t mat = 0;

@@ -13,6 +13,7 @@
 #include "../common/rng.h"
 #include "../common/scene.h"
 #include "harness.h"
+#include "mesh_normals.h"
 #include "scene_memory.h"
 #include "util.h"
 
@@ -312,15 +313,15 @@ TEST(mesh_obj_normals_and_uvs_reach_the_scene) {
  * geometric normals disagree, e.g. at the silhouette of a low-poly sphere
  * with vertex normals). Returns the mean of the covered pixels, -1 on
  * failure. */
-static double furnace(const char *obj, int level_poly, float *min_out) {
+static double furnace(const char *obj, int level_poly, const char *extra, float *min_out) {
     char path[PATH_MAX], json[PATH_MAX + 1024], err[512];
     CHECK(realpath(obj, path) != NULL, "%s missing", obj);
     snprintf(json, sizeof json,
              "{\"render\": {\"width\": 40, \"height\": 40, \"spp\": 64, \"max_depth\": 8, \"seed\": 3},"
              " \"camera\": {\"type\": \"perspective\", \"position\": [0, 0.3, -4], \"look_at\": [0, 0, 0], \"fov\": 32},"
              " \"background\": [1, 1, 1], \"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo\": [0.8, 0.8, 0.8]}},"
-             " \"shapes\": [{\"type\": \"mesh\", \"file\": \"%s\", \"material\": \"m\"}]}",
-             path);
+             " \"shapes\": [{\"type\": \"mesh\", \"file\": \"%s\", \"material\": \"m\"%s}]}",
+             path, extra);
     scene *s = util_scene_from_text(json, err, sizeof err);
     CHECK(s != NULL, "%s", err);
     if (!s) return -1;
@@ -348,14 +349,17 @@ static double furnace(const char *obj, int level_poly, float *min_out) {
 
 TEST(mesh_smooth_normals_white_furnace) {
     float lo;
-    double smooth = furnace("tests/scenes/icosphere3n.obj", 3, &lo); /* 1,280 triangles with vn */
+    double smooth = furnace("tests/scenes/icosphere3n.obj", 3, "", &lo); /* 1,280 triangles with vn */
     CHECK(smooth > 0.79 && lo > 0.7f, "smooth sphere: mean %.4f, darkest pixel %.4f of 0.8", smooth, lo);
     float lo_smooth = lo;
-    double low = furnace("tests/scenes/icosphere1n.obj", 1, &lo); /* 80 triangles with vn */
+    double low = furnace("tests/scenes/icosphere1n.obj", 1, "", &lo); /* 80 triangles with vn */
     CHECK(low > 0.74 && lo > 0.5f, "low-poly smooth sphere: mean %.4f, darkest pixel %.4f of 0.8", low, lo);
     float lo_low = lo;
-    double flat = furnace("tests/scenes/icosphere3.obj", -1, &lo); /* no vn: flat facets lose nothing */
+    double flat = furnace("tests/scenes/icosphere3.obj", -1, "", &lo); /* no vn: flat facets lose nothing */
     CHECK(flat > 0.7999, "flat-shaded sphere: mean %.5f", flat);
+    double made = furnace("tests/scenes/icosphere3.obj", 3, ", \"smooth_angle\": 30", &lo); /* normals from faces */
+    CHECK(made > 0.79 && lo > 0.7f, "sphere with normals from faces: mean %.4f, darkest %.4f", made, lo);
+    fprintf(stderr, "  furnace with normals made from faces (30 degrees): %.4f / %.4f\n", made, lo);
     fprintf(stderr, "  furnace (albedo 0.8), mean / darkest covered pixel: smooth %.4f / %.4f, low-poly smooth %.4f / %.4f, flat %.4f\n",
             smooth, lo_smooth, low, lo_low, flat);
 }
@@ -404,4 +408,38 @@ TEST(mesh_smooth_normals_do_not_leak_light) {
     CHECK(img && lit == 0, "%d channels lit through the floor", lit);
     free(img);
     scene_free(s);
+}
+
+/* Normals made from faces follow the angle threshold: every corner of an
+ * icosphere (faces 10 degrees apart at level 2... 2.6 at level 3) is
+ * smoothed at 30 degrees, no corner of a tetrahedron (faces 109 degrees
+ * apart) is: its corner normals are its face normals. */
+TEST(mesh_normals_from_faces_follow_the_angle) {
+    obj_mesh m;
+    char err[256];
+    const char *tet = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+    CHECK(obj_parse(tet, strlen(tet), "tet.obj", &m, err, sizeof err) == 0, "%s", err);
+    CHECK(mesh_normals_from_faces(&m, 30) == 0 && m.normal_count == 12, "normals");
+    int off = 0;
+    for (size_t t = 0; t < 4; t++) {
+        const double *a = m.positions + 3 * m.indices[3 * t], *b = m.positions + 3 * m.indices[3 * t + 1],
+                     *c = m.positions + 3 * m.indices[3 * t + 2];
+        double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+        double l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        for (int k = 0; k < 3; k++)
+            for (int x = 0; x < 3; x++) off += fabs(m.normals[3 * m.normal_indices[3 * t + k] + x] - n[x] / l) > 1e-6;
+    }
+    CHECK(off == 0, "%d tetrahedron normal components differ from the face normals", off);
+    obj_mesh_free(&m);
+    CHECK(obj_load("tests/scenes/icosphere3.obj", &m, err, sizeof err) == 0, "%s", err);
+    CHECK(mesh_normals_from_faces(&m, 30) == 0, "normals");
+    int flat = 0;
+    for (size_t i = 0; i < m.triangle_count * 3; i++) { /* a smoothed corner normal points along its vertex */
+        const double *p = m.positions + 3 * m.indices[i];
+        const float *n = m.normals + 3 * m.normal_indices[i];
+        flat += n[0] * p[0] + n[1] * p[1] + n[2] * p[2] < 0.9995;
+    }
+    CHECK(flat == 0, "%d of %zu icosphere corners not smoothed", flat, m.triangle_count * 3);
+    obj_mesh_free(&m);
 }
