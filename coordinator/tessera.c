@@ -29,12 +29,18 @@
 #include "local_farm.h"
 #include "service.h"
 
+/* From this many primitives the default local farm is one worker with a
+ * thread per core (bench/meshes.sh: at 655k triangles and above two workers
+ * each loading the scene were slower than one process). */
+#define LOCAL_FARM_ONE_WORKER_PRIMITIVES (1u << 19)
+
 typedef struct {
     const char *scene_path;
     const char *out_path;
     scene_overrides ov;
     int threads, threads_given, workers, tile_size, verbose, progress, jpeg_quality, png16;
     int aov_samples; /* --aov samples: also write the per-pixel sample counts */
+    int workers_defaulted; /* local farm sized by tessera, not by --workers */
     const char *listen, *token_file;
     char listen_host[256];
     farm_options farm;
@@ -58,8 +64,10 @@ static void usage_render(FILE *f) {
             "      --height H         image height in pixels (overrides render.height)\n"
             "      --max-depth N      maximum bounces (overrides render.max_depth)\n"
             "      --seed N           random seed (overrides render.seed)\n"
-            "      --workers N        local worker processes (default: one per core; with\n"
-            "                         --listen, 0); 0 without --listen renders in this process\n"
+            "      --workers N        local worker processes (default: one per core, or one\n"
+            "                         with a thread per core for scenes of 2^19 primitives\n"
+            "                         or more; with --listen, 0); 0 without --listen\n"
+            "                         renders in this process\n"
             "      --threads N        threads per local worker (default 1), or render threads\n"
             "                         with --workers 0 (default: all cores)\n"
             "      --listen HOST:PORT also accept remote workers (tessera-worker --connect)\n"
@@ -224,6 +232,7 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         }
         a->farm.host = a->listen_host;
     }
+    a->workers_defaulted = a->workers < 0 && !a->listen;
     if (a->workers < 0) a->workers = a->listen ? 0 : (int)sysconf(_SC_NPROCESSORS_ONLN);
     char terr[300];
     if (a->token_file && auth_key_load(a->token_file, &a->farm.auth, terr, sizeof terr)) {
@@ -398,6 +407,17 @@ static int cmd_render(int argc, char **argv) {
         return 1;
     }
     if (a.verbose) print_scene_info(s);
+    /* A big scene costs every local worker its own load, build and memory;
+     * one worker with a thread per core loads it once (same bytes). */
+    if (a.workers_defaulted && !a.threads_given && a.workers > 1 &&
+        s->triangle_count + s->sphere_count >= LOCAL_FARM_ONE_WORKER_PRIMITIVES) {
+        a.threads = a.workers;
+        a.threads_given = 1;
+        a.workers = 1;
+        if (a.verbose)
+            fprintf(stderr, "local farm: 1 worker with %d threads (%u primitives: loaded once, not per core)\n",
+                    a.threads, s->triangle_count + s->sphere_count);
+    }
     image img;
     int rc = image_alloc(&img, s->settings.width, s->settings.height);
     if (rc) fprintf(stderr, "tessera: out of memory for a %dx%d image\n", s->settings.width, s->settings.height);
