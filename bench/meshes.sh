@@ -34,18 +34,18 @@ for L in $levels; do
   lb="" rs="" ws="" ms="" rss="" ip=""
   for r in $(seq "$rounds"); do
     info=$( { /usr/bin/time -f "wall %e" "$bin/tessera" render "$dir/spheres$L.json" --workers 0 --width 1 --height 1 \
-              --spp 1 -v --no-progress -o "$dir/x.pfm"; } 2>&1)
+              --spp 1 -v --no-progress -o "$dir/x.pfm"; } 2>&1) || { echo "level $L: $info" >&2; exit 1; }
     tris=$(awk '/^scene/ {print $3}' <<< "$info")
     accel=$(awk '/^intersector:/ {print $2}' <<< "$info" | tr -d ',')
     lb+="$(awk '/^wall/ {print $2}' <<< "$info") "
     out=$( { /usr/bin/time -f "wall %e rss %M" "$bin/tessera" render "$dir/spheres$L.json" --width 256 --height 256 \
-             --spp "$spp" --no-progress -o "$dir/farm$L.pfm"; } 2>&1)
+             --spp "$spp" --no-progress -o "$dir/farm$L.pfm"; } 2>&1) || { echo "level $L: $out" >&2; exit 1; }
     rs+="$(awk '/^rendered/ {print $3}' <<< "$out") "
     ms+="$(awk '/^rendered/ {print $5}' <<< "$out") "
     ws+="$(awk '/^wall/ {print $2}' <<< "$out") "
     rss+="$(awk '/^wall/ {printf "%.0f", $4 / 1024}' <<< "$out") "
     one=$( { /usr/bin/time -f "wall %e" "$bin/tessera" render "$dir/spheres$L.json" --workers 0 --width 256 --height 256 \
-             --spp "$spp" --no-progress -o "$dir/one$L.pfm"; } 2>&1)
+             --spp "$spp" --no-progress -o "$dir/one$L.pfm"; } 2>&1) || { echo "level $L: $one" >&2; exit 1; }
     ip+="$(awk '/^wall/ {print $2}' <<< "$one") "
     cmp -s "$dir/farm$L.pfm" "$dir/one$L.pfm" || { echo "level $L: farm and in-process images differ" >&2; exit 1; }
   done
