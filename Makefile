@@ -15,7 +15,7 @@
 
 # Debian packages the build needs; `make deps` installs what is missing.
 DEB_PACKAGES := gcc make pkg-config libcjson-dev libuv1-dev libjpeg-dev libopenexr-dev libpng-dev libsodium-dev \
-                openexr openimageio-tools clang libclang-rt-14-dev gnuplot-nox
+                openexr openimageio-tools clang libclang-rt-14-dev gnuplot-nox libembree-dev
 
 SHELL := /bin/bash
 CC ?= cc
@@ -37,7 +37,7 @@ else
   LDFLAGS_V :=
 endif
 CFLAGS := $(CFLAGS_COMMON) $(CFLAGS_OPT) -I$(BUILD)
-LDLIBS := -lcjson -lpng16 -ljpeg -lOpenEXRCore-3_1 -lsodium -luv -lpthread -lm
+LDLIBS := -lcjson -lpng16 -ljpeg -lOpenEXRCore-3_1 -lsodium -luv -lembree3 -lpthread -lm
 LDFLAGS := $(LDFLAGS_V)
 
 .DEFAULT_GOAL := all
@@ -134,10 +134,12 @@ test-asan:
 stress: $(TESSERA) $(WORKER) $(TEST_BIN)
 	TESSERA_BIN=$(TESSERA) $(TEST_BIN) --filter stress
 
-# ThreadSanitizer on the tests that run several render threads.
+# ThreadSanitizer on the tests that run several render threads. Embree builds
+# on the calling thread here: its TBB workers synchronise in uninstrumented
+# code, which TSan would report as races with our callbacks.
 test-tsan:
 	$(MAKE) VARIANT=tsan build/tsan/bin/run-tests build/tsan/bin/tessera build/tsan/bin/tessera-worker
-	TESSERA_BIN=build/tsan/bin/tessera build/tsan/bin/run-tests --filter thread
+	TESSERA_EMBREE_CONFIG=threads=1 TESSERA_BIN=build/tsan/bin/tessera build/tsan/bin/run-tests --filter thread
 
 # References: 256x256, cached under bench/ref/ by scene contents.
 BENCH_REF_BOX := 8192
@@ -256,3 +258,14 @@ bench-cycles-depth: $(TESSERA) $(WORKER) bench-deps
 bench-cycles-seeds: $(TESSERA) $(WORKER) bench-deps
 	bench/cycles-seeds.sh $(TESSERA) "$(BENCH_CYCLES_SCENES)" "$(BENCH_CYCLES_SPP)"
 bench: bench-cycles
+# ---- big meshes (issue 13) ----------------------------------------------------
+# `make bench-meshes`: cornell-spheres with icosphere meshes of 41k to 10.5M
+# triangles (bench/meshes.sh; MESH_LEVELS, MESH_SPP, MESH_ROUNDS to change),
+# table printed, CSV in bench/results/meshes.csv (cycles_s column left for
+# bench/cycles/ to fill).
+MESH_LEVELS ?= 5 6 7 8 9
+MESH_SPP ?= 64
+MESH_ROUNDS ?= 1
+.PHONY: bench-meshes
+bench-meshes: $(TESSERA) $(WORKER)
+	bench/meshes.sh $(BUILD)/bin "$(MESH_LEVELS)" $(MESH_SPP) $(MESH_ROUNDS)

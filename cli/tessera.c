@@ -32,6 +32,11 @@
 #include "coordinator/service.h"
 #include "limit.h"
 
+/* From this many primitives the default local farm is one worker with a
+ * thread per core (bench/meshes.sh: at 655k triangles and above two workers
+ * each loading the scene were slower than one process). */
+#define LOCAL_FARM_ONE_WORKER_PRIMITIVES (1u << 19)
+
 typedef struct {
     const char *scene_path;
     const char *out_path;
@@ -41,6 +46,7 @@ typedef struct {
     int quiet;       /* -q: errors and the summary line only */
     int interrupted; /* the signal that stopped a farm render, or 0 */
     cli_progress_state ps;
+    int workers_defaulted; /* local farm sized by tessera, not by --workers */
     const char *listen, *token_file;
     const char *camera; /* --camera NAME: a glTF's camera */
     char listen_host[256];
@@ -69,8 +75,10 @@ static void usage_render(FILE *f) {
             "      --max-depth N      maximum bounces (overrides render.max_depth)\n"
             "      --seed N           random seed (overrides render.seed)\n"
             "      --camera NAME      glTF: render from this camera (node or camera name; default: the first)\n"
-            "      --workers N        local worker processes (default: one per core; with\n"
-            "                         --listen, 0); 0 without --listen renders in this process\n"
+            "      --workers N        local worker processes (default: one per core, or one\n"
+            "                         with a thread per core for scenes of 2^19 primitives\n"
+            "                         or more; with --listen, 0); 0 without --listen\n"
+            "                         renders in this process\n"
             "      --threads N        threads per local worker (default 1), or render threads\n"
             "                         with --workers 0 (default: all cores)\n"
             "      --listen HOST:PORT also accept remote workers (tessera-worker --connect)\n"
@@ -178,6 +186,7 @@ static void render_args_check(render_args *a) {
             args_usage_error("tessera render", "--listen %s", err);
         a->farm.host = a->listen_host;
     }
+    a->workers_defaulted = a->workers < 0 && !a->listen;
     if (a->workers < 0) a->workers = a->listen ? 0 : (int)sysconf(_SC_NPROCESSORS_ONLN);
     char terr[300];
     if (a->token_file && auth_key_load(a->token_file, &a->farm.auth, terr, sizeof terr))
@@ -264,13 +273,20 @@ static void show_progress(void *ctx, int done, int total, const trace_stats *so_
 
 static void print_scene_info(const scene *s) {
     bvh_stats bs;
+    accel_embree_stats es;
     char features[256];
     scene_feature_names(s->features, features, sizeof features);
     fprintf(stderr, "scene %s: %u triangles, %u spheres, %u lights, %u materials, %zu degenerate triangles skipped\n",
             s->path, s->triangle_count, s->sphere_count, s->light_count, s->material_count - 1,
             s->degenerate_triangles);
     fprintf(stderr, "features: %s\n", features);
-    if (accel_get_bvh_stats(s->accel, &bs) == 0)
+    if (!s->accel)
+        fprintf(stderr, "intersector: built by each worker (workers print theirs with -v)\n");
+    else if (accel_get_embree_stats(s->accel, &es) == 0)
+        fprintf(stderr, "intersector: embree (Tessera's tests at the leaves; device \"%s\"), %.1f KiB, peak %.1f KiB "
+                "while building, built in %.3f ms\n", es.config, (double)es.final_bytes / 1024.0,
+                (double)es.memory_bytes / 1024.0, es.build_seconds * 1e3);
+    else if (accel_get_bvh_stats(s->accel, &bs) == 0)
         fprintf(stderr, "intersector: bvh, %zu nodes, %zu leaves, depth %zu, %.1f KiB, built in %.3f ms\n",
                 bs.node_count, bs.leaf_count, bs.max_depth, (double)bs.memory_bytes / 1024.0,
                 bs.build_seconds * 1e3);
@@ -398,6 +414,7 @@ static int cmd_render(int argc, char **argv) {
         if (a.camera) scene_bundle_free(&b);
         return 1;
     }
+    a.ov.no_accel = a.listen || a.workers > 0; /* the workers build their own */
     scene *s = scene_load_bundle(&b, &a.ov, err, sizeof err);
     if (!s) {
         fprintf(stderr, "tessera: %s\n", err);
@@ -409,6 +426,17 @@ static int cmd_render(int argc, char **argv) {
         fprintf(stderr, "size: %dx%d: --%s given alone, so the %s keeps the scene's aspect ratio\n",
                 s->settings.width, s->settings.height, a.ov.width > 0 ? "width" : "height",
                 a.ov.width > 0 ? "height" : "width");
+    /* A big scene costs every local worker its own load, build and memory;
+     * one worker with a thread per core loads it once (same bytes). */
+    if (a.workers_defaulted && !a.threads_given && a.workers > 1 &&
+        s->triangle_count + s->sphere_count >= LOCAL_FARM_ONE_WORKER_PRIMITIVES) {
+        a.threads = a.workers;
+        a.threads_given = 1;
+        a.workers = 1;
+        if (a.verbose)
+            fprintf(stderr, "local farm: 1 worker with %d threads (%u primitives: loaded once, not per core)\n",
+                    a.threads, s->triangle_count + s->sphere_count);
+    }
     image img;
     int rc = image_alloc(&img, s->settings.width, s->settings.height);
     if (rc) fprintf(stderr, "tessera: out of memory for a %dx%d image\n", s->settings.width, s->settings.height);

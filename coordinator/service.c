@@ -69,7 +69,7 @@ static void on_submit(client *cl, const cJSON *m) {
         return client_error(cl, "the queue is full (%d jobs); try again later", s->o.max_jobs);
     scene_bundle b;
     if (scene_bundle_parse(cl->bundle, cl->bundle_len, &b, err, sizeof err)) return client_error(cl, "%s", err);
-    scene_overrides ov = {(int)w, (int)ht, (int)spp, (int)depth, 0, 0};
+    scene_overrides ov = {(int)w, (int)ht, (int)spp, (int)depth, 0, 0, 1}; /* workers build the intersector */
     const cJSON *seed = cJSON_GetObjectItemCaseSensitive(m, "seed");
     if (cJSON_IsString(seed)) {
         ov.has_seed = 1;

@@ -81,7 +81,7 @@ TEST(scene_errors_name_file_and_field) {
 
 TEST(scene_obj_mesh_and_degenerates) {
     util_write_temp("m.obj", "# a quad, a sliver and a zero-area face\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\n"
-                             "f 1 2 3 4\nf 1/1/1 2//2 -1\nf 1 1 2\n");
+                             "vt 0 0\nvn 0 0 1\nvn 0 0 1\nf 1 2 3 4\nf 1/1/1 2/1/2 -1/-1/-1\nf 1 1 2\n");
     char err[512];
     scene *s = util_scene_from_text("{" CAM "," MATS ", \"shapes\": [{\"type\": \"mesh\", \"file\": \"m.obj\", "
                                     "\"material\": \"white\", \"scale\": 2, \"translate\": [1, 0, 0]}]}",

@@ -14,6 +14,7 @@
 #include <unistd.h>
 
 #include "render/scene.h"
+#include "render/scene_memory.h"
 
 struct pool_job {
     proto_job desc;
@@ -71,8 +72,9 @@ static int job_ensure_scene(pool_job *j) {
     pthread_mutex_lock(&j->load_lock);
     if (j->load_state == 0) {
         const proto_job *d = &j->desc;
-        scene_overrides ov = {d->width, d->height, d->spp, d->max_depth, 1, d->seed};
-        j->s = scene_load_bundle(&j->bundle, &ov, j->load_error, sizeof j->load_error);
+        scene_overrides ov = {d->width, d->height, d->spp, d->max_depth, 1, d->seed, 0};
+        j->s = scene_memory_check(&j->bundle, j->load_error, sizeof j->load_error) ? NULL
+               : scene_load_bundle(&j->bundle, &ov, j->load_error, sizeof j->load_error);
         j->load_state = j->s ? 1 : -1;
     }
     int rc = j->load_state == 1 ? 0 : -1;

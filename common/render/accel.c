@@ -9,6 +9,7 @@
  * test's double-precision edge fallback are handed to that very function. */
 #include "accel.h"
 
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #ifdef __SSE2__
@@ -34,6 +35,7 @@ typedef int (*flat_traverse_fn)(const flat_triangles *f, const scene *s, const r
 struct accel {
     accel_kind kind;
     bvh *tree;                /* ACCEL_BVH */
+    accel_embree *embree;     /* ACCEL_EMBREE */
     flat_triangles flat;      /* ACCEL_FLAT */
     flat_traverse_fn flat_fn; /* the widest kernel this CPU runs */
 };
@@ -42,8 +44,8 @@ static flat_traverse_fn flat_choose(void);
 
 static accel_kind choose_kind(const scene *s, accel_kind want) {
     if (want != ACCEL_AUTO) return want;
-    return s->triangle_count <= ACCEL_FLAT_MAX_TRIANGLES && s->sphere_count <= ACCEL_FLAT_MAX_SPHERES ? ACCEL_FLAT
-                                                                                                     : ACCEL_BVH;
+    if (s->triangle_count <= ACCEL_FLAT_MAX_TRIANGLES && s->sphere_count <= ACCEL_FLAT_MAX_SPHERES) return ACCEL_FLAT;
+    return s->triangle_count + s->sphere_count >= ACCEL_EMBREE_MIN_PRIMITIVES ? ACCEL_EMBREE : ACCEL_BVH;
 }
 
 /* Lay out s's triangles for the flat intersector. Returns 0, or -1 when out
@@ -70,12 +72,15 @@ static int flat_build(flat_triangles *f, const scene *s) {
     return 0;
 }
 
-accel *accel_build(const scene *s, accel_kind kind) {
+accel *accel_build_err(const scene *s, accel_kind kind, char *err, size_t err_len) {
     accel *a = calloc(1, sizeof *a);
-    if (!a) return NULL;
+    if (!a) return snprintf(err, err_len, "out of memory"), NULL;
     a->kind = choose_kind(s, kind);
     a->flat_fn = flat_choose();
-    int ok = a->kind == ACCEL_BVH ? (a->tree = bvh_build(s)) != NULL : flat_build(&a->flat, s) == 0;
+    snprintf(err, err_len, "out of memory");
+    int ok = a->kind == ACCEL_BVH      ? (a->tree = bvh_build(s)) != NULL
+             : a->kind == ACCEL_EMBREE ? (a->embree = accel_embree_build(s, err, err_len)) != NULL
+                                       : flat_build(&a->flat, s) == 0;
     if (!ok) {
         accel_free(a);
         return NULL;
@@ -83,9 +88,15 @@ accel *accel_build(const scene *s, accel_kind kind) {
     return a;
 }
 
+accel *accel_build(const scene *s, accel_kind kind) {
+    char err[256];
+    return accel_build_err(s, kind, err, sizeof err);
+}
+
 void accel_free(accel *a) {
     if (!a) return;
     bvh_free(a->tree);
+    accel_embree_free(a->embree);
     for (int k = 0; k < 3; k++)
         for (int ax = 0; ax < 3; ax++) free(a->flat.v[k][ax]);
     free(a);
@@ -93,6 +104,12 @@ void accel_free(accel *a) {
 
 accel_kind accel_get_kind(const accel *a) { return a->kind; }
 
+
+int accel_get_embree_stats(const accel *a, accel_embree_stats *out) {
+    if (!a->embree) return -1;
+    accel_embree_get_stats(a->embree, out);
+    return 0;
+}
 
 int accel_get_bvh_stats(const accel *a, bvh_stats *out) {
     if (!a->tree) return -1;
@@ -142,11 +159,13 @@ int accel_flat_lanes(const accel *a) {
 }
 
 int accel_intersect(const accel *a, const scene *s, const ray *r, float tmax, hit *h) {
+    if (a->kind == ACCEL_EMBREE) return accel_embree_intersect(a->embree, s, r, tmax, h);
     if (a->kind == ACCEL_BVH) return bvh_intersect(a->tree, s, r, tmax, h);
     return a->flat_fn(&a->flat, s, r, tmax, h, 0);
 }
 
 int accel_occluded(const accel *a, const scene *s, const ray *r, float tmax) {
+    if (a->kind == ACCEL_EMBREE) return accel_embree_occluded(a->embree, s, r, tmax);
     if (a->kind == ACCEL_BVH) return bvh_occluded(a->tree, s, r, tmax);
     hit h;
     return a->flat_fn(&a->flat, s, r, tmax, &h, 1);

@@ -16,6 +16,7 @@
 #ifndef TESSERA_ACCEL_H
 #define TESSERA_ACCEL_H
 
+#include "accel_embree.h"
 #include "bvh.h"
 #include "intersect.h"
 #include "scene.h"
@@ -23,6 +24,8 @@
 /* ACCEL_AUTO picks ACCEL_FLAT up to this many triangles and spheres. */
 #define ACCEL_FLAT_MAX_TRIANGLES 96
 #define ACCEL_FLAT_MAX_SPHERES 8
+/* ... and ACCEL_EMBREE from this many primitives (ACCEL_BVH between). */
+#define ACCEL_EMBREE_MIN_PRIMITIVES 1024
 
 typedef struct accel accel;
 
@@ -30,10 +33,18 @@ typedef struct accel accel;
  * over s's triangles and spheres. Returns NULL only when out of memory. */
 accel *accel_build(const scene *s, accel_kind kind);
 
+/* accel_build, with the reason for a failure (out of memory, or Embree
+ * refusing TESSERA_EMBREE_CONFIG) written to err. */
+accel *accel_build_err(const scene *s, accel_kind kind, char *err, size_t err_len);
+
+/* ACCEL_EMBREE's statistics; returns 0, or -1 (leaving *out alone) for the
+ * other kinds. */
+int accel_get_embree_stats(const accel *a, accel_embree_stats *out);
+
 /* Free an intersector; NULL is allowed. */
 void accel_free(accel *a);
 
-/* The kind that was built: ACCEL_BVH or ACCEL_FLAT, never ACCEL_AUTO. */
+/* The kind that was built: ACCEL_BVH, ACCEL_FLAT or ACCEL_EMBREE, never ACCEL_AUTO. */
 accel_kind accel_get_kind(const accel *a);
 
 /* How many triangles the flat kernel this CPU runs tests at once: 8 with

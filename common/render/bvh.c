@@ -236,16 +236,18 @@ static inline int node_hit(const bvh_node *n, const ray_prep *r, float tmax) {
     return tnear <= tfar * 1.0000004f;
 }
 
-/* Test primitive id against the ray; on a closer hit update *h. */
-static inline int prim_hit(const scene *s, const ray_prep *r, uint32_t id, hit *h) {
+/* Test primitive id against the ray (tmax: the caller's); if the hit comes
+ * before *h (hit_before), update *h. The test never sees h->t, so which hit
+ * wins does not depend on the order of the tests. */
+static inline int prim_hit(const scene *s, const ray_prep *r, uint32_t id, float tmax, hit *h) {
     float t, b1 = 0, b2 = 0;
     int found;
     if (id == r->skip && id < s->triangle_count) return 0;
     if (id < s->triangle_count)
-        found = triangle_intersect(r, &s->triangles[id], h->t, &t, &b1, &b2);
+        found = triangle_intersect(r, &s->triangles[id], tmax, &t, &b1, &b2);
     else
-        found = sphere_intersect(r, &s->spheres[id - s->triangle_count], id == r->skip, h->t, &t);
-    if (!found) return 0;
+        found = sphere_intersect(r, &s->spheres[id - s->triangle_count], id == r->skip, tmax, &t);
+    if (!found || !hit_before(t, id, h)) return 0;
     h->t = t;
     h->prim = id;
     h->b1 = b1;
@@ -257,6 +259,7 @@ static inline int prim_hit(const scene *s, const ray_prep *r, uint32_t id, hit *
 static inline int traverse(const bvh *b, const scene *s, const ray *ray_in, float tmax, hit *h, int any_hit) {
     ray_prep r;
     h->t = tmax;
+    h->prim = PRIM_NONE;
     if (b->prim_count == 0) return 0;
     ray_prepare(ray_in, &r);
     uint32_t stack[BVH_STACK];
@@ -267,7 +270,7 @@ static inline int traverse(const bvh *b, const scene *s, const ray *ray_in, floa
         if (node_hit(n, &r, h->t)) {
             if (n->count) {
                 for (uint32_t k = 0; k < n->count; k++) {
-                    if (prim_hit(s, &r, b->prims[n->offset + k], h)) {
+                    if (prim_hit(s, &r, b->prims[n->offset + k], tmax, h)) {
                         found = 1;
                         if (any_hit) return 1;
                     }

@@ -14,6 +14,7 @@
 #include "lights.h"
 #include "offset.h"
 #include "shading.h"
+#include "shading_normal.h"
 #include "warp.h"
 
 /* Where each random decision of a bounce lives, relative to the bounce's
@@ -33,9 +34,12 @@ enum {
 
 
 /* Geometry at a hit: precise position and unit geometric normal (front face
- * for triangles by winding order, outward for spheres). */
+ * for triangles by winding order, outward for spheres; with vertex normals,
+ * the side they point to), and the shading normal ns: the vertex normals
+ * interpolated (shading_normal.h), else ng. */
 typedef struct {
-    vec3 p, ng;
+    vec3 p, ng, ns;
+    int smooth; /* ns comes from vertex normals */
     const prim_info *info;
 } surface;
 
@@ -48,6 +52,8 @@ static void surface_at(const scene *s, const ray *r, const hit *h, surface *out)
         out->p = vec3_add(vec3_add(vec3_scale(t->v0, b0), vec3_scale(t->v1, h->b1)), vec3_scale(t->v2, h->b2));
         out->ng = s->triangle_normals[h->prim];
         out->info = &s->triangle_info[h->prim];
+        out->ns = out->ng;
+        out->smooth = shading_normal_at(s, h->prim, b0, h->b1, h->b2, &out->ng, &out->ns);
     } else {
         uint32_t i = h->prim - s->triangle_count;
         const sphere *sp = &s->spheres[i];
@@ -55,6 +61,8 @@ static void surface_at(const scene *s, const ray *r, const hit *h, surface *out)
         out->ng = vec3_normalize(vec3_sub(p, sp->center));
         out->p = vec3_add(sp->center, vec3_scale(out->ng, sp->radius)); /* back onto the surface */
         out->info = &s->sphere_info[i];
+        out->ns = out->ng;
+        out->smooth = 0;
     }
 }
 
@@ -71,13 +79,14 @@ static ray spawn(vec3 p, vec3 ng, uint32_t prim, vec3 d) {
  * weight. wo and the frame are in world / local space as the caller has
  * them. */
 static vec3 direct_light(const scene *s, const integrator_options *opt, const material *m, const surface *sf,
-                         uint32_t prim, const frame *fr, vec3 wo_local, const sampler_stream *rng,
+                         uint32_t prim, const frame *fr, vec3 wo, vec3 wo_local, const sampler_stream *rng,
                          uint32_t dim, trace_stats *st) {
     light_sample ls;
     float u1, u2;
     sampler_get_2d(rng, dim + DIM_LIGHT_POINT, &u1, &u2);
     if (!lights_sample(s, sf->p, u1, u2, &ls)) return vec3_splat(0.0f);
     vec3 wi_local = frame_to_local(fr, ls.wi);
+    if (sf->smooth && !shading_sides_agree(sf->ng, fr->n, wo, ls.wi)) return vec3_splat(0.0f); /* no leaks */
     vec3 f = bsdf_eval(m, wo_local, wi_local);
     if (vec3_is_zero(f)) return vec3_splat(0.0f);
     /* Shadow ray between the two offset end points, so it neither starts
@@ -136,6 +145,7 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
         vec3 wo = vec3_neg(r.d);
         /* Opaque materials reflect on whichever side the ray arrived. */
         vec3 n = (m->kind != MATERIAL_GLASS && vec3_dot(sf.ng, wo) < 0.0f) ? vec3_neg(sf.ng) : sf.ng;
+        if (sf.smooth) n = shading_normal_oriented(sf.ng, sf.ns, n, wo);
         material m_hit;
         if (s->corner_normals && h.prim < s->triangle_count) { /* imported: textures, normals, cutout */
             m = shading_resolve(s, &h, m, n, wo, &m_hit, &n);
@@ -153,11 +163,13 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
         sampler_get_2d(rng, dim + DIM_LOBE, &u_lobe, &u_roulette);
         if (has_lights && bsdf_is_smooth(m) && !opt->no_nee)
             L = vec3_add(L,
-                         vec3_mul(beta, direct_light(s, opt, m, &sf, h.prim, &fr, wo_local, rng, dim, st)));
+                         vec3_mul(beta, direct_light(s, opt, m, &sf, h.prim, &fr, wo, wo_local, rng, dim, st)));
 
         bsdf_sample bs;
         sampler_get_2d(rng, dim + DIM_BSDF_DIR, &u1, &u2);
         if (!bsdf_sample_wi(m, wo_local, u_lobe, u1, u2, &bs)) break;
+        vec3 wi = vec3_normalize(frame_to_world(&fr, bs.wi));
+        if (sf.smooth && !shading_sides_agree(sf.ng, n, wo, wi)) break; /* would leak through the surface */
         beta = vec3_mul(beta, bs.weight);
         prev_pdf = bs.pdf;
         prev_p = sf.p;
@@ -173,7 +185,7 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
             if (!(u_roulette < survive)) break;
             beta = vec3_scale(beta, 1.0f / survive);
         }
-        r = spawn(sf.p, sf.ng, h.prim, vec3_normalize(frame_to_world(&fr, bs.wi)));
+        r = spawn(sf.p, sf.ng, h.prim, wi);
     }
     st->samples++;
     if (!vec3_is_finite(L) || L.x < 0.0f || L.y < 0.0f || L.z < 0.0f) {

@@ -96,6 +96,13 @@ static inline int triangle_intersect(const ray_prep *r, const triangle *tri, flo
     return 1;
 }
 
+/* The order in which hits win, whatever order they are found in: smaller t,
+ * then (an exact tie) the smaller primitive index. Every intersector that
+ * uses it returns the same hit for a ray (accel_embree.h). */
+static inline int hit_before(float t, uint32_t prim, const hit *best) {
+    return t < best->t || (t == best->t && prim < best->prim);
+}
+
 /* Ray/sphere test. `leaving` is set when the ray starts on this sphere: then
  * only the far root can be real. Returns 1 and sets *t for 0 < t < tmax. */
 static inline int sphere_intersect(const ray_prep *r, const sphere *s, int leaving, float tmax, float *t_out) {

@@ -15,6 +15,7 @@
 
 #define OBJ_MAX_FILE (1u << 30) /* 1 GiB of text */
 #define OBJ_MAX_POLY 64         /* vertices per face */
+#define OBJ_MAX_TRIANGLES (1u << 25) /* 33.5M: a scene's memory stays within a machine's */
 
 /* Make room for `need` elements of `size` bytes in *arr (capacity *cap).
  * Returns 0, or -1 when out of memory (then *arr is unchanged). */
@@ -29,13 +30,63 @@ static int grow(void **arr, size_t *cap, size_t need, size_t size) {
     return 0;
 }
 
+/* strtod(s, end), faster for the plain decimals OBJ writers print
+ * ("-0.5257311", "1e-3"), with exactly strtod's result: when the digits
+ * form an integer m < 2^53 and the power of ten p has |p| <= 22, both m and
+ * 10^|p| are exact doubles and one IEEE multiplication or division rounds
+ * m * 10^p correctly, as strtod does (Clinger's fast path). Anything else
+ * (more digits, big exponents, inf, nan, hex, a number not followed by
+ * a blank) goes to strtod itself. */
+static double parse_double(const char *s, char **end) {
+    static const double pow10[23] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,  1e10, 1e11,
+                                     1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
+    const char *p = s;
+    while (*p == ' ' || *p == '\t') p++;
+    int neg = *p == '-';
+    if (*p == '-' || *p == '+') p++;
+    uint64_t m = 0;
+    int digits = 0, frac = 0, exp = 0;
+    for (; *p >= '0' && *p <= '9'; p++, digits++) m = m * 10 + (uint64_t)(*p - '0');
+    if (*p == '.')
+        for (p++; *p >= '0' && *p <= '9'; p++, digits++, frac++) m = m * 10 + (uint64_t)(*p - '0');
+    if (digits == 0 || digits > 19) return strtod(s, end);
+    if (*p == 'e' || *p == 'E') {
+        const char *q = p + 1;
+        int eneg = *q == '-';
+        if (*q == '-' || *q == '+') q++;
+        if (!(*q >= '0' && *q <= '9')) return strtod(s, end);
+        for (; *q >= '0' && *q <= '9' && exp < 1000; q++) exp = exp * 10 + (*q - '0');
+        if (eneg) exp = -exp;
+        p = q;
+    }
+    if (!(*p == ' ' || *p == '\t' || *p == '\0' || *p == '\r' || *p == '\n' || *p == '#')) return strtod(s, end);
+    int p10 = exp - frac;
+    if (m > (1ull << 53) || p10 > 22 || p10 < -22) return strtod(s, end);
+    double v = p10 >= 0 ? (double)m * pow10[p10] : (double)m / pow10[-p10];
+    *end = (char *)p;
+    return neg ? -v : v;
+}
+
+/* strtol(s, end, 10), with a fast path for plain digits; same results. */
+static long parse_long(const char *s, char **end) {
+    const char *p = s;
+    int neg = *p == '-';
+    if (neg) p++;
+    long v = 0;
+    int digits = 0;
+    for (; *p >= '0' && *p <= '9' && digits < 18; p++, digits++) v = v * 10 + (*p - '0');
+    if (digits == 0 || (*p >= '0' && *p <= '9')) return strtol(s, end, 10);
+    *end = (char *)p;
+    return neg ? -v : v;
+}
+
 typedef struct {
     const char *name;
     size_t line;
     char *err;
     size_t err_len;
     obj_mesh *m;
-    size_t pos_cap, idx_cap;
+    size_t pos_cap, idx_cap, n_cap, uv_cap, nidx_cap, uvidx_cap;
 } obj_reader;
 
 static int obj_fail(obj_reader *r, const char *what) {
@@ -48,7 +99,7 @@ static int read_vertex(obj_reader *r, const char *s) {
     double p[3];
     for (int i = 0; i < 3; i++) {
         char *end;
-        p[i] = strtod(s, &end);
+        p[i] = parse_double(s, &end);
         if (end == s) return obj_fail(r, "vertex needs three numbers");
         if (!isfinite(p[i])) return obj_fail(r, "vertex coordinate is not finite");
         s = end;
@@ -61,51 +112,122 @@ static int read_vertex(obj_reader *r, const char *s) {
     return 0;
 }
 
-/* Parse one face corner "i", "i/t", "i//n" or "i/t/n" into a 0-based vertex
- * index; *s is advanced past it. Returns 1 for a corner, 0 at the end of the
- * line, -1 on error. */
-static int read_corner(obj_reader *r, const char **s, uint32_t *out) {
+/* Parse "vn x y z" (dims 3) or "vt u [v [w]]" (dims 2: u and v, v = 0 when
+ * absent) into *arr (count entries so far, capacity *cap). */
+static int read_attribute(obj_reader *r, const char *s, int dims, float **arr, size_t *count, size_t *cap) {
+    float p[3] = {0, 0, 0};
+    for (int i = 0; i < dims; i++) {
+        char *end;
+        double x = parse_double(s, &end);
+        if (end == s) {
+            if (dims == 2 && i == 1) break;
+            return obj_fail(r, dims == 3 ? "normal needs three numbers" : "texture coordinate needs a number");
+        }
+        if (!isfinite(x) || !isfinite((float)x))
+            return obj_fail(r, dims == 3 ? "normal is not finite" : "texture coordinate is not finite");
+        p[i] = (float)x;
+        s = end;
+    }
+    if (grow((void **)arr, cap, (size_t)dims * (*count + 1), sizeof(float))) return obj_fail(r, "out of memory");
+    memcpy(*arr + (size_t)dims * *count, p, (size_t)dims * sizeof(float));
+    (*count)++;
+    return 0;
+}
+
+/* Resolve a 1-based or negative OBJ index against n entries. Returns the
+ * 0-based index, or -1 when it names nothing. */
+static long resolve_index(long v, size_t n) {
+    long idx = v > 0 ? v - 1 : (long)n + v;
+    return v == 0 || idx < 0 || idx >= (long)n ? -1 : idx;
+}
+
+/* One face corner: 0-based indices, OBJ_NONE where the corner names none. */
+typedef struct {
+    uint32_t v, t, n;
+} obj_corner;
+
+/* Parse one face corner "i", "i/t", "i//n" or "i/t/n"; *s is advanced past
+ * it. Returns 1 for a corner, 0 at the end of the line, -1 on error. */
+static int read_corner(obj_reader *r, const char **s, obj_corner *out) {
     const char *p = *s;
     while (*p == ' ' || *p == '\t') p++;
     if (*p == '\0' || *p == '\r' || *p == '\n' || *p == '#') return 0;
     char *end;
-    long v = strtol(p, &end, 10);
+    long v = parse_long(p, &end);
     if (end == p) return obj_fail(r, "face corner is not an index");
-    long n = (long)r->m->vertex_count;
-    long idx = v > 0 ? v - 1 : n + v;
-    if (v == 0 || idx < 0 || idx >= n) return obj_fail(r, "face refers to a vertex that does not exist");
-    while (*end && !isspace((unsigned char)*end)) end++; /* skip /t/n */
+    long idx = resolve_index(v, r->m->vertex_count);
+    if (idx < 0) return obj_fail(r, "face refers to a vertex that does not exist");
+    out->v = (uint32_t)idx;
+    out->t = out->n = OBJ_NONE;
+    for (int part = 0; part < 2 && *end == '/'; part++) {
+        p = end + 1;
+        if (part == 0 && *p == '/') { /* i//n */
+            end = (char *)p;
+            continue;
+        }
+        v = 0;
+        end = (char *)p;
+        if (isdigit((unsigned char)*p) || *p == '-') v = parse_long(p, &end);
+        if (end == p) return obj_fail(r, part ? "face corner's normal index is missing" : "face corner's texture index is missing");
+        idx = resolve_index(v, part ? r->m->normal_count : r->m->uv_count);
+        if (idx < 0)
+            return obj_fail(r, part ? "face refers to a normal that does not exist"
+                                    : "face refers to a texture coordinate that does not exist");
+        *(part ? &out->n : &out->t) = (uint32_t)idx;
+    }
+    if (*end && !isspace((unsigned char)*end)) return obj_fail(r, "face corner is not of the form v, v/t, v//n or v/t/n");
     *s = end;
-    *out = (uint32_t)idx;
     return 1;
+}
+
+/* Append 3 indices per new triangle to *arr (allocated on first use, earlier
+ * triangles then get OBJ_NONE). */
+static int push_attribute_indices(obj_reader *r, uint32_t **arr, size_t *cap, const uint32_t *tri, size_t first) {
+    if (!*arr) {
+        if (grow((void **)arr, cap, 3 * (first + 1), sizeof(uint32_t))) return -1;
+        for (size_t i = 0; i < 3 * first; i++) (*arr)[i] = OBJ_NONE;
+    } else if (grow((void **)arr, cap, 3 * (first + 1), sizeof(uint32_t))) {
+        return -1;
+    }
+    memcpy(*arr + 3 * first, tri, 3 * sizeof(uint32_t));
+    (void)r;
+    return 0;
 }
 
 /* Parse "f a b c ..." and fan-triangulate it. */
 static int read_face(obj_reader *r, const char *s) {
-    uint32_t corner[OBJ_MAX_POLY];
+    obj_corner corner[OBJ_MAX_POLY], c;
     int count = 0, rc;
-    uint32_t idx = 0;
-    while ((rc = read_corner(r, &s, &idx)) == 1) {
+    while ((rc = read_corner(r, &s, &c)) == 1) {
         if (count == OBJ_MAX_POLY) return obj_fail(r, "face has more than 64 vertices");
-        corner[count++] = idx;
+        if (count && ((c.n == OBJ_NONE) != (corner[0].n == OBJ_NONE) || (c.t == OBJ_NONE) != (corner[0].t == OBJ_NONE)))
+            return obj_fail(r, "face mixes corners with and without normals or texture coordinates");
+        corner[count++] = c;
     }
     if (rc < 0) return -1;
     if (count < 3) return obj_fail(r, "face needs at least three vertices");
     obj_mesh *m = r->m;
     size_t tris = (size_t)count - 2;
+    if (m->triangle_count + tris > OBJ_MAX_TRIANGLES) return obj_fail(r, "more than 33554432 triangles");
     if (grow((void **)&m->indices, &r->idx_cap, 3 * (m->triangle_count + tris), sizeof(uint32_t)))
         return obj_fail(r, "out of memory");
     for (int i = 1; i + 1 < count; i++) {
-        uint32_t *t = m->indices + 3 * m->triangle_count++;
-        t[0] = corner[0];
-        t[1] = corner[i];
-        t[2] = corner[i + 1];
+        const obj_corner *k[3] = {&corner[0], &corner[i], &corner[i + 1]};
+        uint32_t v[3] = {k[0]->v, k[1]->v, k[2]->v}, n[3] = {k[0]->n, k[1]->n, k[2]->n},
+                 t[3] = {k[0]->t, k[1]->t, k[2]->t};
+        if ((n[0] != OBJ_NONE || m->normal_indices) &&
+            push_attribute_indices(r, &m->normal_indices, &r->nidx_cap, n, m->triangle_count))
+            return obj_fail(r, "out of memory");
+        if ((t[0] != OBJ_NONE || m->uv_indices) &&
+            push_attribute_indices(r, &m->uv_indices, &r->uvidx_cap, t, m->triangle_count))
+            return obj_fail(r, "out of memory");
+        memcpy(m->indices + 3 * m->triangle_count++, v, sizeof v);
     }
     return 0;
 }
 
 int obj_parse(const char *buf, size_t len, const char *name, obj_mesh *out, char *err, size_t err_len) {
-    obj_reader r = {name, 0, err, err_len, out, 0, 0};
+    obj_reader r = {name, 0, err, err_len, out, 0, 0, 0, 0, 0, 0};
     memset(out, 0, sizeof *out);
     char line[4096];
     size_t pos = 0;
@@ -132,6 +254,10 @@ int obj_parse(const char *buf, size_t len, const char *name, obj_mesh *out, char
             rc = read_vertex(&r, s + 2);
         else if (s[0] == 'f' && (s[1] == ' ' || s[1] == '\t'))
             rc = read_face(&r, s + 2);
+        else if (s[0] == 'v' && s[1] == 'n' && (s[2] == ' ' || s[2] == '\t'))
+            rc = read_attribute(&r, s + 3, 3, &out->normals, &out->normal_count, &r.n_cap);
+        else if (s[0] == 'v' && s[1] == 't' && (s[2] == ' ' || s[2] == '\t'))
+            rc = read_attribute(&r, s + 3, 2, &out->uvs, &out->uv_count, &r.uv_cap);
         if (rc) goto fail;
     }
     if (out->triangle_count == 0) {
@@ -156,5 +282,9 @@ int obj_load(const char *path, obj_mesh *out, char *err, size_t err_len) {
 void obj_mesh_free(obj_mesh *m) {
     free(m->positions);
     free(m->indices);
+    free(m->normals);
+    free(m->uvs);
+    free(m->normal_indices);
+    free(m->uv_indices);
     memset(m, 0, sizeof *m);
 }

@@ -1,19 +1,27 @@
 /* obj.h - a reader for the geometry part of Wavefront OBJ files.
  *
- * Reads `v` and `f` records (polygons are fan-triangulated, the v/vt/vn,
- * v//vn and negative-index forms are accepted; texture coordinates, normals,
- * groups and materials are ignored). Everything else is skipped. */
+ * Reads `v`, `vn`, `vt` and `f` records (polygons are fan-triangulated, the
+ * v/vt/vn, v//vn, v/vt and negative-index forms are accepted, every index is
+ * checked). Groups, materials and everything else are skipped. */
 #ifndef TESSERA_OBJ_H
 #define TESSERA_OBJ_H
 
 #include <stddef.h>
 #include <stdint.h>
 
+#define OBJ_NONE UINT32_MAX /* a corner without a normal or texture coordinate */
+
 typedef struct {
     double *positions;  /* 3 per vertex */
     size_t vertex_count;
     uint32_t *indices;  /* 3 per triangle, into positions */
     size_t triangle_count;
+    float *normals;     /* `vn`: 3 per normal, as written (not normalised); NULL if none */
+    size_t normal_count;
+    float *uvs;         /* `vt`: 2 per texture coordinate (u, v); NULL if none */
+    size_t uv_count;
+    uint32_t *normal_indices; /* 3 per triangle into normals, OBJ_NONE for a face without; NULL if no face has any */
+    uint32_t *uv_indices;     /* likewise into uvs */
 } obj_mesh;
 
 /* Parse the OBJ text in buf (len bytes, need not be NUL-terminated). On

@@ -58,14 +58,14 @@ typedef struct {
 } camera;
 
 /* Which ray intersector a scene uses (accel.h). */
-typedef enum { ACCEL_AUTO, ACCEL_BVH, ACCEL_FLAT } accel_kind;
+typedef enum { ACCEL_AUTO, ACCEL_BVH, ACCEL_FLAT, ACCEL_EMBREE } accel_kind;
 
 typedef struct {
     int width, height;
     int spp;       /* samples per pixel */
     int max_depth; /* maximum number of path segments after the camera ray */
     uint64_t seed;
-    accel_kind accel; /* render.accel: "auto" (default), "bvh" or "flat" */
+    accel_kind accel; /* render.accel: "auto" (default), "bvh", "flat" or "embree" */
 } render_settings;
 
 /* Command-line overrides; a negative value (or has_seed == 0) means "keep
@@ -74,11 +74,14 @@ typedef struct {
     int width, height, spp, max_depth;
     int has_seed;
     uint64_t seed;
+    int no_accel; /* 1: leave scene.accel NULL (a coordinator that only hands the scene out) */
 } scene_overrides;
 
 typedef struct {
     vec3 v0, v1, v2;
 } triangle;
+
+#define SCENE_NONE UINT32_MAX /* no per-corner attribute (scene.triangle_vertex_normals, triangle_uvs) */
 
 typedef struct {
     vec3 center;
@@ -149,6 +152,16 @@ typedef struct scene {
     light *lights;
     float *light_cdf; /* light_count + 1 entries, last is 1 */
     uint32_t light_count;
+
+    /* Per-corner shading attributes of meshes (OBJ vn and vt; other importers
+     * fill the same), NULL when no triangle has any. Normals are unit length
+     * (world and internal frames differ only by a uniform scale). */
+    vec3 *vertex_normals;
+    uint32_t vertex_normal_count;
+    uint32_t *triangle_vertex_normals; /* 3 per triangle into vertex_normals, SCENE_NONE for a triangle without */
+    float *uvs;                        /* 2 per texture coordinate: u, v */
+    uint32_t uv_count;
+    uint32_t *triangle_uvs;            /* 3 per triangle into uvs, SCENE_NONE for a triangle without */
 
     struct accel *accel; /* the ray intersector chosen for this scene */
     uint32_t features;   /* FEATURE_* bits */

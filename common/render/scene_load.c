@@ -13,6 +13,7 @@
 #include "accel.h"
 #include "import.h"
 #include "json_field.h"
+#include "mesh_normals.h"
 #include "obj.h"
 #include "scene_bundle.h"
 #include "scene.h"
@@ -62,6 +63,16 @@ typedef struct {
     size_t emitter_count, emitter_cap;
     point_d *points;
     size_t point_count, point_cap;
+    const scene_bundle_file *obj_file; /* the OBJ parsed last, kept for the next shape naming it */
+    obj_mesh obj;
+    size_t obj_vn_base, obj_vt_base; /* where its normals and uvs start in vn, vt */
+    double obj_smooth;               /* the smooth_angle it was read with (-1: none) */
+    vec3 *vn;                        /* all meshes' shading normals (unit; zero for an unusable one) */
+    size_t vn_count, vn_cap;
+    float *vt; /* 2 per uv */
+    size_t vt_count, vt_cap;
+    uint32_t *tri_vn, *tri_vt; /* 3 per triangle, as long as the last triangle that has any */
+    size_t tri_vn_len, tri_vn_cap, tri_vt_len, tri_vt_cap;
     scene *s;
     /* Imported models (import.h): per-corner normals and uvs of the
      * triangles whose shade index points here, the model's camera. */
@@ -101,7 +112,7 @@ static double dlen(const double a[3]) { return sqrt(ddot(a, a)); }
 
 static int load_render(loader *L, const cJSON *root, const scene_overrides *ov) {
     static const char *const keys[] = {"width", "height", "spp", "max_depth", "seed", "accel", NULL};
-    static const char *const accels[] = {"auto", "bvh", "flat"}; /* in accel_kind order */
+    static const char *const accels[] = {"auto", "bvh", "flat", "embree"}; /* in accel_kind order */
     const cJSON *r = cJSON_GetObjectItemCaseSensitive(root, "render");
     cJSON empty = {0};
     empty.type = cJSON_Object;
@@ -112,10 +123,10 @@ static int load_render(loader *L, const cJSON *root, const scene_overrides *ov) 
     if (jf_string(&L->j, r, "render", "accel", 0, &accel)) return -1;
     if (!accel) accel = "auto";
     L->s->settings.accel = ACCEL_AUTO;
-    for (int k = 0; k < 3; k++)
+    for (int k = 0; k < 4; k++)
         if (strcmp(accel, accels[k]) == 0) L->s->settings.accel = (accel_kind)k;
     if (strcmp(accel, accels[L->s->settings.accel]) != 0)
-        return jf_fail(&L->j, "render", "accel", "expected \"auto\", \"bvh\" or \"flat\", got \"%s\"", accel);
+        return jf_fail(&L->j, "render", "accel", "expected \"auto\", \"bvh\", \"flat\" or \"embree\", got \"%s\"", accel);
     if (jf_int(&L->j, r, "render", "width", 0, 512, 1, MAX_RESOLUTION, &w) ||
         jf_int(&L->j, r, "render", "height", 0, 512, 1, MAX_RESOLUTION, &h) ||
         jf_int(&L->j, r, "render", "spp", 0, 16, 1, MAX_SPP, &spp) ||
@@ -352,12 +363,104 @@ static int load_sphere(loader *L, const cJSON *sh, const char *where, uint32_t m
     return 0;
 }
 
+/* Give triangle `tri` the corner attribute indices idx in *arr (3 per
+ * triangle, *len triangles so far); triangles in between get SCENE_NONE.
+ * Returns 0 or -1 when out of memory. */
+static int set_corners(uint32_t **arr, size_t *len, size_t *cap, size_t tri, const uint32_t idx[3]) {
+    if (3 * (tri + 1) > *cap) {
+        size_t n = *cap ? *cap : 768;
+        while (n < 3 * (tri + 1)) n *= 2;
+        uint32_t *p = realloc(*arr, n * sizeof *p);
+        if (!p) return -1;
+        *arr = p;
+        *cap = n;
+    }
+    for (size_t i = 3 * *len; i < 3 * tri; i++) (*arr)[i] = SCENE_NONE;
+    memcpy(*arr + 3 * tri, idx, 3 * sizeof *idx);
+    *len = tri + 1;
+    return 0;
+}
+
+/* Append the parsed OBJ's normals (made unit; zero when they cannot be) and
+ * uvs to the loader's. Returns 0 or -1 when out of memory. */
+static int add_mesh_attributes(loader *L, const obj_mesh *m) {
+    L->obj_vn_base = L->vn_count;
+    L->obj_vt_base = L->vt_count;
+    if (m->normal_count) {
+        vec3 *p = realloc(L->vn, (L->vn_count + m->normal_count) * sizeof *p);
+        if (!p) return -1;
+        L->vn = p;
+        for (size_t i = 0; i < m->normal_count; i++) {
+            const float *n = m->normals + 3 * i;
+            double len = sqrt((double)n[0] * n[0] + (double)n[1] * n[1] + (double)n[2] * n[2]);
+            L->vn[L->vn_count++] = len > 1e-30 && isfinite(len)
+                                       ? vec3_make((float)(n[0] / len), (float)(n[1] / len), (float)(n[2] / len))
+                                       : vec3_make(0, 0, 0);
+        }
+    }
+    if (m->uv_count) {
+        float *p = realloc(L->vt, 2 * (L->vt_count + m->uv_count) * sizeof *p);
+        if (!p) return -1;
+        L->vt = p;
+        memcpy(L->vt + 2 * L->vt_count, m->uvs, 2 * m->uv_count * sizeof *p);
+        L->vt_count += m->uv_count;
+    }
+    return 0;
+}
+
+/* Record mesh triangle t's normals and uvs for the triangle just added as
+ * number tri. A triangle with an unusable (zero) normal keeps none. */
+static int add_triangle_attributes(loader *L, const obj_mesh *m, size_t t, size_t tri) {
+    if (m->normal_indices && m->normal_indices[3 * t] != OBJ_NONE) {
+        uint32_t idx[3];
+        int usable = 1;
+        for (int k = 0; k < 3; k++) {
+            idx[k] = (uint32_t)(L->obj_vn_base + m->normal_indices[3 * t + k]);
+            usable &= !vec3_is_zero(L->vn[idx[k]]);
+        }
+        if (usable && set_corners(&L->tri_vn, &L->tri_vn_len, &L->tri_vn_cap, tri, idx)) return -1;
+    }
+    if (m->uv_indices && m->uv_indices[3 * t] != OBJ_NONE) {
+        uint32_t idx[3];
+        for (int k = 0; k < 3; k++) idx[k] = (uint32_t)(L->obj_vt_base + m->uv_indices[3 * t + k]);
+        if (set_corners(&L->tri_vt, &L->tri_vt_len, &L->tri_vt_cap, tri, idx)) return -1;
+    }
+    return 0;
+}
+
+/* Move the per-corner attributes into the scene (SCENE_NONE past the last
+ * triangle that has any). Returns 0 or -1 when out of memory. */
+static int assemble_attributes(loader *L) {
+    scene *s = L->s;
+    static const uint32_t none[3] = {SCENE_NONE, SCENE_NONE, SCENE_NONE};
+    if (L->tri_vn_len) {
+        if (L->tri_count > L->tri_vn_len && set_corners(&L->tri_vn, &L->tri_vn_len, &L->tri_vn_cap, L->tri_count - 1, none))
+            return -1;
+        s->vertex_normals = L->vn;
+        s->vertex_normal_count = (uint32_t)L->vn_count;
+        s->triangle_vertex_normals = L->tri_vn;
+        L->vn = NULL;
+        L->tri_vn = NULL;
+    }
+    if (L->tri_vt_len) {
+        if (L->tri_count > L->tri_vt_len && set_corners(&L->tri_vt, &L->tri_vt_len, &L->tri_vt_cap, L->tri_count - 1, none))
+            return -1;
+        s->uvs = L->vt;
+        s->uv_count = (uint32_t)L->vt_count;
+        s->triangle_uvs = L->tri_vt;
+        L->vt = NULL;
+        L->tri_vt = NULL;
+    }
+    return 0;
+}
+
 static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat, int em) {
     static const double zero[3] = {0, 0, 0};
     const char *file;
-    double scale, translate[3];
+    double scale, translate[3], smooth;
     if (jf_string(&L->j, sh, where, "file", 1, &file) ||
         jf_number(&L->j, sh, where, "scale", 0, 1, 0, BIG, &scale) ||
+        jf_number(&L->j, sh, where, "smooth_angle", 0, -1, 0, 180, &smooth) ||
         jf_vec3(&L->j, sh, where, "translate", 0, zero, -BIG, BIG, translate))
         return -1;
     if (!(scale > 0)) return jf_fail(&L->j, where, "scale", "must be greater than 0");
@@ -365,16 +468,34 @@ static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat
     if (!f) return jf_fail(&L->j, where, "file", "%s: not in the scene bundle", file);
     if (!f->data) return jf_fail(&L->j, where, "file", "%s", f->error);
     char oerr[512];
-    obj_mesh m;
-    if (obj_parse(f->data, f->len, file, &m, oerr, sizeof oerr)) return jf_fail(&L->j, where, "file", "%s", oerr);
+    if (L->obj_file != f || L->obj_smooth != smooth) { /* instances of one file parse it once */
+        obj_mesh_free(&L->obj);
+        L->obj_file = NULL;
+        if (obj_parse(f->data, f->len, file, &L->obj, oerr, sizeof oerr))
+            return jf_fail(&L->j, where, "file", "%s", oerr);
+        L->obj_file = f;
+        L->obj_smooth = smooth;
+        if ((smooth >= 0 && !L->obj.normal_indices && mesh_normals_from_faces(&L->obj, smooth)) ||
+            add_mesh_attributes(L, &L->obj))
+            return jf_fail(&L->j, where, NULL, "out of memory");
+    }
+    const obj_mesh m = L->obj;
+    if (L->tri_cap < L->tri_count + m.triangle_count) { /* one allocation, not a doubling per mesh */
+        tri_d *p = realloc(L->tris, (L->tri_count + m.triangle_count) * sizeof *p);
+        if (!p) return jf_fail(&L->j, where, NULL, "out of memory (%zu triangles)", L->tri_count + m.triangle_count);
+        L->tris = p;
+        L->tri_cap = L->tri_count + m.triangle_count;
+    }
     int rc = 0;
     for (size_t t = 0; t < m.triangle_count && !rc; t++) {
         double p[3][3];
         for (int k = 0; k < 3; k++)
             for (int a = 0; a < 3; a++) p[k][a] = m.positions[3 * m.indices[3 * t + k] + a] * scale + translate[a];
+        size_t before = L->tri_count;
         rc = add_triangle(L, p[0], p[1], p[2], mat, em, 0, where);
+        if (!rc && L->tri_count > before && add_triangle_attributes(L, &m, t, before))
+            rc = jf_fail(&L->j, where, NULL, "out of memory");
     }
-    obj_mesh_free(&m);
     return rc;
 }
 
@@ -382,7 +503,7 @@ static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat
 
 static int load_shape(loader *L, const cJSON *sh, const char *where) {
     static const char *const keys[] = {"type", "name", "material", "emission", "two_sided", "vertices",
-                                       "center", "radius", "file", "scale", "translate", "rotate", NULL};
+                                       "center", "radius", "file", "scale", "translate", "rotate", "smooth_angle", NULL};
     const char *type, *name;
     int em = -1;
     uint32_t mat = 0;
@@ -627,6 +748,7 @@ static int assemble(loader *L) {
         s->sphere_info[i].material = L->spheres[i].material;
         s->sphere_info[i].light = -1;
     }
+    if (assemble_attributes(L)) return jf_fail(&L->j, "shapes", NULL, "out of memory");
     return build_lights(L);
 }
 
@@ -684,8 +806,10 @@ static int load_root(loader *L, const cJSON *root, const scene_overrides *ov) {
     }
     if (assemble(L) || assemble_shading(L)) return -1;
     record_features(L->s);
-    L->s->accel = accel_build(L->s, L->s->settings.accel);
-    if (!L->s->accel) return jf_fail(&L->j, "shapes", NULL, "out of memory building the intersector");
+    if (ov && ov->no_accel) return 0;
+    char aerr[256];
+    L->s->accel = accel_build_err(L->s, L->s->settings.accel, aerr, sizeof aerr);
+    if (!L->s->accel) return jf_fail(&L->j, "shapes", NULL, "building the intersector: %s", aerr);
     return 0;
 }
 
@@ -711,6 +835,11 @@ scene *scene_load_bundle(const scene_bundle *b, const scene_overrides *ov, char 
     free(L.shade_n);
     free(L.shade_uv);
     free(L.shade_flags);
+    obj_mesh_free(&L.obj);
+    free(L.vn);
+    free(L.vt);
+    free(L.tri_vn);
+    free(L.tri_vt);
     if (rc != 0 || !L.s->path) {
         scene_free(L.s);
         return NULL;
@@ -734,6 +863,10 @@ void scene_free(scene *s) {
     free(s->triangles);
     free(s->triangle_info);
     free(s->triangle_normals);
+    free(s->vertex_normals);
+    free(s->triangle_vertex_normals);
+    free(s->uvs);
+    free(s->triangle_uvs);
     free(s->spheres);
     free(s->sphere_info);
     free(s->lights);

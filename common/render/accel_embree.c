@@ -1,0 +1,229 @@
+/* accel_embree.c - Embree 3 walks the tree, Tessera decides the hits
+ * (accel_embree.h says what is guaranteed).
+ *
+ * All of a scene's primitives are one Embree user geometry: primitive i is
+ * Tessera's primitive i (triangles, then spheres). Embree asks for boxes,
+ * builds its BVH in parallel, and during traversal calls cb_intersect or
+ * cb_occluded for each primitive of each leaf it reaches.
+ *
+ * Why the answer cannot depend on Embree. Embree skips a box when its own
+ * slab test, in its own ISA's arithmetic, puts the box outside
+ * [0, ray.tfar]. Two margins make that impossible for a box holding a
+ * primitive that could still win:
+ *  - every box is padded by BOX_PAD times its largest coordinate (plus
+ *    BOX_PAD absolute; scene units are about 1), thousands of ulps, far more
+ *    than any slab test's rounding;
+ *  - ray.tfar, the culling distance, is never the best t itself but
+ *    cull_distance(t) = t (1 + TFAR_SLACK), so a candidate whose t equals
+ *    the best (a tie, decided by index) or is below it is never culled.
+ * The callbacks compare candidates only by hit_before() on the numbers of
+ * intersect.h computed with the caller's tmax, never with ray.tfar. So the
+ * result is the minimum over all primitives, whichever order they come in. */
+#include "accel_embree.h"
+
+#include <embree3/rtcore.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#define BOX_PAD (1.0f / 65536.0f)
+#define TFAR_SLACK (1.0f / 4096.0f)
+
+struct accel_embree {
+    RTCDevice device;
+    RTCScene scene;
+    const scene *s;
+    accel_embree_stats stats;
+    atomic_llong bytes, peak;
+    char config[128];
+    char error[256];
+};
+
+/* One query: Embree's context first, so a callback can cast back to it. */
+typedef struct {
+    struct RTCIntersectContext ctx;
+    const scene *s;
+    ray_prep r;
+    float tmax; /* the caller's */
+    hit best;
+    int found;
+} query;
+
+static float cull_distance(float t) { return t * (1.0f + TFAR_SLACK) + 1e-30f; }
+
+/* Tessera's test of primitive id (as bvh.c's prim_hit does it). */
+static inline int prim_test(const scene *s, const ray_prep *r, uint32_t id, float tmax, float *t, float *b1,
+                            float *b2) {
+    *b1 = *b2 = 0;
+    if (id < s->triangle_count)
+        return id != r->skip && triangle_intersect(r, &s->triangles[id], tmax, t, b1, b2);
+    return sphere_intersect(r, &s->spheres[id - s->triangle_count], id == r->skip, tmax, t);
+}
+
+static void cb_bounds(const struct RTCBoundsFunctionArguments *args) {
+    const scene *s = args->geometryUserPtr;
+    uint32_t id = args->primID;
+    float lo[3], hi[3];
+    if (id < s->triangle_count) {
+        const triangle *t = &s->triangles[id];
+        lo[0] = fminf(t->v0.x, fminf(t->v1.x, t->v2.x));
+        lo[1] = fminf(t->v0.y, fminf(t->v1.y, t->v2.y));
+        lo[2] = fminf(t->v0.z, fminf(t->v1.z, t->v2.z));
+        hi[0] = fmaxf(t->v0.x, fmaxf(t->v1.x, t->v2.x));
+        hi[1] = fmaxf(t->v0.y, fmaxf(t->v1.y, t->v2.y));
+        hi[2] = fmaxf(t->v0.z, fmaxf(t->v1.z, t->v2.z));
+    } else {
+        const sphere *sp = &s->spheres[id - s->triangle_count];
+        vec3 c = sp->center;
+        lo[0] = c.x - sp->radius, lo[1] = c.y - sp->radius, lo[2] = c.z - sp->radius;
+        hi[0] = c.x + sp->radius, hi[1] = c.y + sp->radius, hi[2] = c.z + sp->radius;
+    }
+    float m = 0;
+    for (int a = 0; a < 3; a++) m = fmaxf(m, fmaxf(fabsf(lo[a]), fabsf(hi[a])));
+    float pad = BOX_PAD * (1.0f + m);
+    struct RTCBounds *b = args->bounds_o;
+    b->lower_x = lo[0] - pad, b->lower_y = lo[1] - pad, b->lower_z = lo[2] - pad;
+    b->upper_x = hi[0] + pad, b->upper_y = hi[1] + pad, b->upper_z = hi[2] + pad;
+}
+
+static void cb_intersect(const struct RTCIntersectFunctionNArguments *args) {
+    if (!args->valid[0]) return;
+    query *q = (query *)args->context;
+    float t, b1, b2;
+    uint32_t id = args->primID;
+    if (!prim_test(q->s, &q->r, id, q->tmax, &t, &b1, &b2)) return;
+    if (q->found && !hit_before(t, id, &q->best)) return;
+    q->found = 1;
+    q->best = (hit){t, id, b1, b2};
+    struct RTCRayHit *rh = (struct RTCRayHit *)args->rayhit; /* N == 1: rtcIntersect1 */
+    rh->ray.tfar = cull_distance(t);
+    rh->hit.geomID = args->geomID;
+    rh->hit.primID = id;
+}
+
+static void cb_occluded(const struct RTCOccludedFunctionNArguments *args) {
+    if (!args->valid[0]) return;
+    query *q = (query *)args->context;
+    float t, b1, b2;
+    if (!prim_test(q->s, &q->r, args->primID, q->tmax, &t, &b1, &b2)) return;
+    q->found = 1;
+    ((struct RTCRay *)args->ray)->tfar = -INFINITY; /* Embree's "occluded, stop" */
+}
+
+static void cb_error(void *user, enum RTCError code, const char *str) {
+    accel_embree *e = user;
+    if (!e->error[0]) snprintf(e->error, sizeof e->error, "Embree error %d: %s", (int)code, str ? str : "?");
+}
+
+static bool cb_memory(void *user, ssize_t bytes, bool post) {
+    accel_embree *e = user;
+    (void)post;
+    long long now = atomic_fetch_add(&e->bytes, (long long)bytes) + (long long)bytes;
+    long long peak = atomic_load(&e->peak);
+    while (now > peak && !atomic_compare_exchange_weak(&e->peak, &peak, now)) {
+    }
+    return true;
+}
+
+/* Embree's Morton-code build (LOW) unless TESSERA_EMBREE_QUALITY says
+ * "medium" or "high" (binned SAH, with spatial splits for high). Measured on
+ * 655k triangles (bench/meshes.sh): LOW builds in less time and a third of
+ * the memory, and renders as fast within the noise; the bytes are the same
+ * with any of them. */
+static enum RTCBuildQuality build_quality(void) {
+    const char *q = getenv("TESSERA_EMBREE_QUALITY");
+    if (q && strcmp(q, "medium") == 0) return RTC_BUILD_QUALITY_MEDIUM;
+    if (q && strcmp(q, "high") == 0) return RTC_BUILD_QUALITY_HIGH;
+    return RTC_BUILD_QUALITY_LOW;
+}
+
+accel_embree *accel_embree_build(const scene *s, char *err, size_t err_len) {
+    struct timespec t0, t1;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    accel_embree *e = calloc(1, sizeof *e);
+    if (!e) return snprintf(err, err_len, "out of memory"), NULL;
+    e->s = s;
+    const char *cfg = getenv("TESSERA_EMBREE_CONFIG");
+    snprintf(e->config, sizeof e->config, "%s", cfg ? cfg : "");
+    e->stats.config = e->config;
+    e->device = rtcNewDevice(e->config);
+    if (!e->device) {
+        snprintf(err, err_len, "Embree refused device configuration \"%s\" (error %d)", e->config,
+                 (int)rtcGetDeviceError(NULL));
+        free(e);
+        return NULL;
+    }
+    rtcSetDeviceErrorFunction(e->device, cb_error, e);
+    rtcSetDeviceMemoryMonitorFunction(e->device, cb_memory, e);
+    e->scene = rtcNewScene(e->device);
+    rtcSetSceneBuildQuality(e->scene, build_quality());
+    RTCGeometry g = rtcNewGeometry(e->device, RTC_GEOMETRY_TYPE_USER);
+    rtcSetGeometryUserPrimitiveCount(g, s->triangle_count + s->sphere_count);
+    rtcSetGeometryUserData(g, (void *)s);
+    rtcSetGeometryBoundsFunction(g, cb_bounds, (void *)s);
+    rtcSetGeometryIntersectFunction(g, cb_intersect);
+    rtcSetGeometryOccludedFunction(g, cb_occluded);
+    rtcCommitGeometry(g);
+    rtcAttachGeometry(e->scene, g);
+    rtcReleaseGeometry(g);
+    rtcCommitScene(e->scene);
+    if (e->error[0]) {
+        snprintf(err, err_len, "%s", e->error);
+        accel_embree_free(e);
+        return NULL;
+    }
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    e->stats.build_seconds = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
+    e->stats.memory_bytes = (size_t)atomic_load(&e->peak);
+    e->stats.final_bytes = (size_t)atomic_load(&e->bytes);
+    return e;
+}
+
+void accel_embree_free(accel_embree *e) {
+    if (!e) return;
+    if (e->scene) rtcReleaseScene(e->scene);
+    if (e->device) rtcReleaseDevice(e->device);
+    free(e);
+}
+
+void accel_embree_get_stats(const accel_embree *e, accel_embree_stats *out) { *out = e->stats; }
+
+/* Start a query for ray r and the Embree ray that goes with it. */
+static void query_start(query *q, const scene *s, const ray *r, float tmax, struct RTCRay *er) {
+    rtcInitIntersectContext(&q->ctx);
+    q->s = s;
+    ray_prepare(r, &q->r);
+    q->tmax = tmax;
+    q->found = 0;
+    q->best = (hit){tmax, PRIM_NONE, 0, 0};
+    er->org_x = r->o.x, er->org_y = r->o.y, er->org_z = r->o.z;
+    er->dir_x = r->d.x, er->dir_y = r->d.y, er->dir_z = r->d.z;
+    er->tnear = 0.0f;
+    er->tfar = cull_distance(tmax);
+    er->time = 0.0f;
+    er->mask = UINT32_MAX;
+    er->id = 0;
+    er->flags = 0;
+}
+
+int accel_embree_intersect(const accel_embree *e, const scene *s, const ray *r, float tmax, hit *h) {
+    query q;
+    struct RTCRayHit rh;
+    query_start(&q, s, r, tmax, &rh.ray);
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(e->scene, &q.ctx, &rh);
+    *h = q.best;
+    return q.found;
+}
+
+int accel_embree_occluded(const accel_embree *e, const scene *s, const ray *r, float tmax) {
+    query q;
+    struct RTCRay er;
+    query_start(&q, s, r, tmax, &er);
+    rtcOccluded1(e->scene, &q.ctx, &er);
+    return q.found;
+}

@@ -1,0 +1,34 @@
+/* scene_memory.h - will a scene fit? An estimate of the peak memory that
+ * loading a scene bundle takes, and of the memory this host can give, so a
+ * worker can refuse a scene with the figures (its tiles go back to the
+ * coordinator's queue) instead of being killed by the kernel mid-load. */
+#ifndef TESSERA_SCENE_MEMORY_H
+#define TESSERA_SCENE_MEMORY_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "scene_bundle.h"
+
+/* Peak bytes per triangle while loading and building (loader copy, scene
+ * arrays, Embree's build), measured with bench/meshes.sh: 10.5M triangles
+ * peaked at 2493 MB RSS including the 217 MB of OBJ text, i.e. ~217 B per
+ * triangle; rounded up. */
+#define SCENE_MEMORY_BYTES_PER_TRIANGLE 256
+
+/* Estimated peak bytes to load bundle b: its own size plus
+ * SCENE_MEMORY_BYTES_PER_TRIANGLE per triangle its OBJ faces make (counted
+ * from the text, fan-triangulated). Can't fail. */
+uint64_t scene_memory_estimate(const scene_bundle *b, uint64_t *triangles);
+
+/* Bytes this process may still allocate: the smaller of the host's
+ * MemAvailable and the cgroup's memory.max - memory.current where there is
+ * a limit. TESSERA_MEMORY_AVAILABLE_MB overrides it (for tests). Returns
+ * UINT64_MAX when nothing can be read. */
+uint64_t scene_memory_available(void);
+
+/* If loading b would not fit, write "needs about X MiB ... only Y MiB
+ * available" to err and return -1; else 0. */
+int scene_memory_check(const scene_bundle *b, char *err, size_t err_len);
+
+#endif

@@ -1,0 +1,445 @@
+/* test_meshes.c - the Embree intersector against the BVH: the same hit, bit
+ * for bit, on every ray (both pick the smallest (t, index), accel_embree.h),
+ * with every Embree ISA this CPU has forced, in renders with any threads and
+ * workers, and under an emulated CPU without SSE4.2's successors (qemu). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <limits.h>
+#include <sys/stat.h>
+
+#include "render/accel.h"
+#include "render/obj.h"
+#include "render/rng.h"
+#include "render/scene.h"
+#include "harness.h"
+#include "render/mesh_normals.h"
+#include "render/scene_memory.h"
+#include "util.h"
+
+#define ICO_SCENE "tests/scenes/icospheres.json" /* 2,572 triangles and a sphere */
+
+static vec3 unit_direction(rng_stream *r) {
+    float z = 1.0f - 2.0f * rng_next(r), phi = 6.2831853f * rng_next(r), s = sqrtf(fmaxf(0.0f, 1.0f - z * z));
+    return vec3_make(s * cosf(phi), s * sinf(phi), z);
+}
+
+/* Ray i of a test set over s: leaving a triangle, aimed at a vertex or an
+ * edge midpoint (the rays where two triangles nearly tie), or random with a
+ * random tmax. */
+static ray test_ray(const scene *s, uint64_t i, float *tmax) {
+    rng_stream rng = rng_stream_start(13, i, 0);
+    uint32_t t = (uint32_t)(rng_next(&rng) * (float)s->triangle_count) % s->triangle_count;
+    const triangle *tr = &s->triangles[t];
+    *tmax = INFINITY;
+    if (i % 3 == 0) {
+        float b1 = rng_next(&rng), b2 = rng_next(&rng) * (1 - b1);
+        vec3 p = vec3_add(tr->v0, vec3_add(vec3_scale(vec3_sub(tr->v1, tr->v0), b1),
+                                           vec3_scale(vec3_sub(tr->v2, tr->v0), b2)));
+        return (ray){p, unit_direction(&rng), t};
+    }
+    if (i % 3 == 1) {
+        vec3 target = (i / 3) % 2 ? tr->v1 : vec3_scale(vec3_add(tr->v0, tr->v2), 0.5f);
+        vec3 o = vec3_scale(unit_direction(&rng), 0.9f);
+        return (ray){o, vec3_normalize(vec3_sub(target, o)), PRIM_NONE};
+    }
+    if (i % 2) *tmax = 2.0f * rng_next(&rng);
+    return (ray){vec3_scale(unit_direction(&rng), 0.9f * rng_next(&rng)), unit_direction(&rng), PRIM_NONE};
+}
+
+/* How many of n test rays a and b answer differently (hit, prim, t, b1, b2
+ * compared as bits; occlusion). */
+static int count_differences(const scene *s, const accel *a, const accel *b, uint64_t n, int *hits) {
+    int differ = 0;
+    *hits = 0;
+    for (uint64_t i = 0; i < n; i++) {
+        float tmax;
+        ray r = test_ray(s, i, &tmax);
+        hit ha, hb;
+        int fa = accel_intersect(a, s, &r, tmax, &ha), fb = accel_intersect(b, s, &r, tmax, &hb);
+        *hits += fa;
+        if (fa != fb || (fa && (ha.prim != hb.prim || memcmp(&ha.t, &hb.t, 4) || memcmp(&ha.b1, &hb.b1, 4) ||
+                                memcmp(&ha.b2, &hb.b2, 4)))) {
+            if (differ < 3)
+                fprintf(stderr, "  ray %llu: %d prim %u t %.9g | %d prim %u t %.9g\n", (unsigned long long)i, fa,
+                        ha.prim, ha.t, fb, hb.prim, hb.t);
+            differ++;
+        } else if (accel_occluded(a, s, &r, tmax) != fa || accel_occluded(b, s, &r, tmax) != fb) {
+            differ++;
+        }
+    }
+    return differ;
+}
+
+static void embree_matches_bvh(const char *path) {
+    char err[512];
+    scene *s = scene_load(path, NULL, err, sizeof err);
+    CHECK(s != NULL, "%s", err);
+    if (!s) return;
+    accel *tree = accel_build(s, ACCEL_BVH), *emb = accel_build_err(s, ACCEL_EMBREE, err, sizeof err);
+    CHECK(tree && emb && accel_get_kind(emb) == ACCEL_EMBREE, "build: %s", err);
+    int hits = 0;
+    int differ = tree && emb ? count_differences(s, tree, emb, 150000, &hits) : -1;
+    CHECK(differ == 0, "%s: %d of 150000 rays differ between the BVH and Embree", path, differ);
+    CHECK(hits > 50000, "%s: only %d rays hit (test rays not aimed at the scene?)", path, hits);
+    accel_free(tree);
+    accel_free(emb);
+    scene_free(s);
+}
+
+TEST(mesh_embree_matches_bvh_icospheres) { embree_matches_bvh(ICO_SCENE); }
+TEST(mesh_embree_matches_bvh_features) { embree_matches_bvh("scenes/features.json"); }
+
+/* Every Embree kernel this CPU can run, forced, and every build quality:
+ * the same answers as the BVH (the tests at the leaves are Tessera's;
+ * Embree's arithmetic and tree only order them). */
+TEST(mesh_embree_every_isa_agrees) {
+    static const struct {
+        const char *isa, *cpu;
+    } isas[] = {{"sse2", "sse2"}, {"sse4.2", "sse4.2"}, {"avx", "avx"}, {"avx2", "avx2"}, {"avx512", "avx512f"}};
+    char err[512], cfg[64];
+    scene *s = scene_load(ICO_SCENE, NULL, err, sizeof err);
+    CHECK(s != NULL, "%s", err);
+    if (!s) return;
+    accel *tree = accel_build(s, ACCEL_BVH);
+    int tried = 0;
+    for (size_t k = 0; k < sizeof isas / sizeof isas[0]; k++) {
+        __builtin_cpu_init();
+        int have = strcmp(isas[k].cpu, "sse2") == 0     ? __builtin_cpu_supports("sse2")
+                   : strcmp(isas[k].cpu, "sse4.2") == 0 ? __builtin_cpu_supports("sse4.2")
+                   : strcmp(isas[k].cpu, "avx") == 0    ? __builtin_cpu_supports("avx")
+                   : strcmp(isas[k].cpu, "avx2") == 0   ? __builtin_cpu_supports("avx2")
+                                                        : __builtin_cpu_supports("avx512f");
+        if (!have) continue;
+        snprintf(cfg, sizeof cfg, "isa=%s", isas[k].isa);
+        setenv("TESSERA_EMBREE_CONFIG", cfg, 1);
+        accel *emb = accel_build_err(s, ACCEL_EMBREE, err, sizeof err);
+        unsetenv("TESSERA_EMBREE_CONFIG");
+        accel_embree_stats st;
+        CHECK(emb && accel_get_embree_stats(emb, &st) == 0 && strcmp(st.config, cfg) == 0, "%s: %s", cfg, err);
+        int hits = 0, differ = emb && tree ? count_differences(s, tree, emb, 60000, &hits) : -1;
+        CHECK(differ == 0, "%s: %d of 60000 rays differ from the BVH", cfg, differ);
+        accel_free(emb);
+        tried++;
+    }
+    CHECK(tried >= 2, "only %d ISAs tried", tried);
+    static const char *const qualities[] = {"medium", "high"}; /* low is the default, tested above */
+    for (size_t k = 0; k < 2; k++) {
+        setenv("TESSERA_EMBREE_QUALITY", qualities[k], 1);
+        accel *emb = accel_build_err(s, ACCEL_EMBREE, err, sizeof err);
+        unsetenv("TESSERA_EMBREE_QUALITY");
+        int hits = 0, differ = emb && tree ? count_differences(s, tree, emb, 60000, &hits) : -1;
+        CHECK(differ == 0, "build quality %s: %d of 60000 rays differ from the BVH", qualities[k], differ);
+        accel_free(emb);
+    }
+    accel_free(tree);
+    scene_free(s);
+}
+
+/* The picture through Embree is the BVH's, bit for bit, with 1 and 2 render
+ * threads, and in a local farm of 1, 2 and 3 workers. */
+TEST(mesh_embree_same_image_threads_and_workers) {
+    char err[512];
+    scene *s = scene_load(ICO_SCENE, NULL, err, sizeof err);
+    CHECK(s && accel_get_kind(s->accel) == ACCEL_EMBREE, "auto should pick Embree for %u triangles: %s",
+          s ? s->triangle_count : 0, s ? "" : err);
+    if (!s) return;
+    size_t bytes = (size_t)s->settings.width * (size_t)s->settings.height * 3 * sizeof(float);
+    trace_stats st;
+    float *e1 = util_render(s, 1, 16, 1, &st), *e2 = util_render(s, 2, 7, 1, &st);
+    accel_free(s->accel);
+    s->accel = accel_build(s, ACCEL_BVH);
+    float *b1 = util_render(s, 1, 16, 1, &st);
+    CHECK(e1 && e2 && b1 && memcmp(e1, b1, bytes) == 0, "Embree (1 thread) and BVH images differ");
+    CHECK(e1 && e2 && memcmp(e1, e2, bytes) == 0, "Embree images differ with 1 and 2 threads");
+    free(e1);
+    free(e2);
+    free(b1);
+    scene_free(s);
+
+    char ref[512], cmd[2048], out[8192];
+    snprintf(ref, sizeof ref, "%s", util_temp_path("ico-ref.pfm"));
+    snprintf(cmd, sizeof cmd, "%s render " ICO_SCENE " --workers 0 --threads 1 --no-progress -o %s", harness_tessera(),
+             ref);
+    CHECK(util_run(cmd, out, sizeof out) == 0, "%s: %s", cmd, out);
+    static const char *const runs[][2] = {{"1", "1"}, {"2", "2"}, {"3", "1"}};
+    for (size_t i = 0; i < sizeof runs / sizeof runs[0]; i++) {
+        const char *img = util_temp_path("ico-farm.pfm");
+        snprintf(cmd, sizeof cmd, "%s render " ICO_SCENE " --workers %s --threads %s --tile-size 11 --no-progress -o %s",
+                 harness_tessera(), runs[i][0], runs[i][1], img);
+        int rc = util_run(cmd, out, sizeof out);
+        CHECK(rc == 0 && !strstr(out, "Sanitizer") && !strstr(out, "runtime error"), "%s (%d): %s", cmd, rc, out);
+        CHECK(util_same_file(img, ref), "%s: image differs from the in-process one", cmd);
+    }
+}
+
+/* The whole program under qemu emulating a Nehalem (SSE4.2, no AVX): Embree
+ * picks its SSE kernels, the flat kernel its 4 lanes, and the picture is the
+ * one this machine makes natively. Skipped without qemu-x86_64, and under
+ * the sanitizers (their runtimes do not run under qemu-user). */
+TEST(mesh_embree_same_image_under_qemu_nehalem) {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+    return;
+#else
+    struct stat sb;
+    if (stat("/usr/bin/qemu-x86_64", &sb) != 0) {
+        fprintf(stderr, "  (skipped: no /usr/bin/qemu-x86_64)\n");
+        return;
+    }
+    char ref[512], img[512], cmd[2048], out[8192];
+    snprintf(ref, sizeof ref, "%s", util_temp_path("ico-native.pfm"));
+    snprintf(img, sizeof img, "%s", util_temp_path("ico-nehalem.pfm"));
+    snprintf(cmd, sizeof cmd, "%s render " ICO_SCENE " --workers 0 --threads 2 --spp 4 --no-progress -o %s",
+             harness_tessera(), ref);
+    CHECK(util_run(cmd, out, sizeof out) == 0, "%s: %s", cmd, out);
+    snprintf(cmd, sizeof cmd,
+             "/usr/bin/qemu-x86_64 -cpu Nehalem-v1 %s render " ICO_SCENE
+             " --workers 0 --threads 2 --spp 4 --no-progress -v -o %s",
+             harness_tessera(), img);
+    int rc = util_run(cmd, out, sizeof out);
+    CHECK(rc == 0 && strstr(out, "intersector: embree"), "%s (%d): %s", cmd, rc, out);
+    CHECK(util_same_file(img, ref), "the image under qemu (Nehalem) differs from the native one");
+#endif
+}
+
+/* The OBJ reader's own number parser gives exactly strtod's doubles, on
+ * numbers printed every way a writer might (%g, %f, %e at every precision,
+ * signs, no leading digit, exponents, long mantissas that need strtod). */
+TEST(mesh_obj_numbers_are_strtods) {
+    enum { N = 30000 };
+    size_t cap = (size_t)N * 100 + 64, n = 0;
+    char *text = malloc(cap);
+    double *want = malloc(sizeof(double) * 3 * N);
+    for (int i = 0; i < N; i++) {
+        rng_stream rng = rng_stream_start(21, (uint64_t)i, 0);
+        n += (size_t)snprintf(text + n, cap - n, "v");
+        for (int k = 0; k < 3; k++) {
+            char num[64];
+            double x = ldexp((double)rng_next(&rng) - 0.5, (int)(rng_next(&rng) * 60.0f) - 30);
+            int style = (int)(rng_next(&rng) * 6.0f), prec = (int)(rng_next(&rng) * 19.0f);
+            if (style == 0) snprintf(num, sizeof num, "%.*g", prec, x);
+            else if (style == 1) snprintf(num, sizeof num, "%.*f", prec % 10, x);
+            else if (style == 2) snprintf(num, sizeof num, "%.*e", prec, x);
+            else if (style == 3) snprintf(num, sizeof num, "%+.*f", prec % 8, x);
+            else if (style == 4) snprintf(num, sizeof num, "%.17g", x);
+            else snprintf(num, sizeof num, "%s.%d", x < 0 ? "-" : "", (int)(rng_next(&rng) * 1e6f));
+            want[3 * i + k] = strtod(num, NULL);
+            n += (size_t)snprintf(text + n, cap - n, " %s", num);
+        }
+        n += (size_t)snprintf(text + n, cap - n, "%s", i % 7 ? "\n" : " \r\n");
+    }
+    n += (size_t)snprintf(text + n, cap - n, "f 1 2 3\n");
+    obj_mesh m;
+    char err[256];
+    int rc = obj_parse(text, n, "numbers.obj", &m, err, sizeof err);
+    CHECK(rc == 0 && m.vertex_count == N, "%s", err);
+    int differ = 0;
+    for (size_t i = 0; rc == 0 && i < 3 * (size_t)N; i++) differ += memcmp(&m.positions[i], &want[i], sizeof(double)) != 0;
+    CHECK(differ == 0, "%d of %d coordinates differ from strtod's", differ, 3 * N);
+    if (rc == 0) obj_mesh_free(&m);
+    free(text);
+    free(want);
+}
+
+/* Bad OBJ input: each a clear error naming the file and the line. */
+TEST(mesh_obj_bad_input_names_file_and_line) {
+    static const struct {
+        const char *text, *want;
+    } cases[] = {
+        {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1//1 2//1 3//1\n", "bad.obj:4: face refers to a normal that does not exist"},
+        {"v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//2 3//1\n", "bad.obj:5: face refers to a normal"},
+        {"v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//-2 2//1 3//1\n", "bad.obj:5: face refers to a normal"},
+        {"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/2 2/1 3/1\n", "bad.obj:5: face refers to a texture coordinate"},
+        {"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/0 2/1 3/1\n", "bad.obj:5: face refers to a texture coordinate"},
+        {"v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2 3//1\n", "bad.obj:5: face mixes corners"},
+        {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1// 2 3\n", "bad.obj:4: face corner's normal index is missing"},
+        {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/x 2 3\n", "bad.obj:4: face corner's texture index is missing"},
+        {"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf 1/1/1/1 2 3\n", "bad.obj:6: face corner is not of the form"},
+        {"v 0 0 0\nv nan 0 0\n", "bad.obj:2: vertex coordinate is not finite"},
+        {"v 0 0 0\nvn 0 inf 1\n", "bad.obj:2: normal is not finite"},
+        {"v 0 0 0\nvn 0 1\n", "bad.obj:2: normal needs three numbers"},
+        {"vt 1e300\n", "bad.obj:1: texture coordinate is not finite"},
+        {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2", "bad.obj:4: face needs at least three vertices"}, /* truncated */
+        {"v 0 0 0\nv 1 0 0\nv 0 1", "bad.obj:3: vertex needs three numbers"},                /* truncated */
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        obj_mesh m;
+        char err[256] = "";
+        int rc = obj_parse(cases[i].text, strlen(cases[i].text), "bad.obj", &m, err, sizeof err);
+        CHECK(rc == -1 && strstr(err, cases[i].want), "case %zu: got %d \"%s\", want \"%s\"", i, rc, err, cases[i].want);
+        if (rc == 0) obj_mesh_free(&m);
+    }
+}
+
+/* vn and vt reach the scene: unit normals and uvs with per-corner indices
+ * (a quad's fan shares corner 1); a mesh without them leaves its triangles
+ * SCENE_NONE, and a scene with none has NULL arrays. */
+TEST(mesh_obj_normals_and_uvs_reach_the_scene) {
+    util_write_temp("flat.obj", "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nf 1 3 2\n");
+    util_write_temp("quad.obj", "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nvn 0 2 0\nvn 0 1 1\nvt 0 0\nvt 1 0\n"
+                                "vt 1 1\nvt 0 1\nf 1/1/1 4/4/2 3/3/1 2/2/2\n");
+    const char *json = "{\"camera\": {\"type\": \"perspective\", \"position\": [0, 3, -3], \"look_at\": [0, 0, 0], "
+                       "\"fov\": 40}, \"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo\": [0.5, 0.5, 0.5]}},"
+                       " \"shapes\": [{\"type\": \"mesh\", \"file\": \"flat.obj\", \"material\": \"m\"},"
+                       " {\"type\": \"mesh\", \"file\": \"quad.obj\", \"material\": \"m\", \"translate\": [0, 1, 0]}]}";
+    char err[512];
+    scene *s = scene_load(util_write_temp("attrs.json", json), NULL, err, sizeof err);
+    CHECK(s != NULL, "%s", err);
+    if (!s) return;
+    CHECK(s->triangle_count == 3 && s->vertex_normal_count == 2 && s->uv_count == 4, "%u triangles, %u normals, %u uvs",
+          s->triangle_count, s->vertex_normal_count, s->uv_count);
+    CHECK(s->triangle_vertex_normals && s->triangle_uvs, "no attribute arrays");
+    if (s->triangle_vertex_normals && s->triangle_uvs && s->triangle_count == 3) {
+        const uint32_t *n = s->triangle_vertex_normals, *t = s->triangle_uvs;
+        CHECK(n[0] == SCENE_NONE && n[1] == SCENE_NONE && n[2] == SCENE_NONE && t[0] == SCENE_NONE, "flat mesh got attributes");
+        CHECK(n[3] == 0 && n[4] == 1 && n[5] == 0 && n[6] == 0 && n[7] == 0 && n[8] == 1, "normal indices %u %u %u / %u %u %u",
+              n[3], n[4], n[5], n[6], n[7], n[8]);
+        CHECK(t[3] == 0 && t[4] == 3 && t[5] == 2 && t[6] == 0 && t[7] == 2 && t[8] == 1, "uv indices");
+        vec3 a = s->vertex_normals[0], b = s->vertex_normals[1];
+        CHECK(a.x == 0 && a.y == 1 && a.z == 0 && fabsf(b.y - 0.70710678f) < 1e-6f && b.y == b.z, "normals not unit");
+        CHECK(s->uvs[2 * 2] == 1 && s->uvs[2 * 2 + 1] == 1, "uv 3 is (%g, %g)", s->uvs[4], s->uvs[5]);
+    }
+    scene_free(s);
+    s = scene_load("scenes/cornell-box.json", NULL, err, sizeof err);
+    CHECK(s && !s->vertex_normals && !s->triangle_vertex_normals && !s->uvs && !s->triangle_uvs, "cornell box has attributes");
+    scene_free(s);
+}
+
+/* White furnace: a diffuse sphere mesh of albedo 0.8 under a uniform sky of
+ * 1. Every path that leaves the (convex) sphere returns exactly 0.8, so a
+ * pixel covered by the sphere can only be 0.8 times the share of paths not
+ * ended by the leak guard: never more (no energy gained, no light through
+ * the surface), and not much less (no black facets where the shading and
+ * geometric normals disagree, e.g. at the silhouette of a low-poly sphere
+ * with vertex normals). Returns the mean of the covered pixels, -1 on
+ * failure. */
+static double furnace(const char *obj, int level_poly, const char *extra, float *min_out) {
+    char path[PATH_MAX], json[PATH_MAX + 1024], err[512];
+    CHECK(realpath(obj, path) != NULL, "%s missing", obj);
+    snprintf(json, sizeof json,
+             "{\"render\": {\"width\": 40, \"height\": 40, \"spp\": 64, \"max_depth\": 8, \"seed\": 3},"
+             " \"camera\": {\"type\": \"perspective\", \"position\": [0, 0.3, -4], \"look_at\": [0, 0, 0], \"fov\": 32},"
+             " \"background\": [1, 1, 1], \"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo\": [0.8, 0.8, 0.8]}},"
+             " \"shapes\": [{\"type\": \"mesh\", \"file\": \"%s\", \"material\": \"m\"%s}]}",
+             path, extra);
+    scene *s = util_scene_from_text(json, err, sizeof err);
+    CHECK(s != NULL, "%s", err);
+    if (!s) return -1;
+    trace_stats st;
+    float *img = util_render(s, 2, 16, 1, &st);
+    double sum = 0;
+    int covered = 0, gained = 0;
+    float lo = 1;
+    for (int i = 0; img && i < 40 * 40; i++) {
+        float v = img[3 * i + 1];
+        if (v > 1.0f + 1e-5f) gained++; /* brighter than the sky: energy from nowhere */
+        if (v > 0.8f + 1e-4f) continue; /* sky, or a pixel the silhouette crosses */
+        sum += v;
+        covered++;
+        lo = fminf(lo, v);
+    }
+    CHECK(img && covered > 300, "%s: only %d pixels on the sphere", obj, covered);
+    CHECK(gained == 0, "%s: %d pixels brighter than the albedo allows (energy gained)", obj, gained);
+    CHECK(s->triangle_vertex_normals || level_poly < 0, "%s: no vertex normals loaded", obj);
+    free(img);
+    scene_free(s);
+    *min_out = lo;
+    return covered ? sum / covered : -1;
+}
+
+TEST(mesh_smooth_normals_white_furnace) {
+    float lo;
+    double smooth = furnace("tests/scenes/icosphere3n.obj", 3, "", &lo); /* 1,280 triangles with vn */
+    CHECK(smooth > 0.79 && lo > 0.7f, "smooth sphere: mean %.4f, darkest pixel %.4f of 0.8", smooth, lo);
+    float lo_smooth = lo;
+    double low = furnace("tests/scenes/icosphere1n.obj", 1, "", &lo); /* 80 triangles with vn */
+    CHECK(low > 0.74 && lo > 0.5f, "low-poly smooth sphere: mean %.4f, darkest pixel %.4f of 0.8", low, lo);
+    float lo_low = lo;
+    double flat = furnace("tests/scenes/icosphere3.obj", -1, "", &lo); /* no vn: flat facets lose nothing */
+    CHECK(flat > 0.7999, "flat-shaded sphere: mean %.5f", flat);
+    double made = furnace("tests/scenes/icosphere3.obj", 3, ", \"smooth_angle\": 30", &lo); /* normals from faces */
+    CHECK(made > 0.79 && lo > 0.7f, "sphere with normals from faces: mean %.4f, darkest %.4f", made, lo);
+    fprintf(stderr, "  furnace with normals made from faces (30 degrees): %.4f / %.4f\n", made, lo);
+    fprintf(stderr, "  furnace (albedo 0.8), mean / darkest covered pixel: smooth %.4f / %.4f, low-poly smooth %.4f / %.4f, flat %.4f\n",
+            smooth, lo_smooth, low, lo_low, flat);
+}
+
+/* A worker that cannot hold a scene says so with the figures and gives its
+ * tiles back (here: the only worker, so the render fails with that reason)
+ * instead of being killed by the kernel; the estimate counts instances. */
+TEST(mesh_worker_refuses_a_scene_it_cannot_hold) {
+    char cmd[2048], out[16384];
+    const char *img = util_temp_path("refused.pfm");
+    snprintf(cmd, sizeof cmd,
+             "TESSERA_MEMORY_AVAILABLE_MB=0 timeout 120 %s render " ICO_SCENE
+             " --workers 1 --width 8 --height 8 --worker-timeout 30 --no-progress -o %s", /* one tile */
+             harness_tessera(), img);
+    int rc = util_run(cmd, out, sizeof out);
+    CHECK(rc != 0 && strstr(out, "cannot hold the scene: loading 2560 triangles needs about 0 MiB, only 0 MiB"),
+          "%s (%d): %s", cmd, rc, out);
+    scene_bundle b;
+    char err[256];
+    CHECK(scene_bundle_read(ICO_SCENE, &b, err, sizeof err) == 0, "%s", err);
+    uint64_t tris = 0, bytes = scene_memory_estimate(&b, &tris);
+    CHECK(tris == 2560 && bytes > 2560 * SCENE_MEMORY_BYTES_PER_TRIANGLE, "estimate: %llu triangles, %llu bytes",
+          (unsigned long long)tris, (unsigned long long)bytes);
+    scene_bundle_free(&b);
+}
+
+/* No light leaks: a one-sided floor whose vertex normals lean 60 degrees,
+ * lit only by a point light under it, seen from above. Light directions
+ * below the surface but above the tilted shading hemisphere must be
+ * refused: the picture is black (it is not without the guard). */
+TEST(mesh_smooth_normals_do_not_leak_light) {
+    util_write_temp("tilted.obj", "v -2 0 -2\nv 2 0 -2\nv 2 0 2\nv -2 0 2\nvn 0.866 0.5 0\nf 1//1 4//1 3//1 2//1\n");
+    const char *json = "{\"render\": {\"width\": 16, \"height\": 16, \"spp\": 16, \"max_depth\": 4, \"seed\": 1},"
+                       " \"camera\": {\"type\": \"perspective\", \"position\": [0, 3, -0.1], \"look_at\": [0, 0, 0], \"fov\": 40},"
+                       " \"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo\": [0.8, 0.8, 0.8]}},"
+                       " \"shapes\": [{\"type\": \"mesh\", \"file\": \"tilted.obj\", \"material\": \"m\"}],"
+                       " \"lights\": [{\"type\": \"point\", \"position\": [3, -0.5, 0], \"intensity\": [50, 50, 50]}]}";
+    char err[512];
+    scene *s = scene_load(util_write_temp("leak.json", json), NULL, err, sizeof err);
+    CHECK(s && s->triangle_vertex_normals, "%s", s ? "no vertex normals" : err);
+    if (!s) return;
+    trace_stats st;
+    float *img = util_render(s, 1, 16, 1, &st);
+    int lit = 0;
+    for (int i = 0; img && i < 16 * 16 * 3; i++) lit += img[i] != 0.0f;
+    CHECK(img && lit == 0, "%d channels lit through the floor", lit);
+    free(img);
+    scene_free(s);
+}
+
+/* Normals made from faces follow the angle threshold: every corner of an
+ * icosphere (faces 10 degrees apart at level 2... 2.6 at level 3) is
+ * smoothed at 30 degrees, no corner of a tetrahedron (faces 109 degrees
+ * apart) is: its corner normals are its face normals. */
+TEST(mesh_normals_from_faces_follow_the_angle) {
+    obj_mesh m;
+    char err[256];
+    const char *tet = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+    CHECK(obj_parse(tet, strlen(tet), "tet.obj", &m, err, sizeof err) == 0, "%s", err);
+    CHECK(mesh_normals_from_faces(&m, 30) == 0 && m.normal_count == 12, "normals");
+    int off = 0;
+    for (size_t t = 0; t < 4; t++) {
+        const double *a = m.positions + 3 * m.indices[3 * t], *b = m.positions + 3 * m.indices[3 * t + 1],
+                     *c = m.positions + 3 * m.indices[3 * t + 2];
+        double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+        double l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        for (int k = 0; k < 3; k++)
+            for (int x = 0; x < 3; x++) off += fabs(m.normals[3 * m.normal_indices[3 * t + k] + x] - n[x] / l) > 1e-6;
+    }
+    CHECK(off == 0, "%d tetrahedron normal components differ from the face normals", off);
+    obj_mesh_free(&m);
+    CHECK(obj_load("tests/scenes/icosphere3.obj", &m, err, sizeof err) == 0, "%s", err);
+    CHECK(mesh_normals_from_faces(&m, 30) == 0, "normals");
+    int flat = 0;
+    for (size_t i = 0; i < m.triangle_count * 3; i++) { /* a smoothed corner normal points along its vertex */
+        const double *p = m.positions + 3 * m.indices[i];
+        const float *n = m.normals + 3 * m.normal_indices[i];
+        flat += n[0] * p[0] + n[1] * p[1] + n[2] * p[2] < 0.9995;
+    }
+    CHECK(flat == 0, "%d of %zu icosphere corners not smoothed", flat, m.triangle_count * 3);
+    obj_mesh_free(&m);
+}
