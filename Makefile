@@ -180,3 +180,15 @@ fuzz: $(FUZZ_BINS)
 
 -include $(FUZZ_COMMON_OBJ:.o=.d)
 -include $(COMMON_OBJ:.o=.d) $(TEST_OBJ:.o=.d) $(COORD_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(BUILD)/bench/loadgen.d
+
+# ---- Containers (issue 12; docs/containers.md) ----
+#   make docker       build tessera:latest (first the debian:12 base images with
+#                     debootstrap when the engine has none; docker/token when missing)
+#   make docker-test  the container tests against the real engine (Compose, faults,
+#                     Swarm); ends with "N passed, N failed"
+.PHONY: docker docker-test
+docker:
+	GIT_ID=$(GIT_ID) docker/build.sh
+
+docker-test: $(TESSERA) $(WORKER)
+	GIT_ID=$(GIT_ID) tests/docker/run.sh
