@@ -37,7 +37,7 @@ TIMEOUT=3                     # --worker-timeout of the coordinator, seconds
 export TESSERA_TEST_THROTTLE_MS=250
 TESTS=${*:-1 2 3 4 5 6 7}
 PASS=0 FAIL=0
-SWARM_MADE=0 STACK_UP=0 NODE_LABELLED=""
+SWARM_MADE=0 GWBRIDGE_MADE=0 STACK_UP=0 NODE_LABELLED=""
 
 [ -x "$T" ] || { echo "error: $T missing (make)" >&2; exit 1; }
 docker info > /dev/null 2>&1 || { echo "error: no Docker engine answers (docker info)" >&2; exit 1; }
@@ -86,10 +86,15 @@ cleanup() {
         docker volume ls -q --filter "label=com.docker.stack.namespace=$STACK" | xargs -r docker volume rm >> "$LOG" 2>&1
     fi
     [ -n "$NODE_LABELLED" ] && docker node update --label-rm tessera.coordinator "$NODE_LABELLED" >> "$LOG" 2>&1
-    [ "$SWARM_MADE" = 1 ] && docker swarm leave --force >> "$LOG" 2>&1
+    if [ "$SWARM_MADE" = 1 ]; then
+        docker swarm leave --force >> "$LOG" 2>&1
+        # swarm init made this bridge when it was not there; leave does not remove it.
+        [ "$GWBRIDGE_MADE" = 1 ] && docker network rm docker_gwbridge >> "$LOG" 2>&1
+    fi
     "${COMPOSE[@]}" -p "$PROJECT" -f docker/compose.yaml -f tests/docker/compose.test.yaml down -v --remove-orphans -t 3 >> "$LOG" 2>&1
     docker ps -aq --filter "label=io.tessera.test=$ID" | xargs -r docker rm -f >> "$LOG" 2>&1
-    docker images -q --filter "reference=tessera-$ID" | sort -u | xargs -r docker rmi -f >> "$LOG" 2>&1
+    # By tag, never by id: the image built again has tessera:latest's id.
+    docker images --format '{{.Repository}}:{{.Tag}}' --filter "reference=tessera-$ID" | xargs -r docker rmi >> "$LOG" 2>&1
     left=$(docker ps -aq --filter "label=io.tessera.test=$ID" --filter "label=com.docker.compose.project=$PROJECT")
     [ -n "$left" ] && echo "warning: containers left: $left"
     if [ "$FAIL" -gt 0 ] || [ -n "${TESSERA_DOCKER_TEST_KEEP:-}" ]; then echo "logs kept in $WORK"; else rm -rf "$WORK"; fi
@@ -356,6 +361,7 @@ test6() {
     dc down -v -t 3
     state=$(docker info -f '{{.Swarm.LocalNodeState}}')
     if [ "$state" != active ]; then
+        docker network inspect docker_gwbridge > /dev/null 2>&1 || GWBRIDGE_MADE=1
         if ! docker swarm init --advertise-addr 127.0.0.1 >> "$LOG" 2>&1; then
             fail "6  docker swarm init: $(tail -2 "$LOG")"; return
         fi
@@ -365,28 +371,31 @@ test6() {
     if [ -z "$(docker node inspect -f '{{index .Spec.Labels "tessera.coordinator"}}' "$node")" ]; then
         docker node update --label-add tessera.coordinator=true "$node" >> "$LOG" 2>&1 && NODE_LABELLED=$node
     fi
-    r=$(ref 256 256 4 16)
+    r=$(ref 384 384 4 16)
     STACK_UP=1
-    if ! TESSERA_WORKERS=3 TESSERA_WORKER_THREADS=1 docker stack deploy -c docker/stack.yaml "$STACK" >> "$LOG" 2>&1; then
+    if ! TESSERA_WORKERS=3 TESSERA_WORKER_THREADS=1 docker stack deploy --resolve-image never -c docker/stack.yaml -c tests/docker/stack.test.yaml "$STACK" >> "$LOG" 2>&1; then
         fail "6  docker stack deploy: $(tail -3 "$LOG")"; return
     fi
     if ! wait_workers 3 120; then
         fail "6  the stack's 3 workers never connected: $(docker service ls 2>&1 | grep "$STACK"; docker service ps --no-trunc "$STACK"_worker 2>&1 | head -5)"
         return
     fi
-    "$T" submit "$SCENE" --width 256 --height 256 --spp 4 --seed 16 --wait -o "$out" >> "$LOG" 2>&1 &
+    "$T" submit "$SCENE" --width 384 --height 384 --spp 4 --seed 16 --wait -o "$out" >> "$LOG" 2>&1 &
     pid=$!
     sleep 1.5
+    local t0 t1; t0=$(now)
     docker service scale --detach "${STACK}_worker=5" >> "$LOG" 2>&1
     local end=$((SECONDS + 60))
-    while [ $SECONDS -lt $end ]; do
+    while [ $SECONDS -lt $end ] && kill -0 "$pid" 2> /dev/null; do
         busy=$(worker_tiles | awk '$2 > 0' | wc -l)
         [ "$busy" -ge 5 ] && break
         sleep 0.2
     done
+    t1=$(now)
+    echo "     service scale to 5: $busy workers had done a tile $(secs "$t0" "$t1") s after the scale command"
     wait "$pid"; rc=$?
     check "6  Swarm stack, 3 worker replicas, scaled to 5 mid-job ($busy did tiles): same bytes" \
-        "$([ $rc -eq 0 ] && same "$out" "$r" && [ "$busy" -ge 4 ]; echo $?)" "submit status $rc, $busy busy; see $LOG"
+        "$([ $rc -eq 0 ] && same "$out" "$r" && [ "$busy" -ge 5 ]; echo $?)" "submit status $rc, $busy busy; see $LOG"
 }
 
 for t in $TESTS; do
