@@ -190,5 +190,5 @@ fuzz: $(FUZZ_BINS)
 docker:
 	GIT_ID=$(GIT_ID) docker/build.sh
 
-docker-test: $(TESSERA) $(WORKER)
+docker-test: docker $(TESSERA) $(WORKER)
 	GIT_ID=$(GIT_ID) tests/docker/run.sh
