@@ -269,3 +269,14 @@ MESH_ROUNDS ?= 1
 .PHONY: bench-meshes
 bench-meshes: $(TESSERA) $(WORKER)
 	bench/meshes.sh $(BUILD)/bin "$(MESH_LEVELS)" $(MESH_SPP) $(MESH_ROUNDS)
+# ---- Containers (issue 12; docs/containers.md) ----
+#   make docker       build tessera:latest (first the debian:12 base images with
+#                     debootstrap when the engine has none; docker/token when missing)
+#   make docker-test  the container tests against the real engine (Compose, faults,
+#                     Swarm); ends with "N passed, N failed"
+.PHONY: docker docker-test
+docker:
+	GIT_ID=$(GIT_ID) docker/build.sh
+
+docker-test: docker $(TESSERA) $(WORKER)
+	GIT_ID=$(GIT_ID) tests/docker/run.sh
