@@ -15,7 +15,8 @@
 
 # Debian packages the build needs; `make deps` installs what is missing.
 DEB_PACKAGES := gcc make pkg-config libcjson-dev libuv1-dev libjpeg-dev libopenexr-dev libpng-dev libsodium-dev \
-                openexr openimageio-tools clang libclang-rt-14-dev gnuplot-nox
+                openexr openimageio-tools clang libclang-rt-14-dev gnuplot-nox \
+                libhttp-parser-dev
 
 SHELL := /bin/bash
 CC ?= cc
@@ -37,7 +38,7 @@ else
   LDFLAGS_V :=
 endif
 CFLAGS := $(CFLAGS_COMMON) $(CFLAGS_OPT) -I$(BUILD)
-LDLIBS := -lcjson -lpng16 -ljpeg -lOpenEXRCore-3_1 -lsodium -luv -lpthread -lm
+LDLIBS := -lcjson -lpng16 -ljpeg -lOpenEXRCore-3_1 -lsodium -luv -lhttp_parser -lpthread -lm
 LDFLAGS := $(LDFLAGS_V)
 
 .DEFAULT_GOAL := all

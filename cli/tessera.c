@@ -498,6 +498,8 @@ static void usage_coordinator(FILE *f) {
             "      --keep-hours H       delete finished jobs after H hours (default 24)\n"
             "      --token-file F       workers and clients must prove they know this secret\n"
             "      --heartbeat S, --worker-timeout S, --lease S   as for tessera render\n"
+            "      --http ADDR:PORT     serve the web dashboard and /metrics there (loopback unless\n"
+            "                           a token is set or --insecure); --http-read-only: no cancel\n"
             "  -v, --verbose            log every worker event\n");
 }
 
@@ -517,8 +519,14 @@ static int cmd_coordinator(int argc, char **argv) {
     char host[256], err[300];
     int upload_mib = LIMIT_UPLOAD_DEFAULT_MIB, version = 0;
     double keep_hours = 24;
+    const char *http = NULL; /* --http ADDR:PORT: the dashboard (coordinator/dashboard.h) */
+    dashboard_options web = {0};
+    char web_host[256];
     const arg_spec opts[] = {
         {.name = "listen", .kind = ARG_STRING, .dest = &listen},
+        {.name = "http", .kind = ARG_STRING, .dest = &http},
+        {.name = "http-read-only", .kind = ARG_FLAG, .dest = &web.read_only},
+        {.name = "insecure", .kind = ARG_FLAG, .dest = &web.insecure},
         {.name = "data-dir", .kind = ARG_STRING, .dest = &o.data_dir},
         {.name = "tile-size", .kind = ARG_INT, .dest = &o.tile_size, .lo = 1, .hi = 4096},
         {.name = "max-upload", .kind = ARG_INT, .dest = &upload_mib, .lo = 1, .hi = LIMIT_UPLOAD_MAX_MIB},
@@ -546,6 +554,9 @@ static int cmd_coordinator(int argc, char **argv) {
         args_usage_error("tessera-coordinator", "--worker-timeout must be longer than --heartbeat");
     if (o.farm.drop_s < 6 * o.farm.timeout_s) o.farm.drop_s = 6 * o.farm.timeout_s;
     if (o.tile_size > o.farm.max_tile_side) o.farm.max_tile_side = o.tile_size;
+    if (http && dashboard_parse_address(http, &web, web_host, sizeof web_host, err, sizeof err))
+        args_usage_error("tessera-coordinator", "--http %s", err);
+    if (http) o.http = &web;
     return service_run(&o);
 }
 
