@@ -78,14 +78,14 @@ static int rp_on_headers_complete(http_parser *p) {
     size_t plen = q ? (size_t)(q - r->url) : r->url_len;
     if (plen >= sizeof r->rq.path || (q && strlen(q + 1) >= sizeof r->rq.query)) {
         r->error = 414;
-        return 1;
+        return -1; /* not 1: that means "no body" to http_parser */
     }
     memcpy(r->rq.path, r->url, plen);
     r->rq.path[plen] = '\0';
     snprintf(r->rq.query, sizeof r->rq.query, "%s", q ? q + 1 : "");
     if (p->content_length != ULLONG_MAX && p->content_length > r->max_request) {
         r->error = 413;
-        return 1;
+        return -1; /* not 1: that means "no body" to http_parser */
     }
     return 0;
 }
