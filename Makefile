@@ -228,3 +228,12 @@ slurm-test: $(TESSERA) $(WORKER)
 SLURM_BENCH_ROUNDS ?= 3
 slurm-bench: $(TESSERA) $(WORKER)
 	tests/slurm/run.sh $(BUILD)/bin --bench-layout $(SLURM_BENCH_ROUNDS)
+
+# ---- web dashboard (issue 16; coordinator/http.c, dashboard.c) ----
+# libhttp-parser parses the requests (DEB_PACKAGES: libhttp-parser-dev,
+# LDLIBS: -lhttp_parser). The fuzz target drives the request parser, which
+# lives with the coordinator, not in common/.
+FUZZ_TARGETS += http
+fuzz: $(FUZZ_BUILD)/fuzz_http
+$(FUZZ_BUILD)/fuzz_http: tests/fuzz/fuzz_http.c $(FUZZ_BUILD)/coordinator/http.o $(FUZZ_COMMON_OBJ)
+	clang $(FUZZ_CFLAGS) -fsanitize=fuzzer -o $@ $^ $(LDLIBS)

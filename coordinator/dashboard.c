@@ -121,30 +121,12 @@ static int token_ok(const dashboard *d, const char *token, size_t len) {
     return sodium_memcmp(key, d->auth.key, sizeof key) == 0;
 }
 
-/* The value of cookie name in a Cookie header into out; 0 or -1. */
-static int cookie_get(const char *header, const char *name, char *out, size_t n) {
-    size_t nl = strlen(name);
-    for (const char *p = header; *p;) {
-        while (*p == ' ' || *p == ';') p++;
-        if (strncmp(p, name, nl) == 0 && p[nl] == '=') {
-            p += nl + 1;
-            size_t len = strcspn(p, ";");
-            if (len >= n) return -1;
-            memcpy(out, p, len);
-            out[len] = '\0';
-            return 0;
-        }
-        p += strcspn(p, ";");
-    }
-    return -1;
-}
-
 static int request_authorised(const dashboard *d, const http_request *rq) {
     if (!d->auth.enabled) return 1;
     if (strncasecmp(rq->authorization, "Bearer ", 7) == 0)
         return token_ok(d, rq->authorization + 7, strlen(rq->authorization + 7));
     char sid[AUTH_HEX];
-    if (cookie_get(rq->cookie, "tessera_session", sid, sizeof sid) || strlen(sid) != AUTH_HEX - 1) return 0;
+    if (http_cookie_get(rq->cookie, "tessera_session", sid, sizeof sid) || strlen(sid) != AUTH_HEX - 1) return 0;
     for (int i = 0; i < DASH_SESSIONS; i++)
         if (d->sessions[i][0] && sodium_memcmp(d->sessions[i], sid, AUTH_HEX - 1) == 0) return 1;
     return 0;
@@ -172,34 +154,6 @@ static int host_ok(const dashboard *d, const http_request *rq) {
         if (c) *c = '\0';
     }
     return h[0] == '\0' || host_is_loopback(h);
-}
-
-/* The value of form field name in an application/x-www-form-urlencoded
- * body, decoded; 0 or -1. */
-static int form_get(const char *body, const char *name, char *out, size_t n) {
-    size_t nl = strlen(name);
-    for (const char *p = body; *p;) {
-        size_t len = strcspn(p, "&");
-        if (strncmp(p, name, nl) == 0 && p[nl] == '=') {
-            size_t o = 0;
-            for (size_t i = nl + 1; i < len && o + 1 < n; i++) {
-                char c = p[i];
-                if (c == '+') c = ' ';
-                else if (c == '%' && i + 2 < len + 1 && isxdigit((unsigned char)p[i + 1]) &&
-                         isxdigit((unsigned char)p[i + 2])) {
-                    char hex[3] = {p[i + 1], p[i + 2], 0};
-                    c = (char)strtol(hex, NULL, 16);
-                    i += 2;
-                }
-                out[o++] = c;
-            }
-            out[o] = '\0';
-            return 0;
-        }
-        p += len;
-        if (*p) p++;
-    }
-    return -1;
 }
 
 /* ---- answers ----------------------------------------------------------------- */
@@ -368,7 +322,7 @@ static void route_login(dashboard *d, http_conn *c, const http_request *rq) {
         return;
     }
     char token[1024];
-    if (!origin_ok(rq) || form_get(rq->body, "token", token, sizeof token) || !d->auth.enabled ||
+    if (!origin_ok(rq) || http_form_get(rq->body, "token", token, sizeof token) || !d->auth.enabled ||
         !token_ok(d, token, strlen(token))) {
         sodium_memzero(token, sizeof token);
         http_respond(c, 303, "text/plain", "", 0, "Location: /login?failed=1\r\n");

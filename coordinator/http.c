@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <ctype.h>
 #include <strings.h>
 
 #include "list.h"
@@ -154,6 +155,54 @@ int http_reqparser_feed(http_reqparser *r, const char *data, size_t len) {
 void http_reqparser_free(http_reqparser *r) {
     free(r->body);
     r->body = NULL;
+}
+
+/* ---- request fields ---------------------------------------------------------- */
+
+/* The value of cookie name in a Cookie header into out; 0 or -1. */
+int http_cookie_get(const char *header, const char *name, char *out, size_t n) {
+    size_t nl = strlen(name);
+    for (const char *p = header; *p;) {
+        while (*p == ' ' || *p == ';') p++;
+        if (strncmp(p, name, nl) == 0 && p[nl] == '=') {
+            p += nl + 1;
+            size_t len = strcspn(p, ";");
+            if (len >= n) return -1;
+            memcpy(out, p, len);
+            out[len] = '\0';
+            return 0;
+        }
+        p += strcspn(p, ";");
+    }
+    return -1;
+}
+
+/* The value of form field name in an application/x-www-form-urlencoded
+ * body, decoded; 0 or -1. */
+int http_form_get(const char *body, const char *name, char *out, size_t n) {
+    size_t nl = strlen(name);
+    for (const char *p = body; *p;) {
+        size_t len = strcspn(p, "&");
+        if (strncmp(p, name, nl) == 0 && p[nl] == '=') {
+            size_t o = 0;
+            for (size_t i = nl + 1; i < len && o + 1 < n; i++) {
+                char c = p[i];
+                if (c == '+') c = ' ';
+                else if (c == '%' && i + 2 < len && isxdigit((unsigned char)p[i + 1]) &&
+                         isxdigit((unsigned char)p[i + 2])) {
+                    char hex[3] = {p[i + 1], p[i + 2], 0};
+                    c = (char)strtol(hex, NULL, 16);
+                    i += 2;
+                }
+                out[o++] = c;
+            }
+            out[o] = '\0';
+            return 0;
+        }
+        p += len;
+        if (*p) p++;
+    }
+    return -1;
 }
 
 /* ---- connections ---------------------------------------------------------- */

@@ -64,6 +64,14 @@ int http_reqparser_feed(http_reqparser *r, const char *data, size_t len);
 /* Free the body buffer. Can't fail. */
 void http_reqparser_free(http_reqparser *r);
 
+/* The value of cookie name in a Cookie header into out (NUL-terminated).
+ * Returns 0, or -1 when absent or longer than n - 1. */
+int http_cookie_get(const char *header, const char *name, char *out, size_t n);
+
+/* The value of field name in an application/x-www-form-urlencoded body,
+ * %-decoded and truncated to n - 1 bytes. Returns 0, or -1 when absent. */
+int http_form_get(const char *body, const char *name, char *out, size_t n);
+
 typedef struct http_server http_server;
 typedef struct http_conn http_conn;
 
