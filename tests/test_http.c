@@ -272,13 +272,19 @@ TEST(http_dashboard_endpoints_events_limits) {
     CHECK(strstr(m, "tessera_jobs{state=\"done\"} 1\n") && strstr(m, "tessera_tile_seconds_bucket{le=\"+Inf\"} 16\n"),
           "jobs by state or histogram missing");
     /* the Prometheus project's own parser, when python has it */
-    if (system("python3 -c 'import prometheus_client' 2>/dev/null") == 0) {
+    /* (Debian's python3-prometheus-client is under /usr/bin/python3, which
+     * a pyenv python3 earlier in PATH does not see) */
+    const char *py = system("python3 -c 'import prometheus_client' 2>/dev/null") == 0 ? "python3"
+                     : system("/usr/bin/python3 -c 'import prometheus_client' 2>/dev/null") == 0 ? "/usr/bin/python3"
+                                                                                                 : NULL;
+    if (py) {
         char path[300], cmd[1024], pout[4096];
         snprintf(path, sizeof path, "%s", util_temp_path("metrics.txt"));
         FILE *f = fopen(path, "w");
         if (f) fputs(m, f), fclose(f);
-        snprintf(cmd, sizeof cmd, "python3 tests/prom_parse.py %s", path);
+        snprintf(cmd, sizeof cmd, "%s tests/prom_parse.py %s", py, path);
         CHECK(util_run(cmd, pout, sizeof pout) == 0, "prometheus_client could not parse /metrics: %s", pout);
+        printf("    prometheus_client: %.100s", pout);
     } else {
         printf("    (python3 prometheus_client not installed: the built-in line check only)\n");
     }
