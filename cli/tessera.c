@@ -39,6 +39,9 @@ typedef struct {
     int aov_samples; /* --aov samples: also write the per-pixel sample counts */
     const char *listen, *token_file;
     char listen_host[256];
+    const char *http; /* --http ADDR:PORT: watch the render in a browser (coordinator/dashboard.h) */
+    dashboard_options web;
+    char web_host[256];
     farm_options farm;
     codec_exr_options exr;
     render_options ro;
@@ -65,6 +68,8 @@ static void usage_render(FILE *f) {
             "      --threads N        threads per local worker (default 1), or render threads\n"
             "                         with --workers 0 (default: all cores)\n"
             "      --listen HOST:PORT also accept remote workers (tessera-worker --connect)\n"
+            "      --http ADDR:PORT   watch the render in a browser while it runs (loopback unless\n"
+            "                         --token-file or --insecure)\n"
             "                         here; port 0 picks a free one (printed on stderr)\n"
             "      --heartbeat S      farm heartbeat interval in seconds (default 1)\n"
             "      --worker-timeout S a silent worker's tiles go to others after S s (default 5)\n"
@@ -163,6 +168,9 @@ static void render_args_check(render_args *a) {
             args_usage_error("tessera render", "--listen %s", err);
         a->farm.host = a->listen_host;
     }
+    char herr[300];
+    if (a->http && dashboard_parse_address(a->http, &a->web, a->web_host, sizeof a->web_host, herr, sizeof herr))
+        args_usage_error("tessera render", "--http %s", herr);
     if (a->workers < 0) a->workers = a->listen ? 0 : (int)sysconf(_SC_NPROCESSORS_ONLN);
     char terr[300];
     if (a->token_file && auth_key_load(a->token_file, &a->farm.auth, terr, sizeof terr))
@@ -191,6 +199,8 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         {.name = "threads", .kind = ARG_INT, .dest = &a->threads, .lo = 1, .hi = 1024, .given = &a->threads_given},
         {.name = "workers", .kind = ARG_INT, .dest = &a->workers, .lo = 0, .hi = 4096},
         {.name = "listen", .kind = ARG_STRING, .dest = &a->listen},
+        {.name = "http", .kind = ARG_STRING, .dest = &a->http},
+        {.name = "insecure", .kind = ARG_FLAG, .dest = &a->web.insecure},
         {.name = "token-file", .kind = ARG_STRING, .dest = &a->token_file},
         {.name = "heartbeat", .kind = ARG_DOUBLE, .dest = &a->farm.heartbeat_s, .lo = 0.01, .hi = 3600},
         {.name = "worker-timeout", .kind = ARG_DOUBLE, .dest = &a->farm.timeout_s, .lo = 0.05, .hi = 86400},
@@ -305,6 +315,7 @@ static int render_on_farm(render_args *a, const scene *s, const scene_bundle *b,
                              .noise_threshold = a->ro.noise_threshold, .min_spp = a->ro.min_spp,
                              .samples = a->ro.samples};
     lo.farm.verbose = a->verbose;
+    if (a->http) lo.http = &a->web;
     local_farm_report rep;
     char err[700];
     int rc = local_farm_render(&lo, &job, bytes, len, img->rgb, &rep, err, sizeof err);

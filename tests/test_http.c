@@ -430,3 +430,30 @@ TEST(http_dashboard_chromium_job_page) {
     free(px);
     web_stop(&w);
 }
+
+/* `tessera render --http`: the local farm's render is served while it runs. */
+TEST(http_dashboard_render_listen) {
+    int port = util_free_port();
+    char http[64], log[300], path[4096], outimg[300];
+    snprintf(http, sizeof http, "127.0.0.1:%d", port);
+    snprintf(log, sizeof log, "%s", util_temp_path("render-http.log"));
+    snprintf(outimg, sizeof outimg, "%s", util_temp_path("render-http.pfm"));
+    snprintf(path, sizeof path, "%s", harness_tessera());
+    const char *argv[] = {path, "render", "scenes/cornell-box.json", "--width", "128", "--height", "128", "--spp",
+                          "64", "--tile-size", "16", "--workers", "1", "--http", http, "-o", outimg, NULL};
+    pid_t pid = util_spawn(argv, log);
+    CHECK(util_wait_for_text(log, "watch the render at http://127.0.0.1:", LONG) == 0, "no dashboard line in %s", log);
+    static char out[1 << 18];
+    int jobs = 0, png = 0, workers = 0;
+    for (int i = 0; i < 200 && !(jobs && png && workers); i++) {
+        jobs = jobs || (web_get(port, "/api/jobs", "", out, sizeof out) == 200 && strstr(out, "\"state\":\"running\""));
+        png = png || (web_get(port, "/api/jobs/1/preview.png", "", out, sizeof out) == 200 &&
+                      memcmp(web_body(out), "\x89PNG", 4) == 0);
+        workers = workers || (web_get(port, "/metrics", "", out, sizeof out) == 200 &&
+                              metric(web_body(out), "tessera_workers") == 1);
+        util_sleep(0.05);
+    }
+    CHECK(jobs && png && workers, "render --http: jobs %d, preview %d, workers %d", jobs, png, workers);
+    CHECK(util_wait(pid, LONG, NULL) == 0, "render --http failed; log %s", log);
+    CHECK(web_get(port, "/healthz", "", out, sizeof out) == 0, "the dashboard outlived the render");
+}
