@@ -352,6 +352,8 @@ int http_stream_start(http_conn *c) {
     c->answered |= 1;
     c->streaming = 1;
     uv_timer_stop(&c->idle);
+    int sndbuf = 64 << 10; /* the kernel's share of a lagging stream stays small too */
+    uv_send_buffer_size((uv_handle_t *)&c->tcp, &sndbuf);
     static const char head[] = "HTTP/1.1 200 OK\r\nContent-Type: text/event-stream\r\nCache-Control: no-store\r\n"
                                "X-Content-Type-Options: nosniff\r\nConnection: keep-alive\r\n\r\n: tessera\n\n";
     return conn_write(c, head, sizeof head - 1);
@@ -439,7 +441,7 @@ http_server *http_server_new(uv_loop_t *loop, const http_options *o, http_handle
     if (!s->o.max_headers) s->o.max_headers = 64;
     if (!s->o.max_conns) s->o.max_conns = 512;
     if (!(s->o.idle_s > 0)) s->o.idle_s = 10;
-    if (!s->o.max_queue) s->o.max_queue = 1 << 20;
+    if (!s->o.max_queue) s->o.max_queue = 256 << 10;
     s->handler = h;
     s->ctx = ctx;
     LIST_INIT(&s->all);

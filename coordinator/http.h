@@ -86,7 +86,7 @@ typedef struct {
     int max_headers;    /* default 64 */
     int max_conns;      /* default 512 */
     double idle_s;      /* default 10 s */
-    size_t max_queue;   /* default 1 MiB */
+    size_t max_queue;   /* default 256 KiB (an event stream's socket buffer: 64 KiB) */
 } http_options;
 
 /* Listen on o->host:o->port. Returns the server, or NULL with the reason in

@@ -457,3 +457,34 @@ TEST(http_dashboard_render_listen) {
     CHECK(util_wait(pid, LONG, NULL) == 0, "render --http failed; log %s", log);
     CHECK(web_get(port, "/healthz", "", out, sizeof out) == 0, "the dashboard outlived the render");
 }
+
+/* An event stream that reads nothing is dropped once it falls behind (the
+ * coordinator keeps at most 256 KiB for it), and the render finishes. */
+TEST(http_dashboard_stalled_stream_dropped) {
+    web w;
+    if (web_start(&w, "http-stall", 1, NULL)) {
+        CHECK(0, "coordinator did not start; log %s", w.log);
+        return;
+    }
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    int small = 4096;
+    setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
+    struct sockaddr_in a = {.sin_family = AF_INET, .sin_port = htons((uint16_t)w.http)};
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    char req[128];
+    int n = snprintf(req, sizeof req, "GET /api/events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+    CHECK(connect(fd, (struct sockaddr *)&a, sizeof a) == 0 && send(fd, req, (size_t)n, 0) == n, "stream");
+    char sub[4096];
+    /* 4096 tiles: two events each, about 1.1 MB of events */
+    int st = submit(&w, "scenes/cornell-box.json --width 256 --height 256 --spp 1 --tile-size 4 --wait", sub,
+                    sizeof sub);
+    CHECK(st == 0, "render beside a stalled stream failed (%d): %s", st, sub);
+    static char out[1 << 16];
+    web_get(w.http, "/metrics", "", out, sizeof out);
+    CHECK(metric(web_body(out), "tessera_http_streams_dropped_total") == 1 &&
+              metric(web_body(out), "tessera_tiles_rendered_total") == 4096,
+          "dropped %g, tiles %g", metric(web_body(out), "tessera_http_streams_dropped_total"),
+          metric(web_body(out), "tessera_tiles_rendered_total"));
+    close(fd);
+    web_stop(&w);
+}
