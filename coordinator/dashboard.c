@@ -18,6 +18,7 @@
 #define DASH_SESSIONS 64
 #define DASH_MAX_REQUEST (64 << 10)
 #define DASH_MAX_HEADERS 64
+#define DASH_FLUSH_MS 100 /* events are batched: one write per stream per tick, not per tile */
 
 /* Tile latency histogram bounds, seconds (Prometheus le=). */
 static const double latency_bounds[] = {0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 10, 30, 60};
@@ -25,6 +26,31 @@ static const double latency_bounds[] = {0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.
 
 extern const char web_index_html[];
 extern const char web_login_html[];
+
+/* Append printf-formatted text to a growing buffer. */
+typedef struct {
+    char *s;
+    size_t len, cap;
+} strbuf;
+
+static void __attribute__((format(printf, 2, 3))) sb_printf(strbuf *b, const char *fmt, ...) {
+    for (;;) {
+        va_list ap;
+        va_start(ap, fmt);
+        int n = b->s ? vsnprintf(b->s + b->len, b->cap - b->len, fmt, ap) : -2;
+        va_end(ap);
+        if (n >= 0 && (size_t)n < b->cap - b->len) {
+            b->len += (size_t)n;
+            return;
+        }
+        size_t cap = b->cap ? 2 * b->cap : 4096;
+        if (n >= 0 && cap < b->len + (size_t)n + 1) cap = b->len + (size_t)n + 1;
+        char *s = realloc(b->s, cap);
+        if (!s) return;
+        b->s = s;
+        b->cap = cap;
+    }
+}
 
 struct dashboard {
     uv_loop_t *loop;
@@ -40,6 +66,9 @@ struct dashboard {
     uint64_t latency_counts[LATENCY_BUCKETS + 1];
     double latency_sum;
     uint64_t requests;
+    strbuf pending;    /* event lines not yet sent to the streams */
+    uv_timer_t flush;  /* sends them every DASH_FLUSH_MS */
+    int open_parts;    /* the http server and the timer, until closed */
     void (*closed_cb)(void *);
     void *closed_ctx;
 };
@@ -99,14 +128,15 @@ static void on_farm_event(void *ctx, const farm_event *e) {
     char *json = cJSON_PrintUnformatted(m);
     cJSON_Delete(m);
     if (!json) return;
-    size_t n = strlen(json) + 16;
-    char *line = malloc(n);
-    if (line) {
-        int len = snprintf(line, n, "data: %s\n\n", json);
-        http_server_broadcast(d->http, line, (size_t)len);
-    }
-    free(line);
+    if (d->pending.len < (4u << 20)) sb_printf(&d->pending, "data: %s\n\n", json); /* else: nobody is flushing */
     free(json);
+}
+
+static void on_flush(uv_timer_t *t) {
+    dashboard *d = t->data;
+    if (!d->pending.len) return;
+    http_server_broadcast(d->http, d->pending.s, d->pending.len);
+    d->pending.len = 0;
 }
 
 /* ---- authentication ---------------------------------------------------------- */
@@ -198,31 +228,6 @@ static cJSON *jobs_array(dashboard *d) {
     cJSON *arr = cJSON_CreateArray();
     if (d->src.jobs) d->src.jobs(d->src.ctx, arr);
     return arr;
-}
-
-/* Append printf-formatted text to a growing buffer. */
-typedef struct {
-    char *s;
-    size_t len, cap;
-} strbuf;
-
-static void __attribute__((format(printf, 2, 3))) sb_printf(strbuf *b, const char *fmt, ...) {
-    for (;;) {
-        va_list ap;
-        va_start(ap, fmt);
-        int n = b->s ? vsnprintf(b->s + b->len, b->cap - b->len, fmt, ap) : -2;
-        va_end(ap);
-        if (n >= 0 && (size_t)n < b->cap - b->len) {
-            b->len += (size_t)n;
-            return;
-        }
-        size_t cap = b->cap ? 2 * b->cap : 4096;
-        if (n >= 0 && cap < b->len + (size_t)n + 1) cap = b->len + (size_t)n + 1;
-        char *s = realloc(b->s, cap);
-        if (!s) return;
-        b->s = s;
-        b->cap = cap;
-    }
 }
 
 static void route_metrics(dashboard *d, http_conn *c) {
@@ -441,24 +446,34 @@ dashboard *dashboard_new(uv_loop_t *loop, farm *f, const dashboard_options *o, c
     }
     d->o.host = NULL; /* the caller's string may go; only loopback-ness is kept */
     d->o.host = host_is_loopback(host) ? "127.0.0.1" : "0.0.0.0";
+    uv_timer_init(loop, &d->flush);
+    d->flush.data = d;
+    uv_timer_start(&d->flush, on_flush, DASH_FLUSH_MS, DASH_FLUSH_MS);
+    d->open_parts = 2;
     farm_set_event_cb(f, on_farm_event, d);
     return d;
 }
 
 int dashboard_port(const dashboard *d) { return http_server_port(d->http); }
 
-static void on_http_closed(void *ctx) {
-    dashboard *d = ctx;
+static void on_part_closed(dashboard *d) {
+    if (--d->open_parts > 0) return;
     void (*cb)(void *) = d->closed_cb;
     void *cctx = d->closed_ctx;
+    free(d->pending.s);
     sodium_memzero(d, sizeof *d);
     free(d);
     if (cb) cb(cctx);
 }
 
+static void on_http_closed(void *ctx) { on_part_closed(ctx); }
+
+static void on_timer_closed(uv_handle_t *h) { on_part_closed(h->data); }
+
 void dashboard_close(dashboard *d, void (*cb)(void *ctx), void *ctx) {
     farm_set_event_cb(d->f, NULL, NULL);
     d->closed_cb = cb;
     d->closed_ctx = ctx;
+    uv_close((uv_handle_t *)&d->flush, on_timer_closed);
     http_server_close(d->http, on_http_closed, d);
 }
