@@ -234,6 +234,9 @@ slurm-bench: $(TESSERA) $(WORKER)
 # LDLIBS: -lhttp_parser). The fuzz target drives the request parser, which
 # lives with the coordinator, not in common/.
 FUZZ_TARGETS += http
+# The browser test (headless Chromium screenshot) and the Prometheus parser
+# check run when these are present and print a skip line otherwise.
+DEB_PACKAGES += chromium python3-prometheus-client
 fuzz: $(FUZZ_BUILD)/fuzz_http
 $(FUZZ_BUILD)/fuzz_http: tests/fuzz/fuzz_http.c $(FUZZ_BUILD)/coordinator/http.o $(FUZZ_COMMON_OBJ)
 	clang $(FUZZ_CFLAGS) -fsanitize=fuzzer -o $@ $^ $(LDLIBS)
