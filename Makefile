@@ -15,8 +15,7 @@
 
 # Debian packages the build needs; `make deps` installs what is missing.
 DEB_PACKAGES := gcc make pkg-config libcjson-dev libuv1-dev libjpeg-dev libopenexr-dev libpng-dev libsodium-dev \
-                openexr openimageio-tools clang libclang-rt-14-dev gnuplot-nox \
-                libhttp-parser-dev
+                openexr openimageio-tools clang libclang-rt-14-dev gnuplot-nox
 
 SHELL := /bin/bash
 CC ?= cc
@@ -38,7 +37,7 @@ else
   LDFLAGS_V :=
 endif
 CFLAGS := $(CFLAGS_COMMON) $(CFLAGS_OPT) -I$(BUILD)
-LDLIBS := -lcjson -lpng16 -ljpeg -lOpenEXRCore-3_1 -lsodium -luv -lhttp_parser -lpthread -lm
+LDLIBS := -lcjson -lpng16 -ljpeg -lOpenEXRCore-3_1 -lsodium -luv -lpthread -lm
 LDFLAGS := $(LDFLAGS_V)
 
 .DEFAULT_GOAL := all
@@ -233,6 +232,8 @@ slurm-bench: $(TESSERA) $(WORKER)
 # libhttp-parser parses the requests (DEB_PACKAGES: libhttp-parser-dev,
 # LDLIBS: -lhttp_parser). The fuzz target drives the request parser, which
 # lives with the coordinator, not in common/.
+DEB_PACKAGES += libhttp-parser-dev
+LDLIBS += -lhttp_parser
 FUZZ_TARGETS += http
 # The browser test (headless Chromium screenshot) and the Prometheus parser
 # check run when these are present and print a skip line otherwise.
