@@ -172,6 +172,8 @@ static void render_args_check(render_args *a) {
     if (a->http && dashboard_parse_address(a->http, &a->web, a->web_host, sizeof a->web_host, herr, sizeof herr))
         args_usage_error("tessera render", "--http %s", herr);
     if (a->workers < 0) a->workers = a->listen ? 0 : (int)sysconf(_SC_NPROCESSORS_ONLN);
+    if (a->http && !a->listen && a->workers == 0)
+        args_usage_error("tessera render", "--http watches a farm render: not with --workers 0 and no --listen");
     char terr[300];
     if (a->token_file && auth_key_load(a->token_file, &a->farm.auth, terr, sizeof terr))
         args_usage_error("tessera render", "--token-file %s", terr);
