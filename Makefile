@@ -280,3 +280,17 @@ docker:
 
 docker-test: docker $(TESSERA) $(WORKER)
 	GIT_ID=$(GIT_ID) tests/docker/run.sh
+
+# ---- web dashboard (issue 16; coordinator/http.c, dashboard.c) ----
+# libhttp-parser parses the requests (DEB_PACKAGES: libhttp-parser-dev,
+# LDLIBS: -lhttp_parser). The fuzz target drives the request parser, which
+# lives with the coordinator, not in common/.
+DEB_PACKAGES += libhttp-parser-dev
+LDLIBS += -lhttp_parser
+FUZZ_TARGETS += http
+# The browser test (headless Chromium screenshot) and the Prometheus parser
+# check run when these are present and print a skip line otherwise.
+DEB_PACKAGES += chromium python3-prometheus-client
+fuzz: $(FUZZ_BUILD)/fuzz_http
+$(FUZZ_BUILD)/fuzz_http: tests/fuzz/fuzz_http.c $(FUZZ_BUILD)/coordinator/http.o $(FUZZ_COMMON_OBJ)
+	clang $(FUZZ_CFLAGS) -fsanitize=fuzzer -o $@ $^ $(LDLIBS)

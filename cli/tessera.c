@@ -50,6 +50,9 @@ typedef struct {
     const char *listen, *token_file;
     const char *camera; /* --camera NAME: a glTF's camera */
     char listen_host[256];
+    const char *http; /* --http ADDR:PORT: watch the render in a browser (coordinator/dashboard.h) */
+    dashboard_options web;
+    char web_host[256];
     farm_options farm;
     codec_exr_options exr;
     render_options ro;
@@ -82,6 +85,8 @@ static void usage_render(FILE *f) {
             "      --threads N        threads per local worker (default 1), or render threads\n"
             "                         with --workers 0 (default: all cores)\n"
             "      --listen HOST:PORT also accept remote workers (tessera-worker --connect)\n"
+            "      --http ADDR:PORT   watch the render in a browser while it runs (loopback unless\n"
+            "                         --token-file or --insecure)\n"
             "                         here; port 0 picks a free one (printed on stderr)\n"
             "      --heartbeat S      farm heartbeat interval in seconds (default 1)\n"
             "      --worker-timeout S a silent worker's tiles go to others after S s (default 5)\n"
@@ -187,7 +192,12 @@ static void render_args_check(render_args *a) {
         a->farm.host = a->listen_host;
     }
     a->workers_defaulted = a->workers < 0 && !a->listen;
+    char herr[300];
+    if (a->http && dashboard_parse_address(a->http, &a->web, a->web_host, sizeof a->web_host, herr, sizeof herr))
+        args_usage_error("tessera render", "--http %s", herr);
     if (a->workers < 0) a->workers = a->listen ? 0 : (int)sysconf(_SC_NPROCESSORS_ONLN);
+    if (a->http && !a->listen && a->workers == 0)
+        args_usage_error("tessera render", "--http watches a farm render: not with --workers 0 and no --listen");
     char terr[300];
     if (a->token_file && auth_key_load(a->token_file, &a->farm.auth, terr, sizeof terr))
         args_usage_error("tessera render", "--token-file %s", terr);
@@ -215,6 +225,8 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         {.name = "threads", .kind = ARG_INT, .dest = &a->threads, .lo = 1, .hi = 1024, .given = &a->threads_given},
         {.name = "workers", .kind = ARG_INT, .dest = &a->workers, .lo = 0, .hi = 4096},
         {.name = "listen", .kind = ARG_STRING, .dest = &a->listen},
+        {.name = "http", .kind = ARG_STRING, .dest = &a->http},
+        {.name = "insecure", .kind = ARG_FLAG, .dest = &a->web.insecure},
         {.name = "token-file", .kind = ARG_STRING, .dest = &a->token_file},
         {.name = "camera", .kind = ARG_STRING, .dest = &a->camera},
         {.name = "heartbeat", .kind = ARG_DOUBLE, .dest = &a->farm.heartbeat_s, .lo = 0.01, .hi = 3600},
@@ -341,6 +353,7 @@ static int render_on_farm(render_args *a, const scene *s, const scene_bundle *b,
                              .noise_threshold = a->ro.noise_threshold, .min_spp = a->ro.min_spp,
                              .samples = a->ro.samples};
     lo.farm.verbose = a->verbose;
+    if (a->http) lo.http = &a->web;
     local_farm_report rep = {0};
     char err[700];
     int rc = local_farm_render(&lo, &job, bytes, len, img->rgb, &rep, err, sizeof err);
@@ -561,6 +574,8 @@ static void usage_coordinator(FILE *f) {
             "      --keep-hours H       delete finished jobs after H hours (default 24)\n"
             "      --token-file F       workers and clients must prove they know this secret\n"
             "      --heartbeat S, --worker-timeout S, --lease S   as for tessera render\n"
+            "      --http ADDR:PORT     serve the web dashboard and /metrics there (loopback unless\n"
+            "                           a token is set or --insecure); --http-read-only: no cancel\n"
             "  -v, --verbose            log every worker event\n");
 }
 
@@ -580,8 +595,14 @@ static int cmd_coordinator(int argc, char **argv) {
     char host[256], err[300];
     int upload_mib = LIMIT_UPLOAD_DEFAULT_MIB, version = 0;
     double keep_hours = 24;
+    const char *http = NULL; /* --http ADDR:PORT: the dashboard (coordinator/dashboard.h) */
+    dashboard_options web = {0};
+    char web_host[256];
     const arg_spec opts[] = {
         {.name = "listen", .kind = ARG_STRING, .dest = &listen},
+        {.name = "http", .kind = ARG_STRING, .dest = &http},
+        {.name = "http-read-only", .kind = ARG_FLAG, .dest = &web.read_only},
+        {.name = "insecure", .kind = ARG_FLAG, .dest = &web.insecure},
         {.name = "data-dir", .kind = ARG_STRING, .dest = &o.data_dir},
         {.name = "tile-size", .kind = ARG_INT, .dest = &o.tile_size, .lo = 1, .hi = 4096},
         {.name = "max-upload", .kind = ARG_INT, .dest = &upload_mib, .lo = 1, .hi = LIMIT_UPLOAD_MAX_MIB},
@@ -609,6 +630,9 @@ static int cmd_coordinator(int argc, char **argv) {
         args_usage_error("tessera-coordinator", "--worker-timeout must be longer than --heartbeat");
     if (o.farm.drop_s < 6 * o.farm.timeout_s) o.farm.drop_s = 6 * o.farm.timeout_s;
     if (o.tile_size > o.farm.max_tile_side) o.farm.max_tile_side = o.tile_size;
+    if (http && dashboard_parse_address(http, &web, web_host, sizeof web_host, err, sizeof err))
+        args_usage_error("tessera-coordinator", "--http %s", err);
+    if (http) o.http = &web;
     return service_run(&o);
 }
 

@@ -83,3 +83,24 @@ void farm_free(farm *f) {
     free(f->departed);
     free(f);
 }
+
+void farm_set_event_cb(farm *f, void (*cb)(void *ctx, const farm_event *e), void *ctx) {
+    f->event_cb = cb;
+    f->event_ctx = ctx;
+}
+
+void farm_get_totals(const farm *f, farm_totals *t) {
+    memset(t, 0, sizeof *t);
+    t->bytes_in = f->closed_bytes_in;
+    t->bytes_out = f->closed_bytes_out;
+    peer *p;
+    LIST_FOREACH(p, &f->peers, link) {
+        t->bytes_in += conn_bytes_in(p->c);
+        t->bytes_out += conn_bytes_out(p->c);
+    }
+    job *j;
+    TAILQ_FOREACH(j, &f->jobs, link) {
+        t->queued += j->q_len;
+        t->running_jobs += !j->finished;
+    }
+}

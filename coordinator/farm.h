@@ -128,6 +128,33 @@ int farm_list_workers(const farm *f, farm_worker_info *out, int max);
 /* The current figures of the job with this id (0 if known). */
 int farm_job_report(const farm *f, uint32_t job, farm_report *r);
 
+/* What happens on the farm, for watchers (the dashboard): a tile handed
+ * out (backup set for a copy), done (seconds since it was handed out,
+ * samples traced), put back in the queue, a worker joining or leaving.
+ * worker is the worker's name, or NULL when not known (a requeue). */
+typedef enum { FARM_EV_ASSIGN, FARM_EV_DONE, FARM_EV_REQUEUE, FARM_EV_JOIN, FARM_EV_LEAVE } farm_event_kind;
+typedef struct {
+    farm_event_kind kind;
+    uint32_t job, tile;
+    tile_rect rect;
+    const char *worker;
+    double seconds;
+    uint64_t samples;
+    int backup;
+} farm_event;
+
+/* Call cb(ctx, event) on the loop thread for every farm_event (one
+ * watcher; NULL stops). cb must not call back into the farm. */
+void farm_set_event_cb(farm *f, void (*cb)(void *ctx, const farm_event *e), void *ctx);
+
+/* Farm-wide figures for /metrics: bytes over every connection so far,
+ * tiles waiting in the queues, jobs not finished. Can't fail. */
+typedef struct {
+    uint64_t bytes_in, bytes_out;
+    int queued, running_jobs;
+} farm_totals;
+void farm_get_totals(const farm *f, farm_totals *t);
+
 /* Add to welcome the coordinator's proof for the nonce the peer sent in
  * hello (when a token is configured and the peer asked). Can't fail. */
 void farm_add_proof(const farm *f, const cJSON *hello, cJSON *welcome);

@@ -79,6 +79,7 @@ struct job {
     double tile_seconds; /* sum of assign-to-result times, for the mean */
     int reported;        /* tiles_done at the last progress callback */
     int finished;
+    farm *owner;           /* for farm_emit */
     TAILQ_ENTRY(job) link; /* on the farm's jobs, by priority then age */
 };
 
@@ -126,9 +127,20 @@ struct farm {
     int closing, open_handles;
     void (*closed_cb)(void *);
     void *closed_ctx;
+    void (*event_cb)(void *ctx, const farm_event *e); /* farm_set_event_cb */
+    void *event_ctx;
 };
 
 static inline double farm_now(const farm *f) { return (double)uv_now(f->loop) / 1e3; }
+
+/* Tell the watcher, if any (farm_set_event_cb). */
+static inline void farm_emit(const farm *f, farm_event_kind kind, const job *j, uint32_t tile, const char *worker,
+                             double seconds, uint64_t samples, int backup) {
+    if (!f->event_cb) return;
+    farm_event e = {kind, j ? j->desc.id : 0, tile, {0}, worker, seconds, samples, backup};
+    if (j && (int)tile < j->tile_count) e.rect = j->rects[tile];
+    f->event_cb(f->event_ctx, &e);
+}
 
 /* ---- shared between the farm's files ---------------------------------------- */
 

@@ -128,6 +128,7 @@ static int on_hello(peer *p, const cJSON *m) {
     farm_add_proof(f, m, w);
     peer_send_json(p, w);
     if (f->opt.verbose) farm_log(f, "%s joined with %d threads", p->label, p->rec.threads);
+    farm_emit(f, FARM_EV_JOIN, NULL, 0, p->rec.name, 0, 0, 0);
     return 0;
 }
 
@@ -249,6 +250,7 @@ static void on_conn_close(conn *c, const char *reason) {
         farm_log(f, "%s left: %s (%llu tiles done%s)", p->label, reason, (unsigned long long)p->rec.tiles,
                  requeued ? ", its unfinished tiles go back to the queue" : "");
     peer_record_departure(f, p, reason);
+    if (p->state != PEER_HELLO) farm_emit(f, FARM_EV_LEAVE, NULL, 0, p->rec.name, 0, 0, 0);
     peer_unlink(f, p);
     free(p->scenes);
     free(p->jobs);

@@ -34,6 +34,7 @@ void farm_lease_release(lease *l) {
     if (!j->done[l->tile] && j->holders[l->tile] == 0) {
         job_enqueue(j, l->tile);
         j->rep.requeued++;
+        if (!j->finished) farm_emit(j->owner, FARM_EV_REQUEUE, j, l->tile, NULL, 0, 0, 0);
     }
 }
 
@@ -178,6 +179,7 @@ static int peer_assign(peer *p, job *j, uint32_t t, int backup) {
     peer_tell_job(p, j);
     peer_send_json(p, proto_assign_json(&a));
     free(a.mask);
+    farm_emit(p->f, FARM_EV_ASSIGN, j, t, p->rec.name, 0, 0, backup);
     return 0;
 }
 
@@ -205,6 +207,7 @@ void farm_schedule_all(farm *f) {
 int farm_submit(farm *f, const proto_job *desc, const uint8_t *bundle, size_t bundle_len,
                 const farm_job_options *o, float *rgb, farm_job_cb cb, void *ctx) {
     job *j = calloc(1, sizeof *j);
+    if (j) j->owner = f;
     if (!j) return -1;
     j->desc = *desc;
     j->tile_size = o->tile_size;

@@ -78,6 +78,7 @@ int farm_on_tile(peer *p, const uint8_t *body, size_t len) {
     trace_stats_add(&j->rep.stats, &h.stats);
     p->rec.tiles++;
     p->rec.samples += h.stats.samples;
+    farm_emit(f, FARM_EV_DONE, j, h.tile, p->rec.name, took, h.stats.samples, 0);
     if (j->holders[h.tile]) job_cancel_copies(f, j, h.tile, p);
     if (j->rep.tiles_done == j->tile_count) farm_job_finish(f, j);
     return 0;

@@ -17,6 +17,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/resource.h>
+#include <time.h>
 #include <unistd.h>
 #include <uv.h>
 
@@ -63,6 +64,8 @@ struct local_run {
     trace_stats round_stats; /* of the rounds before the current one */
     int round_tiles;
     uv_timer_t round_timer;
+    dashboard *web;   /* o->http: the render seen in a browser */
+    double wall_start; /* epoch seconds, for the dashboard */
 };
 
 static double mono_now(const local_run *r) { return (double)uv_hrtime() / 1e9 - r->start; }
@@ -192,6 +195,8 @@ static void term_walk(uv_handle_t *h, void *arg) {
 static void render_stop(local_run *r) {
     if (r->finished) return;
     r->finished = 1;
+    if (r->web) dashboard_close(r->web, NULL, NULL);
+    r->web = NULL;
     farm_close(r->f, on_farm_closed, r);
     uv_close((uv_handle_t *)&r->sigint, NULL);
     uv_close((uv_handle_t *)&r->sigterm, NULL);
@@ -366,6 +371,40 @@ static void run_free(local_run *r) {
     free(r);
 }
 
+/* ---- the dashboard's view of this render (dashboard_source) ---- */
+
+static void web_jobs(void *ctx, cJSON *arr) {
+    local_run *r = ctx;
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts);
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddNumberToObject(o, "id", r->job->id);
+    cJSON_AddStringToObject(o, "name", "tessera render");
+    cJSON_AddStringToObject(o, "state", r->failed ? "failed" : r->finished ? "done" : "running");
+    cJSON_AddNumberToObject(o, "tiles_done", r->last.tiles_done);
+    cJSON_AddNumberToObject(o, "tiles_total", r->last.tiles_total);
+    cJSON_AddNumberToObject(o, "samples", (double)r->last.stats.samples);
+    cJSON_AddNumberToObject(o, "priority", 0);
+    cJSON_AddNumberToObject(o, "width", r->job->width);
+    cJSON_AddNumberToObject(o, "height", r->job->height);
+    cJSON_AddNumberToObject(o, "spp", r->job->spp);
+    cJSON_AddNumberToObject(o, "submitted", r->wall_start);
+    cJSON_AddNumberToObject(o, "started", r->wall_start);
+    cJSON_AddNumberToObject(o, "finished", 0);
+    cJSON_AddNumberToObject(o, "now", (double)ts.tv_sec + ts.tv_nsec / 1e9);
+    cJSON_AddItemToArray(arr, o);
+}
+
+static int web_frame(void *ctx, uint32_t id, float **rgb, int *w, int *h, int *owned) {
+    local_run *r = ctx;
+    if (id != r->job->id || r->ad) return -1; /* adaptive rounds fill rgb only at the end */
+    *rgb = r->rgb;
+    *w = r->job->width;
+    *h = r->job->height;
+    *owned = 0;
+    return 0;
+}
+
 int local_farm_render(const local_farm_options *o, const proto_job *job, const uint8_t *bundle, size_t bundle_len,
                       float *rgb, local_farm_report *rep, char *err, size_t err_len) {
     local_run *r = calloc(1, sizeof *r);
@@ -388,6 +427,25 @@ int local_farm_render(const local_farm_options *o, const proto_job *job, const u
         return -1;
     }
     set_connect_address(r);
+    if (o->http) {
+        dashboard_options wo = *o->http;
+        wo.auth = &o->farm.auth;
+        dashboard_source src = {web_jobs, web_frame, NULL, r};
+        struct timespec ts;
+        clock_gettime(CLOCK_REALTIME, &ts);
+        r->wall_start = (double)ts.tv_sec + ts.tv_nsec / 1e9;
+        if (!(r->web = dashboard_new(&r->loop, r->f, &wo, &src, err, err_len))) {
+            farm_close(r->f, on_farm_closed, r);
+            uv_run(&r->loop, UV_RUN_DEFAULT);
+            farm_free(r->f);
+            uv_loop_close(&r->loop);
+            run_free(r);
+            return -1;
+        }
+        fprintf(stderr, "tessera: watch the render at http://%s:%d/job/%u\n", wo.host ? wo.host : "127.0.0.1",
+                dashboard_port(r->web), r->job->id);
+        fflush(stderr);
+    }
     if (o->listening) {
         fprintf(stderr, "tessera: coordinator listening on %s:%d\n", o->farm.host, farm_port(r->f));
         fflush(stderr);

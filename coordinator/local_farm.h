@@ -11,6 +11,7 @@
 #include "job/job.h"
 #include "net/protocol.h"
 #include "farm.h"
+#include "dashboard.h"
 
 typedef struct {
     int workers;            /* local worker processes to spawn (may be 0 with a listen address) */
@@ -28,6 +29,7 @@ typedef struct {
     double noise_threshold; /* > 0: adaptive sampling in rounds (adaptive.h) */
     int min_spp;            /* adaptive: samples every pixel takes first */
     float *samples;         /* adaptive: per-pixel sample counts out, or NULL */
+    const dashboard_options *http; /* serve the dashboard while rendering (dashboard.h), or NULL */
 } local_farm_options;
 
 typedef struct {

@@ -369,6 +369,7 @@ static void on_signal(uv_signal_t *h, int signum) {
     if (s->stopping) return;
     s->stopping = 1;
     svc_log("%s: stopping; running jobs resume at the next start", signum == SIGINT ? "SIGINT" : "SIGTERM");
+    service_web_stop(s);
     farm_close(s->f, on_farm_closed, s);
 }
 
@@ -413,6 +414,15 @@ int service_run(const service_options *o) {
         return 1;
     }
     svc_log("listening on %s:%d, data in %s", o->farm.host, farm_port(s->f), o->data_dir);
+    if (service_web_start(s, err, sizeof err)) {
+        fprintf(stderr, "tessera-coordinator: %s\n", err);
+        farm_close(s->f, NULL, NULL);
+        uv_run(&s->loop, UV_RUN_DEFAULT);
+        farm_free(s->f);
+        uv_loop_close(&s->loop);
+        free(s);
+        return 1;
+    }
     store_load_jobs(s);
     uv_signal_init(&s->loop, &s->sigint);
     uv_signal_init(&s->loop, &s->sigterm);

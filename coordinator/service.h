@@ -8,6 +8,7 @@
 #include <stddef.h>
 
 #include "farm.h"
+#include "dashboard.h"
 
 typedef struct {
     farm_options farm;    /* where to listen, timeouts */
@@ -16,6 +17,7 @@ typedef struct {
     size_t max_upload;    /* largest scene bundle a client may send */
     int max_jobs;         /* queued and running jobs at once */
     double keep_s;        /* finished jobs are deleted after this long */
+    const dashboard_options *http; /* --http: serve the dashboard (dashboard.h), or NULL */
 } service_options;
 
 /* Run the service until SIGINT or SIGTERM. Returns the exit status: 0

@@ -78,6 +78,7 @@ typedef struct service {
     TAILQ_HEAD(sjob_list, sjob) jobs;
     uint32_t next_id;
     int stopping;
+    struct dashboard *web; /* --http, or NULL (service_web.c) */
 } service;
 
 /* A connected client (submit, status, ...). */
@@ -122,6 +123,13 @@ void store_load_jobs(service *s);
 
 /* A log line (log.h) from the service. */
 void svc_log(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+
+/* Start the dashboard when --http was given (service_web.c). Returns 0,
+ * or -1 with the reason in err. */
+int service_web_start(service *s, char *err, size_t err_len);
+
+/* Stop it (when started). Can't fail. */
+void service_web_stop(service *s);
 
 /* Wall-clock seconds since the epoch. */
 double svc_wall_now(void);

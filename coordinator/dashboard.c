@@ -1,0 +1,479 @@
+/* dashboard.c - routes, JSON, events, preview and metrics of the web
+ * dashboard (see dashboard.h; the HTTP side is http.c, the pages
+ * web_assets.c). */
+#include "dashboard.h"
+
+#include <ctype.h>
+#include <sodium.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+#include "http.h"
+#include "image/image_codecs.h"
+#include "net/address.h"
+
+#define DASH_SESSIONS 64
+#define DASH_MAX_REQUEST (64 << 10)
+#define DASH_MAX_HEADERS 64
+#define DASH_FLUSH_MS 100 /* events are batched: one write per stream per tick, not per tile */
+
+/* Tile latency histogram bounds, seconds (Prometheus le=). */
+static const double latency_bounds[] = {0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 10, 30, 60};
+#define LATENCY_BUCKETS (sizeof latency_bounds / sizeof latency_bounds[0])
+
+extern const char web_index_html[];
+extern const char web_login_html[];
+
+/* Append printf-formatted text to a growing buffer. */
+typedef struct {
+    char *s;
+    size_t len, cap;
+} strbuf;
+
+static void __attribute__((format(printf, 2, 3))) sb_printf(strbuf *b, const char *fmt, ...) {
+    for (;;) {
+        va_list ap;
+        va_start(ap, fmt);
+        int n = b->s ? vsnprintf(b->s + b->len, b->cap - b->len, fmt, ap) : -2;
+        va_end(ap);
+        if (n >= 0 && (size_t)n < b->cap - b->len) {
+            b->len += (size_t)n;
+            return;
+        }
+        size_t cap = b->cap ? 2 * b->cap : 4096;
+        if (n >= 0 && cap < b->len + (size_t)n + 1) cap = b->len + (size_t)n + 1;
+        char *s = realloc(b->s, cap);
+        if (!s) return;
+        b->s = s;
+        b->cap = cap;
+    }
+}
+
+struct dashboard {
+    uv_loop_t *loop;
+    farm *f;
+    http_server *http;
+    dashboard_options o;
+    auth_key auth;
+    dashboard_source src;
+    char csrf[AUTH_HEX];
+    char sessions[DASH_SESSIONS][AUTH_HEX];
+    int next_session;
+    uint64_t tiles_done, tiles_assigned, tiles_requeued, samples, joins, leaves;
+    uint64_t latency_counts[LATENCY_BUCKETS + 1];
+    double latency_sum;
+    uint64_t requests;
+    strbuf pending;    /* event lines not yet sent to the streams */
+    uv_timer_t flush;  /* sends them every DASH_FLUSH_MS */
+    int open_parts;    /* the http server and the timer, until closed */
+    void (*closed_cb)(void *);
+    void *closed_ctx;
+};
+
+int dashboard_parse_request(const char *data, size_t len) {
+    http_reqparser r;
+    http_reqparser_init(&r, DASH_MAX_REQUEST, DASH_MAX_HEADERS);
+    int rc = http_reqparser_feed(&r, data, len);
+    http_reqparser_free(&r);
+    return rc;
+}
+
+int dashboard_parse_address(const char *s, dashboard_options *o, char *host_buf, size_t host_len, char *err,
+                            size_t err_len) {
+    if (address_parse(s, host_buf, host_len, &o->port, err, err_len)) return -1;
+    o->host = host_buf;
+    return 0;
+}
+
+static int host_is_loopback(const char *h) {
+    return strncmp(h, "127.", 4) == 0 || strcmp(h, "::1") == 0 || strcmp(h, "localhost") == 0;
+}
+
+/* ---- events ------------------------------------------------------------------ */
+
+static void on_farm_event(void *ctx, const farm_event *e) {
+    dashboard *d = ctx;
+    static const char *const kinds[] = {"assign", "done", "requeue", "join", "leave"};
+    switch (e->kind) {
+    case FARM_EV_ASSIGN: d->tiles_assigned++; break;
+    case FARM_EV_DONE: {
+        d->tiles_done++;
+        d->samples += e->samples;
+        d->latency_sum += e->seconds;
+        size_t b = 0;
+        while (b < LATENCY_BUCKETS && e->seconds > latency_bounds[b]) b++;
+        d->latency_counts[b]++;
+        break;
+    }
+    case FARM_EV_REQUEUE: d->tiles_requeued++; break;
+    case FARM_EV_JOIN: d->joins++; break;
+    case FARM_EV_LEAVE: d->leaves++; break;
+    }
+    cJSON *m = cJSON_CreateObject();
+    cJSON_AddStringToObject(m, "kind", kinds[e->kind]);
+    if (e->kind <= FARM_EV_REQUEUE) {
+        cJSON_AddNumberToObject(m, "job", e->job);
+        cJSON_AddNumberToObject(m, "tile", e->tile);
+        cJSON_AddNumberToObject(m, "x0", e->rect.x0);
+        cJSON_AddNumberToObject(m, "y0", e->rect.y0);
+        cJSON_AddNumberToObject(m, "x1", e->rect.x1);
+        cJSON_AddNumberToObject(m, "y1", e->rect.y1);
+    }
+    if (e->worker) cJSON_AddStringToObject(m, "worker", e->worker);
+    if (e->kind == FARM_EV_DONE) cJSON_AddNumberToObject(m, "seconds", e->seconds);
+    if (e->backup) cJSON_AddTrueToObject(m, "backup");
+    char *json = cJSON_PrintUnformatted(m);
+    cJSON_Delete(m);
+    if (!json) return;
+    if (d->pending.len < (4u << 20)) sb_printf(&d->pending, "data: %s\n\n", json); /* else: nobody is flushing */
+    free(json);
+}
+
+static void on_flush(uv_timer_t *t) {
+    dashboard *d = t->data;
+    if (!d->pending.len) return;
+    http_server_broadcast(d->http, d->pending.s, d->pending.len);
+    d->pending.len = 0;
+}
+
+/* ---- authentication ---------------------------------------------------------- */
+
+/* Whether token (as typed or sent) is the coordinator's token. */
+static int token_ok(const dashboard *d, const char *token, size_t len) {
+    while (len && isspace((unsigned char)*token)) token++, len--;
+    while (len && isspace((unsigned char)token[len - 1])) len--;
+    if (!len) return 0;
+    unsigned char key[AUTH_KEY_BYTES];
+    crypto_generichash(key, sizeof key, (const unsigned char *)token, len, NULL, 0);
+    return sodium_memcmp(key, d->auth.key, sizeof key) == 0;
+}
+
+static int request_authorised(const dashboard *d, const http_request *rq) {
+    if (!d->auth.enabled) return 1;
+    if (strncasecmp(rq->authorization, "Bearer ", 7) == 0)
+        return token_ok(d, rq->authorization + 7, strlen(rq->authorization + 7));
+    char sid[AUTH_HEX];
+    if (http_cookie_get(rq->cookie, "tessera_session", sid, sizeof sid) || strlen(sid) != AUTH_HEX - 1) return 0;
+    for (int i = 0; i < DASH_SESSIONS; i++)
+        if (d->sessions[i][0] && sodium_memcmp(d->sessions[i], sid, AUTH_HEX - 1) == 0) return 1;
+    return 0;
+}
+
+/* Browsers send Origin on POSTs; one that is not this server is refused. */
+static int origin_ok(const http_request *rq) {
+    if (!rq->origin[0]) return 1;
+    const char *o = strstr(rq->origin, "://");
+    return o && strcmp(o + 3, rq->host) == 0;
+}
+
+/* A Host that is not a loopback name while we listen on loopback is a DNS
+ * rebinding attempt: refused. */
+static int host_ok(const dashboard *d, const http_request *rq) {
+    if (!host_is_loopback(d->o.host)) return 1;
+    char h[HTTP_VALUE_MAX];
+    snprintf(h, sizeof h, "%s", rq->host);
+    if (h[0] == '[') {
+        char *e = strchr(h, ']');
+        if (e) *e = '\0';
+        memmove(h, h + 1, strlen(h));
+    } else {
+        char *c = strrchr(h, ':');
+        if (c) *c = '\0';
+    }
+    return h[0] == '\0' || host_is_loopback(h);
+}
+
+/* ---- answers ----------------------------------------------------------------- */
+
+static void send_text(http_conn *c, int status, const char *text) {
+    http_respond(c, status, "text/plain; charset=utf-8", text, strlen(text), NULL);
+}
+
+static void send_json(http_conn *c, cJSON *v) {
+    char *s = cJSON_PrintUnformatted(v);
+    cJSON_Delete(v);
+    if (!s) {
+        send_text(c, 503, "out of memory\n");
+        return;
+    }
+    http_respond(c, 200, "application/json", s, strlen(s), NULL);
+    free(s);
+}
+
+static void route_workers(dashboard *d, http_conn *c) {
+    farm_worker_info w[256];
+    int n = farm_list_workers(d->f, w, 256);
+    cJSON *arr = cJSON_CreateArray();
+    for (int i = 0; i < n && i < 256; i++) {
+        cJSON *o = cJSON_CreateObject();
+        cJSON_AddStringToObject(o, "name", w[i].name);
+        cJSON_AddStringToObject(o, "addr", w[i].addr);
+        cJSON_AddNumberToObject(o, "threads", w[i].threads);
+        cJSON_AddBoolToObject(o, "stalled", w[i].stalled);
+        cJSON_AddNumberToObject(o, "tiles", (double)w[i].tiles);
+        cJSON_AddNumberToObject(o, "samples", (double)w[i].samples);
+        cJSON_AddNumberToObject(o, "connected_s", w[i].connected_s);
+        cJSON_AddNumberToObject(o, "silent_s", w[i].silent_s);
+        cJSON_AddNumberToObject(o, "msamples_per_s",
+                                w[i].connected_s > 0 ? (double)w[i].samples / w[i].connected_s / 1e6 : 0);
+        cJSON_AddItemToArray(arr, o);
+    }
+    send_json(c, arr);
+}
+
+static cJSON *jobs_array(dashboard *d) {
+    cJSON *arr = cJSON_CreateArray();
+    if (d->src.jobs) d->src.jobs(d->src.ctx, arr);
+    return arr;
+}
+
+static void route_metrics(dashboard *d, http_conn *c) {
+    strbuf b = {0};
+    farm_totals t;
+    farm_get_totals(d->f, &t);
+    farm_worker_info w[256];
+    int workers = farm_list_workers(d->f, w, 256);
+    const struct {
+        const char *name, *help;
+        uint64_t v;
+    } counters[] = {
+        {"tessera_tiles_rendered_total", "Tiles rendered and stitched.", d->tiles_done},
+        {"tessera_tiles_assigned_total", "Tiles handed out to workers (backups included).", d->tiles_assigned},
+        {"tessera_tiles_requeued_total", "Tiles put back in the queue after a loss, stall or lease.",
+         d->tiles_requeued},
+        {"tessera_samples_total", "Samples traced in stitched tiles.", d->samples},
+        {"tessera_bytes_received_total", "Bytes received from workers and clients.", t.bytes_in},
+        {"tessera_bytes_sent_total", "Bytes sent to workers and clients.", t.bytes_out},
+        {"tessera_worker_joins_total", "Workers that joined.", d->joins},
+        {"tessera_http_requests_total", "HTTP requests answered by the dashboard.", d->requests},
+        {"tessera_http_streams_dropped_total", "Event streams dropped for falling behind.",
+         http_server_dropped(d->http)},
+    };
+    for (size_t i = 0; i < sizeof counters / sizeof counters[0]; i++)
+        sb_printf(&b, "# HELP %s %s\n# TYPE %s counter\n%s %llu\n", counters[i].name, counters[i].help,
+                  counters[i].name, counters[i].name, (unsigned long long)counters[i].v);
+    sb_printf(&b, "# HELP tessera_queue_tiles Tiles waiting to be handed out.\n# TYPE tessera_queue_tiles gauge\n"
+                  "tessera_queue_tiles %d\n", t.queued);
+    sb_printf(&b, "# HELP tessera_workers Connected workers.\n# TYPE tessera_workers gauge\ntessera_workers %d\n",
+              workers);
+    static const char *const states[] = {"queued", "running", "done", "failed", "cancelled"};
+    int by_state[5] = {0};
+    cJSON *jobs = jobs_array(d), *j;
+    cJSON_ArrayForEach(j, jobs) {
+        const cJSON *st = cJSON_GetObjectItemCaseSensitive(j, "state");
+        for (int i = 0; i < 5; i++)
+            if (cJSON_IsString(st) && strcmp(st->valuestring, states[i]) == 0) by_state[i]++;
+    }
+    cJSON_Delete(jobs);
+    sb_printf(&b, "# HELP tessera_jobs Jobs by state.\n# TYPE tessera_jobs gauge\n");
+    for (int i = 0; i < 5; i++) sb_printf(&b, "tessera_jobs{state=\"%s\"} %d\n", states[i], by_state[i]);
+    sb_printf(&b, "# HELP tessera_tile_seconds Time from handing a tile out to stitching it.\n"
+                  "# TYPE tessera_tile_seconds histogram\n");
+    uint64_t cum = 0;
+    for (size_t i = 0; i < LATENCY_BUCKETS; i++) {
+        cum += d->latency_counts[i];
+        sb_printf(&b, "tessera_tile_seconds_bucket{le=\"%g\"} %llu\n", latency_bounds[i], (unsigned long long)cum);
+    }
+    cum += d->latency_counts[LATENCY_BUCKETS];
+    sb_printf(&b, "tessera_tile_seconds_bucket{le=\"+Inf\"} %llu\n", (unsigned long long)cum);
+    sb_printf(&b, "tessera_tile_seconds_sum %.6f\ntessera_tile_seconds_count %llu\n", d->latency_sum,
+              (unsigned long long)cum);
+    if (!b.s) {
+        send_text(c, 503, "out of memory\n");
+        return;
+    }
+    http_respond(c, 200, "text/plain; version=0.0.4; charset=utf-8", b.s, b.len, NULL);
+    free(b.s);
+}
+
+static void route_preview(dashboard *d, http_conn *c, uint32_t id, const char *query) {
+    float *rgb;
+    int w, h, owned = 0;
+    if (!d->src.frame || d->src.frame(d->src.ctx, id, &rgb, &w, &h, &owned)) {
+        send_text(c, 404, "no image for this job\n");
+        return;
+    }
+    tonemap_options t = {TONEMAP_REINHARD, 0, 0};
+    const char *e = strstr(query, "exposure=");
+    if (e) {
+        double x = strtod(e + 9, NULL);
+        if (x >= -20 && x <= 20) t.exposure_stops = (float)x;
+    }
+    size_t n = (size_t)w * (size_t)h;
+    uint8_t *px = malloc(n * 3);
+    char err[200];
+    size_t len = 0;
+    uint8_t *png = NULL;
+    if (px) {
+        tonemap_to_8bit(rgb, n, &t, px);
+        png = codec_png_encode(px, w, h, &len, err, sizeof err);
+    }
+    free(px);
+    if (owned) free(rgb);
+    if (!png) {
+        send_text(c, 503, "cannot encode the preview\n");
+        return;
+    }
+    http_respond(c, 200, "image/png", png, len, NULL);
+    free(png);
+}
+
+static void route_login(dashboard *d, http_conn *c, const http_request *rq) {
+    if (strcmp(rq->method, "POST") != 0) {
+        http_respond(c, 200, "text/html; charset=utf-8", web_login_html, strlen(web_login_html), NULL);
+        return;
+    }
+    char token[1024];
+    if (!origin_ok(rq) || http_form_get(rq->body, "token", token, sizeof token) || !d->auth.enabled ||
+        !token_ok(d, token, strlen(token))) {
+        sodium_memzero(token, sizeof token);
+        http_respond(c, 303, "text/plain", "", 0, "Location: /login?failed=1\r\n");
+        return;
+    }
+    sodium_memzero(token, sizeof token);
+    char *sid = d->sessions[d->next_session];
+    d->next_session = (d->next_session + 1) % DASH_SESSIONS;
+    auth_nonce(sid);
+    char hdr[300];
+    snprintf(hdr, sizeof hdr,
+             "Set-Cookie: tessera_session=%s; HttpOnly; SameSite=Strict; Path=/\r\nLocation: /\r\n", sid);
+    http_respond(c, 303, "text/plain", "", 0, hdr);
+}
+
+/* "/api/jobs/N/REST" -> N and REST; 0 or -1. */
+static int parse_job_path(const char *path, uint32_t *id, const char **rest) {
+    const char *p = path + strlen("/api/jobs/");
+    char *end;
+    unsigned long v = strtoul(p, &end, 10);
+    if (end == p || v == 0 || v > UINT32_MAX || *end != '/') return -1;
+    *id = (uint32_t)v;
+    *rest = end + 1;
+    return 0;
+}
+
+static void on_request(void *ctx, http_conn *c, const http_request *rq) {
+    dashboard *d = ctx;
+    d->requests++;
+    int get = strcmp(rq->method, "GET") == 0 || strcmp(rq->method, "HEAD") == 0;
+    int post = strcmp(rq->method, "POST") == 0;
+    if (!host_ok(d, rq)) return send_text(c, 403, "this dashboard answers to loopback names only\n");
+    if (strcmp(rq->path, "/healthz") == 0) return send_text(c, 200, "ok\n");
+    if (strcmp(rq->path, "/login") == 0 && (get || post)) return route_login(d, c, rq);
+    if (!request_authorised(d, rq)) {
+        if (get && strncmp(rq->path, "/api/", 5) != 0 && strcmp(rq->path, "/metrics") != 0)
+            return http_respond(c, 303, "text/plain", "", 0, "Location: /login\r\n");
+        return http_respond(c, 401, "text/plain; charset=utf-8", "401 token required\n", 19,
+                            "WWW-Authenticate: Bearer realm=\"tessera\"\r\n");
+    }
+    if (post) {
+        if (d->o.read_only) return send_text(c, 403, "read-only dashboard\n");
+        if (!origin_ok(rq) || strlen(rq->csrf) != AUTH_HEX - 1 || sodium_memcmp(rq->csrf, d->csrf, AUTH_HEX - 1))
+            return send_text(c, 403, "missing or wrong CSRF token\n");
+        uint32_t id;
+        const char *rest;
+        if (strncmp(rq->path, "/api/jobs/", 10) == 0 && !parse_job_path(rq->path, &id, &rest) &&
+            strcmp(rest, "cancel") == 0) {
+            char err[300] = "cancel is not offered here";
+            if (!d->src.cancel || d->src.cancel(d->src.ctx, id, err, sizeof err)) return send_text(c, 409, err);
+            return send_text(c, 200, "cancelled\n");
+        }
+        return send_text(c, 404, "not found\n");
+    }
+    if (!get) return http_respond(c, 405, "text/plain", "405\n", 4, "Allow: GET, POST\r\n");
+    if (strcmp(rq->path, "/metrics") == 0) return route_metrics(d, c);
+    if (strcmp(rq->path, "/api/jobs") == 0) return send_json(c, jobs_array(d));
+    if (strcmp(rq->path, "/api/workers") == 0) return route_workers(d, c);
+    if (strcmp(rq->path, "/api/events") == 0) {
+        http_stream_start(c);
+        return;
+    }
+    if (strcmp(rq->path, "/api/csrf") == 0) {
+        cJSON *o = cJSON_CreateObject();
+        cJSON_AddStringToObject(o, "csrf", d->csrf);
+        cJSON_AddBoolToObject(o, "read_only", d->o.read_only);
+        return send_json(c, o);
+    }
+    uint32_t id;
+    const char *rest;
+    if (strncmp(rq->path, "/api/jobs/", 10) == 0 && !parse_job_path(rq->path, &id, &rest) &&
+        strcmp(rest, "preview.png") == 0)
+        return route_preview(d, c, id, rq->query);
+    if (strcmp(rq->path, "/") == 0 || strcmp(rq->path, "/workers") == 0 || strncmp(rq->path, "/job/", 5) == 0)
+        return http_respond(c, 200, "text/html; charset=utf-8", web_index_html, strlen(web_index_html),
+                            "Content-Security-Policy: default-src 'self'; script-src 'unsafe-inline'; "
+                            "style-src 'unsafe-inline'; img-src 'self' blob:\r\n");
+    send_text(c, 404, "not found\n");
+}
+
+/* ---- life ---------------------------------------------------------------------- */
+
+dashboard *dashboard_new(uv_loop_t *loop, farm *f, const dashboard_options *o, const dashboard_source *src,
+                         char *err, size_t err_len) {
+    const char *host = o->host ? o->host : "127.0.0.1";
+    int secured = o->auth && o->auth->enabled;
+    if (!host_is_loopback(host) && !secured && !o->insecure) {
+        snprintf(err, err_len,
+                 "--http %s:%d is not a loopback address and there is no --token-file: anyone who can reach it "
+                 "could watch and cancel jobs; give a token, or --insecure to serve it anyway",
+                 host, o->port);
+        return NULL;
+    }
+    if (sodium_init() < 0) {
+        snprintf(err, err_len, "libsodium could not start");
+        return NULL;
+    }
+    dashboard *d = calloc(1, sizeof *d);
+    if (!d) {
+        snprintf(err, err_len, "out of memory");
+        return NULL;
+    }
+    d->loop = loop;
+    d->f = f;
+    d->o = *o;
+    d->o.host = host;
+    if (secured) d->auth = *o->auth;
+    d->src = *src;
+    auth_nonce(d->csrf);
+    http_options ho = {.host = host, .port = o->port, .max_request = DASH_MAX_REQUEST,
+                       .max_headers = DASH_MAX_HEADERS};
+    d->http = http_server_new(loop, &ho, on_request, d, err, err_len);
+    if (!d->http) {
+        free(d);
+        return NULL;
+    }
+    d->o.host = NULL; /* the caller's string may go; only loopback-ness is kept */
+    d->o.host = host_is_loopback(host) ? "127.0.0.1" : "0.0.0.0";
+    uv_timer_init(loop, &d->flush);
+    d->flush.data = d;
+    uv_timer_start(&d->flush, on_flush, DASH_FLUSH_MS, DASH_FLUSH_MS);
+    d->open_parts = 2;
+    farm_set_event_cb(f, on_farm_event, d);
+    return d;
+}
+
+int dashboard_port(const dashboard *d) { return http_server_port(d->http); }
+
+static void on_part_closed(dashboard *d) {
+    if (--d->open_parts > 0) return;
+    void (*cb)(void *) = d->closed_cb;
+    void *cctx = d->closed_ctx;
+    free(d->pending.s);
+    sodium_memzero(d, sizeof *d);
+    free(d);
+    if (cb) cb(cctx);
+}
+
+static void on_http_closed(void *ctx) { on_part_closed(ctx); }
+
+static void on_timer_closed(uv_handle_t *h) { on_part_closed(h->data); }
+
+void dashboard_close(dashboard *d, void (*cb)(void *ctx), void *ctx) {
+    farm_set_event_cb(d->f, NULL, NULL);
+    d->closed_cb = cb;
+    d->closed_ctx = ctx;
+    uv_close((uv_handle_t *)&d->flush, on_timer_closed);
+    http_server_close(d->http, on_http_closed, d);
+}

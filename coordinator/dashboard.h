@@ -1,0 +1,74 @@
+/* dashboard.h - the farm watched in a browser (issue 16): pages, JSON,
+ * Server-Sent Events, a live preview and Prometheus metrics, served by
+ * http.h on the coordinator's own loop.
+ *
+ *   GET  /healthz                 "ok"
+ *   GET  /metrics                 Prometheus text format 0.0.4
+ *   GET  /  (and /job/N, /workers) the single-page app (web_assets.c)
+ *   GET  /api/jobs, /api/workers  JSON
+ *   GET  /api/events              text/event-stream: tile handed out, done,
+ *                                 requeued, workers joining and leaving
+ *   GET  /api/jobs/N/preview.png  the job's frame tone mapped (?exposure=S)
+ *   GET  /api/csrf                the token POSTs must carry (X-CSRF-Token)
+ *   POST /api/jobs/N/cancel       (not with read_only)
+ *   POST /login                   token=... -> HttpOnly SameSite=Strict cookie
+ *
+ * With a token every route but /healthz and /login needs the session
+ * cookie or "Authorization: Bearer TOKEN". Nothing is served by path. */
+#ifndef TESSERA_DASHBOARD_H
+#define TESSERA_DASHBOARD_H
+
+#include <cjson/cJSON.h>
+#include <stdint.h>
+#include <uv.h>
+
+#include "farm.h"
+#include "image/tonemap.h"
+
+/* What the dashboard asks of the program that owns the jobs (the job
+ * service, or `tessera render`'s local farm). All called on the loop. */
+typedef struct {
+    /* Append one object per job to arr: id, name, state, tiles_done,
+     * tiles_total, samples, priority, width, height, spp, submitted,
+     * started, finished (epoch seconds, 0 when not yet). */
+    void (*jobs)(void *ctx, cJSON *arr);
+    /* The job's frame, width * height * 3 floats (valid until the next
+     * callback), or -1 when there is none. *owned: the caller frees it. */
+    int (*frame)(void *ctx, uint32_t id, float **rgb, int *w, int *h, int *owned);
+    /* Cancel a job. 0, or -1 with the reason in err. NULL: not offered. */
+    int (*cancel)(void *ctx, uint32_t id, char *err, size_t err_len);
+    void *ctx;
+} dashboard_source;
+
+typedef struct {
+    const char *host; /* default 127.0.0.1 */
+    int port;
+    const auth_key *auth; /* enabled: HTTP needs the token too */
+    int read_only;        /* no POSTs but /login */
+    int insecure;         /* allow a non-loopback address without a token */
+} dashboard_options;
+
+typedef struct dashboard dashboard;
+
+/* Parse "ADDR:PORT" for --http into o (host copied into host_buf). Returns 0
+ * or -1 with the reason in err. */
+int dashboard_parse_address(const char *s, dashboard_options *o, char *host_buf, size_t host_len, char *err,
+                            size_t err_len);
+
+/* Start serving on loop, watching farm f (its event callback is taken).
+ * Returns the dashboard or NULL with the reason in err (cannot listen,
+ * non-loopback without a token or --insecure). */
+dashboard *dashboard_new(uv_loop_t *loop, farm *f, const dashboard_options *o, const dashboard_source *src,
+                         char *err, size_t err_len);
+
+int dashboard_port(const dashboard *d);
+
+/* Stop serving; cb(ctx) once every connection is closed and d freed. */
+void dashboard_close(dashboard *d, void (*cb)(void *ctx), void *ctx);
+
+/* The request entry point, for the fuzz target: parse raw bytes as one
+ * request within the dashboard's limits. Returns what http_reqparser_feed
+ * returns. */
+int dashboard_parse_request(const char *data, size_t len);
+
+#endif

@@ -1,0 +1,494 @@
+/* http.c - the dashboard's HTTP server (see http.h): a request parser over
+ * libhttp-parser with limits, connections on the caller's libuv loop,
+ * one-shot answers and bounded event streams. */
+#include "http.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <ctype.h>
+#include <strings.h>
+
+#include "list.h"
+
+/* ---- the request parser ------------------------------------------------- */
+
+static http_reqparser *rp_of(http_parser *p) { return p->data; }
+
+static int rp_on_url(http_parser *p, const char *at, size_t len) {
+    http_reqparser *r = rp_of(p);
+    if (r->url_len + len >= sizeof r->url) {
+        r->error = 414;
+        return 1;
+    }
+    memcpy(r->url + r->url_len, at, len);
+    r->url_len += len;
+    r->url[r->url_len] = '\0';
+    return 0;
+}
+
+/* The destination of a header the dashboard keeps, or NULL. */
+static char *rp_header_dest(http_reqparser *r) {
+    static const char *const names[] = {"authorization", "cookie", "origin", "host", "x-csrf-token"};
+    char *dests[] = {r->rq.authorization, r->rq.cookie, r->rq.origin, r->rq.host, r->rq.csrf};
+    for (int i = 0; i < 5; i++)
+        if (r->field_len == strlen(names[i]) && strncasecmp(r->field, names[i], r->field_len) == 0) return dests[i];
+    return NULL;
+}
+
+static int rp_on_field(http_parser *p, const char *at, size_t len) {
+    http_reqparser *r = rp_of(p);
+    if (r->last_was_value || r->headers == 0) {
+        if (++r->headers > r->max_headers) {
+            r->error = 431;
+            return 1;
+        }
+        r->field_len = 0;
+        r->last_was_value = 0;
+    }
+    size_t room = sizeof r->field - 1 - r->field_len;
+    size_t n = len < room ? len : room;
+    memcpy(r->field + r->field_len, at, n);
+    r->field_len += n;
+    if (len > room) r->field_len = sizeof r->field - 1; /* too long to be one we keep; the name is junk */
+    return 0;
+}
+
+static int rp_on_value(http_parser *p, const char *at, size_t len) {
+    http_reqparser *r = rp_of(p);
+    if (!r->last_was_value) {
+        r->last_was_value = 1;
+        r->value_dest = rp_header_dest(r);
+        r->value_len = 0;
+    }
+    if (!r->value_dest) return 0;
+    if (r->value_len + len >= HTTP_VALUE_MAX) {
+        r->error = 431;
+        return 1;
+    }
+    memcpy(r->value_dest + r->value_len, at, len);
+    r->value_len += len;
+    r->value_dest[r->value_len] = '\0';
+    return 0;
+}
+
+static int rp_on_headers_complete(http_parser *p) {
+    http_reqparser *r = rp_of(p);
+    snprintf(r->rq.method, sizeof r->rq.method, "%s", http_method_str((enum http_method)p->method));
+    const char *q = strchr(r->url, '?');
+    size_t plen = q ? (size_t)(q - r->url) : r->url_len;
+    if (plen >= sizeof r->rq.path || (q && strlen(q + 1) >= sizeof r->rq.query)) {
+        r->error = 414;
+        return -1; /* not 1: that means "no body" to http_parser */
+    }
+    memcpy(r->rq.path, r->url, plen);
+    r->rq.path[plen] = '\0';
+    snprintf(r->rq.query, sizeof r->rq.query, "%s", q ? q + 1 : "");
+    if (p->content_length != ULLONG_MAX && p->content_length > r->max_request) {
+        r->error = 413;
+        return -1; /* not 1: that means "no body" to http_parser */
+    }
+    return 0;
+}
+
+static int rp_on_body(http_parser *p, const char *at, size_t len) {
+    http_reqparser *r = rp_of(p);
+    if (r->rq.body_len + len + 1 > r->body_cap) {
+        size_t cap = r->body_cap ? 2 * r->body_cap : 1024;
+        while (cap < r->rq.body_len + len + 1) cap *= 2;
+        if (cap > r->max_request + 1) cap = r->max_request + 1;
+        if (r->rq.body_len + len + 1 > cap) {
+            r->error = 413;
+            return 1;
+        }
+        char *b = realloc(r->body, cap);
+        if (!b) {
+            r->error = 503;
+            return 1;
+        }
+        r->body = b;
+        r->body_cap = cap;
+    }
+    memcpy(r->body + r->rq.body_len, at, len);
+    r->rq.body_len += len;
+    r->body[r->rq.body_len] = '\0';
+    return 0;
+}
+
+static int rp_on_complete(http_parser *p) {
+    http_reqparser *r = rp_of(p);
+    r->complete = 1;
+    r->rq.body = r->body ? r->body : (char *)"";
+    http_parser_pause(p, 1); /* one request per connection: ignore what follows */
+    return 0;
+}
+
+void http_reqparser_init(http_reqparser *r, size_t max_request, int max_headers) {
+    memset(r, 0, sizeof *r);
+    http_parser_init(&r->p, HTTP_REQUEST);
+    r->p.data = r;
+    http_parser_settings_init(&r->s);
+    r->s.on_url = rp_on_url;
+    r->s.on_header_field = rp_on_field;
+    r->s.on_header_value = rp_on_value;
+    r->s.on_headers_complete = rp_on_headers_complete;
+    r->s.on_body = rp_on_body;
+    r->s.on_message_complete = rp_on_complete;
+    r->max_request = max_request;
+    r->max_headers = max_headers;
+}
+
+int http_reqparser_feed(http_reqparser *r, const char *data, size_t len) {
+    if (r->complete) return 1;
+    if (r->error) return r->error;
+    r->seen += len;
+    if (r->seen > r->max_request) return r->error = 413;
+    size_t n = http_parser_execute(&r->p, &r->s, data, len);
+    if (r->complete) return 1;
+    if (r->error) return r->error;
+    enum http_errno e = HTTP_PARSER_ERRNO(&r->p);
+    if (e == HPE_HEADER_OVERFLOW) return r->error = 431;
+    if (e != HPE_OK || n != len) return r->error = 400;
+    return 0;
+}
+
+void http_reqparser_free(http_reqparser *r) {
+    free(r->body);
+    r->body = NULL;
+}
+
+/* ---- request fields ---------------------------------------------------------- */
+
+/* The value of cookie name in a Cookie header into out; 0 or -1. */
+int http_cookie_get(const char *header, const char *name, char *out, size_t n) {
+    size_t nl = strlen(name);
+    for (const char *p = header; *p;) {
+        while (*p == ' ' || *p == ';') p++;
+        if (strncmp(p, name, nl) == 0 && p[nl] == '=') {
+            p += nl + 1;
+            size_t len = strcspn(p, ";");
+            if (len >= n) return -1;
+            memcpy(out, p, len);
+            out[len] = '\0';
+            return 0;
+        }
+        p += strcspn(p, ";");
+    }
+    return -1;
+}
+
+/* The value of form field name in an application/x-www-form-urlencoded
+ * body, decoded; 0 or -1. */
+int http_form_get(const char *body, const char *name, char *out, size_t n) {
+    size_t nl = strlen(name);
+    for (const char *p = body; *p;) {
+        size_t len = strcspn(p, "&");
+        if (strncmp(p, name, nl) == 0 && p[nl] == '=') {
+            size_t o = 0;
+            for (size_t i = nl + 1; i < len && o + 1 < n; i++) {
+                char c = p[i];
+                if (c == '+') c = ' ';
+                else if (c == '%' && i + 2 < len && isxdigit((unsigned char)p[i + 1]) &&
+                         isxdigit((unsigned char)p[i + 2])) {
+                    char hex[3] = {p[i + 1], p[i + 2], 0};
+                    c = (char)strtol(hex, NULL, 16);
+                    i += 2;
+                }
+                out[o++] = c;
+            }
+            out[o] = '\0';
+            return 0;
+        }
+        p += len;
+        if (*p) p++;
+    }
+    return -1;
+}
+
+/* ---- connections ---------------------------------------------------------- */
+
+struct http_conn {
+    http_server *s;
+    uv_tcp_t tcp;
+    uv_timer_t idle;
+    http_reqparser *rp;
+    int streaming, closing, answered;
+    LIST_ENTRY(http_conn) link;
+};
+
+struct http_server {
+    uv_loop_t *loop;
+    http_options o;
+    uv_tcp_t listener;
+    http_handler handler;
+    void *ctx;
+    int port, conns, closing, open_handles;
+    uint64_t dropped;
+    LIST_HEAD(, http_conn) all;
+    void (*closed_cb)(void *);
+    void *closed_ctx;
+};
+
+typedef struct {
+    uv_write_t req;
+    char *buf;
+} http_write;
+
+static void server_maybe_done(http_server *s) {
+    if (s->closing && s->open_handles == 0 && s->conns == 0) {
+        void (*cb)(void *) = s->closed_cb;
+        void *ctx = s->closed_ctx;
+        free(s);
+        if (cb) cb(ctx);
+    }
+}
+
+static void conn_on_handle_closed(uv_handle_t *h) {
+    http_conn *c = h->data;
+    if (h == (uv_handle_t *)&c->tcp) c->answered |= 2;
+    else c->answered |= 4;
+    if ((c->answered & 6) != 6) return;
+    http_server *s = c->s;
+    s->conns--;
+    free(c);
+    server_maybe_done(s);
+}
+
+static void conn_close(http_conn *c) {
+    if (c->closing) return;
+    c->closing = 1;
+    LIST_REMOVE(c, link);
+    if (c->rp) {
+        http_reqparser_free(c->rp);
+        free(c->rp);
+        c->rp = NULL;
+    }
+    uv_close((uv_handle_t *)&c->idle, conn_on_handle_closed);
+    uv_close((uv_handle_t *)&c->tcp, conn_on_handle_closed);
+}
+
+static void on_written(uv_write_t *req, int status) {
+    http_write *w = (http_write *)req;
+    http_conn *c = req->data;
+    free(w->buf);
+    free(w);
+    if (status < 0 || (!c->streaming && uv_stream_get_write_queue_size((uv_stream_t *)&c->tcp) == 0))
+        conn_close(c);
+}
+
+/* Queue len bytes (copied). Returns 0, or -1 (the connection is closed). */
+static int conn_write(http_conn *c, const char *data, size_t len) {
+    if (c->closing) return -1;
+    if (c->streaming && uv_stream_get_write_queue_size((uv_stream_t *)&c->tcp) > c->s->o.max_queue) {
+        c->s->dropped++;
+        conn_close(c);
+        return -1;
+    }
+    http_write *w = malloc(sizeof *w);
+    char *buf = malloc(len ? len : 1);
+    if (!w || !buf) {
+        free(w);
+        free(buf);
+        conn_close(c);
+        return -1;
+    }
+    memcpy(buf, data, len);
+    w->buf = buf;
+    w->req.data = c;
+    uv_buf_t b = uv_buf_init(buf, (unsigned)len);
+    if (uv_write(&w->req, (uv_stream_t *)&c->tcp, &b, 1, on_written)) {
+        free(buf);
+        free(w);
+        conn_close(c);
+        return -1;
+    }
+    return 0;
+}
+
+const char *http_status_text(int status) {
+    switch (status) {
+    case 200: return "OK";
+    case 204: return "No Content";
+    case 303: return "See Other";
+    case 400: return "Bad Request";
+    case 401: return "Unauthorized";
+    case 403: return "Forbidden";
+    case 404: return "Not Found";
+    case 405: return "Method Not Allowed";
+    case 409: return "Conflict";
+    case 413: return "Content Too Large";
+    case 414: return "URI Too Long";
+    case 431: return "Request Header Fields Too Large";
+    case 503: return "Service Unavailable";
+    default: return "Error";
+    }
+}
+
+void http_respond(http_conn *c, int status, const char *content_type, const void *body, size_t len,
+                  const char *extra_headers) {
+    if (c->closing || c->answered & 1) return;
+    c->answered |= 1;
+    uv_read_stop((uv_stream_t *)&c->tcp);
+    char head[2048];
+    int n = snprintf(head, sizeof head,
+                     "HTTP/1.1 %d %s\r\nContent-Type: %s\r\nContent-Length: %zu\r\nConnection: close\r\n"
+                     "Cache-Control: no-store\r\nX-Content-Type-Options: nosniff\r\nX-Frame-Options: DENY\r\n"
+                     "Referrer-Policy: no-referrer\r\n%s\r\n",
+                     status, http_status_text(status), content_type, len, extra_headers ? extra_headers : "");
+    if (n < 0 || (size_t)n >= sizeof head) n = 0;
+    char *all = malloc((size_t)n + len + 1);
+    if (!all) {
+        conn_close(c);
+        return;
+    }
+    memcpy(all, head, (size_t)n);
+    if (len) memcpy(all + n, body, len);
+    conn_write(c, all, (size_t)n + len);
+    free(all);
+}
+
+int http_stream_start(http_conn *c) {
+    if (c->closing || c->answered & 1) return -1;
+    c->answered |= 1;
+    c->streaming = 1;
+    uv_timer_stop(&c->idle);
+    int sndbuf = 64 << 10; /* the kernel's share of a lagging stream stays small too */
+    uv_send_buffer_size((uv_handle_t *)&c->tcp, &sndbuf);
+    static const char head[] = "HTTP/1.1 200 OK\r\nContent-Type: text/event-stream\r\nCache-Control: no-store\r\n"
+                               "X-Content-Type-Options: nosniff\r\nConnection: keep-alive\r\n\r\n: tessera\n\n";
+    return conn_write(c, head, sizeof head - 1);
+}
+
+int http_server_broadcast(http_server *s, const char *data, size_t len) {
+    int n = 0;
+    http_conn *c, *next;
+    LIST_FOREACH_SAFE(c, &s->all, link, next) {
+        if (!c->streaming) continue;
+        if (conn_write(c, data, len) == 0) n++;
+    }
+    return n;
+}
+
+static void conn_alloc(uv_handle_t *h, size_t suggested, uv_buf_t *buf) {
+    (void)h;
+    (void)suggested;
+    static char slab[16384]; /* one loop thread; consumed before the next read */
+    *buf = uv_buf_init(slab, sizeof slab);
+}
+
+static void conn_refuse(http_conn *c, int status) {
+    char msg[128];
+    int n = snprintf(msg, sizeof msg, "%d %s\n", status, http_status_text(status));
+    http_respond(c, status, "text/plain; charset=utf-8", msg, (size_t)n, NULL);
+}
+
+static void conn_on_read(uv_stream_t *st, ssize_t nread, const uv_buf_t *buf) {
+    http_conn *c = st->data;
+    if (nread < 0) {
+        conn_close(c);
+        return;
+    }
+    if (nread == 0 || c->streaming || (c->answered & 1)) return; /* a stream's client has nothing to say */
+    int rc = http_reqparser_feed(c->rp, buf->base, (size_t)nread);
+    if (rc == 0) return;
+    uv_timer_stop(&c->idle);
+    if (rc == 1) c->s->handler(c->s->ctx, c, &c->rp->rq);
+    else conn_refuse(c, rc);
+    if (!c->closing && c->rp) {
+        http_reqparser_free(c->rp);
+        free(c->rp);
+        c->rp = NULL;
+    }
+}
+
+static void conn_on_idle(uv_timer_t *t) {
+    http_conn *c = t->data;
+    if (!(c->answered & 1)) conn_close(c);
+}
+
+static void server_on_connection(uv_stream_t *listener, int status) {
+    http_server *s = listener->data;
+    if (status < 0 || s->closing) return;
+    http_conn *c = calloc(1, sizeof *c);
+    if (!c) return;
+    c->s = s;
+    uv_tcp_init(s->loop, &c->tcp);
+    uv_timer_init(s->loop, &c->idle);
+    c->tcp.data = c->idle.data = c;
+    s->conns++;
+    LIST_INSERT_HEAD(&s->all, c, link);
+    if (uv_accept(listener, (uv_stream_t *)&c->tcp) || s->conns > s->o.max_conns ||
+        !(c->rp = malloc(sizeof *c->rp))) {
+        conn_close(c);
+        return;
+    }
+    http_reqparser_init(c->rp, s->o.max_request, s->o.max_headers);
+    uv_tcp_nodelay(&c->tcp, 1);
+    uv_timer_start(&c->idle, conn_on_idle, (uint64_t)(s->o.idle_s * 1e3), 0);
+    uv_read_start((uv_stream_t *)&c->tcp, conn_alloc, conn_on_read);
+}
+
+http_server *http_server_new(uv_loop_t *loop, const http_options *o, http_handler h, void *ctx, char *err,
+                             size_t err_len) {
+    http_server *s = calloc(1, sizeof *s);
+    if (!s) {
+        snprintf(err, err_len, "out of memory");
+        return NULL;
+    }
+    s->loop = loop;
+    s->o = *o;
+    if (!s->o.max_request) s->o.max_request = 64 << 10;
+    if (!s->o.max_headers) s->o.max_headers = 64;
+    if (!s->o.max_conns) s->o.max_conns = 512;
+    if (!(s->o.idle_s > 0)) s->o.idle_s = 10;
+    if (!s->o.max_queue) s->o.max_queue = 256 << 10;
+    s->handler = h;
+    s->ctx = ctx;
+    LIST_INIT(&s->all);
+    struct sockaddr_storage addr;
+    int rc = uv_ip4_addr(o->host, o->port, (struct sockaddr_in *)&addr);
+    if (rc) rc = uv_ip6_addr(o->host, o->port, (struct sockaddr_in6 *)&addr);
+    if (rc) {
+        snprintf(err, err_len, "cannot listen on %s:%d: not a numeric IPv4 or IPv6 address", o->host, o->port);
+        free(s);
+        return NULL;
+    }
+    uv_tcp_init(loop, &s->listener);
+    s->listener.data = s;
+    rc = uv_tcp_bind(&s->listener, (struct sockaddr *)&addr, 0);
+    if (rc == 0) rc = uv_listen((uv_stream_t *)&s->listener, 128, server_on_connection);
+    if (rc) {
+        snprintf(err, err_len, "cannot listen on %s:%d: %s", o->host, o->port, uv_strerror(rc));
+        uv_close((uv_handle_t *)&s->listener, NULL);
+        uv_run(loop, UV_RUN_NOWAIT);
+        free(s);
+        return NULL;
+    }
+    int n = sizeof addr;
+    uv_tcp_getsockname(&s->listener, (struct sockaddr *)&addr, &n);
+    s->port = ntohs(addr.ss_family == AF_INET ? ((struct sockaddr_in *)&addr)->sin_port
+                                               : ((struct sockaddr_in6 *)&addr)->sin6_port);
+    s->open_handles = 1;
+    return s;
+}
+
+int http_server_port(const http_server *s) { return s->port; }
+
+int http_server_conns(const http_server *s) { return s->conns; }
+
+uint64_t http_server_dropped(const http_server *s) { return s->dropped; }
+
+static void server_on_listener_closed(uv_handle_t *h) {
+    http_server *s = h->data;
+    s->open_handles--;
+    server_maybe_done(s);
+}
+
+void http_server_close(http_server *s, void (*cb)(void *ctx), void *ctx) {
+    s->closing = 1;
+    s->closed_cb = cb;
+    s->closed_ctx = ctx;
+    http_conn *c, *next;
+    LIST_FOREACH_SAFE(c, &s->all, link, next) conn_close(c);
+    uv_close((uv_handle_t *)&s->listener, server_on_listener_closed);
+}

@@ -1,0 +1,490 @@
+/* test_http.c - the web dashboard (coordinator/dashboard.h) against a real
+ * tessera-coordinator with a worker: /healthz, /metrics in the Prometheus
+ * text format, /api/jobs, Server-Sent Events of tiles, request limits
+ * (413, 431), CSRF on POST, the token and its login cookie, the refusal to
+ * serve a non-loopback address without a token, and a headless Chromium
+ * screenshot of a finished Cornell box's job page (red wall on the left).
+ * Every wait is bounded. */
+#include <arpa/inet.h>
+#include <ctype.h>
+#include <errno.h>
+#include <netinet/in.h>
+#include <png.h>
+#include <poll.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include "harness.h"
+#include "util.h"
+
+#define SCENE "tests/scenes/cornell-small.json"
+#define LONG 120.0
+
+typedef struct {
+    char dir[256], log[256], addr[64];
+    int port, http;
+    pid_t pid, worker;
+} web;
+
+/* Start a coordinator with --http (extra: more arguments, NULL-ended) and,
+ * when worker, one worker. */
+static int web_start(web *w, const char *name, int worker, const char *const *extra) {
+    memset(w, 0, sizeof *w);
+    w->port = util_free_port();
+    w->http = util_free_port();
+    snprintf(w->dir, sizeof w->dir, "%s", util_temp_path(name));
+    char logname[128], http[64], coord[4096];
+    snprintf(logname, sizeof logname, "%s.log", name);
+    snprintf(w->log, sizeof w->log, "%s", util_temp_path(logname));
+    snprintf(w->addr, sizeof w->addr, "127.0.0.1:%d", w->port);
+    snprintf(http, sizeof http, "127.0.0.1:%d", w->http);
+    snprintf(coord, sizeof coord, "%s", util_bin("tessera-coordinator"));
+    const char *argv[32] = {coord, "--listen", w->addr, "--data-dir", w->dir, "--heartbeat", "0.2",
+                            "--worker-timeout", "2", "--http", http};
+    int n = 11;
+    for (int i = 0; extra && extra[i] && n < 31; i++) argv[n++] = extra[i];
+    argv[n] = NULL;
+    w->pid = util_spawn(argv, w->log);
+    if (util_wait_for_text(w->log, "dashboard on http", LONG)) return -1;
+    if (worker) {
+        char path[4096], wlog[300];
+        snprintf(path, sizeof path, "%s", util_bin("tessera-worker"));
+        snprintf(wlog, sizeof wlog, "%s.worker", w->log);
+        const char *wargv[] = {path, "--connect", w->addr, "--threads", "1", "--name", "webworker",
+                               "--retry-max", "1", NULL};
+        w->worker = util_spawn(wargv, wlog);
+    }
+    return 0;
+}
+
+static void web_stop(web *w) {
+    if (w->worker) {
+        kill(w->worker, SIGTERM);
+        util_wait(w->worker, LONG, NULL);
+    }
+    kill(w->pid, SIGTERM);
+    int st = util_wait(w->pid, LONG, NULL);
+    CHECK(st == 0, "coordinator exited with %d on SIGTERM; log %s", st, w->log);
+    CHECK(!util_file_count(w->log, "Sanitizer") && !util_file_count(w->log, "runtime error"),
+          "sanitizer report in %s", w->log);
+}
+
+static int web_connect(int port) {
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    struct sockaddr_in a = {.sin_family = AF_INET, .sin_port = htons((uint16_t)port)};
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (fd < 0 || connect(fd, (struct sockaddr *)&a, sizeof a)) {
+        if (fd >= 0) close(fd);
+        return -1;
+    }
+    return fd;
+}
+
+/* Send req raw and read the answer until the server closes (or timeout_s);
+ * returns the HTTP status (0 when none) and the whole answer in out. */
+static int web_raw(int port, const char *req, size_t req_len, char *out, size_t cap, double timeout_s) {
+    out[0] = '\0';
+    int fd = web_connect(port);
+    if (fd < 0) return 0;
+    size_t off = 0;
+    while (off < req_len) {
+        ssize_t n = send(fd, req + off, req_len - off, MSG_NOSIGNAL);
+        if (n <= 0) break; /* the server may refuse before reading it all */
+        off += (size_t)n;
+    }
+    size_t len = 0;
+    for (int waited = 0; len + 1 < cap && waited < (int)(timeout_s * 1000);) {
+        struct pollfd p = {fd, POLLIN, 0};
+        if (poll(&p, 1, 100) <= 0) {
+            waited += 100;
+            continue;
+        }
+        ssize_t n = recv(fd, out + len, cap - 1 - len, 0);
+        if (n <= 0) break;
+        len += (size_t)n;
+    }
+    out[len] = '\0';
+    close(fd);
+    int status = 0;
+    sscanf(out, "HTTP/1.1 %d", &status);
+    return status;
+}
+
+/* GET path with extra header lines ("" for none). */
+static int web_get(int port, const char *path, const char *headers, char *out, size_t cap) {
+    char req[4096];
+    int n = snprintf(req, sizeof req, "GET %s HTTP/1.1\r\nHost: 127.0.0.1:%d\r\n%s\r\n", path, port, headers);
+    return web_raw(port, req, (size_t)n, out, cap, 20);
+}
+
+static int web_post(int port, const char *path, const char *headers, const char *body, char *out, size_t cap) {
+    char req[8192];
+    int n = snprintf(req, sizeof req, "POST %s HTTP/1.1\r\nHost: 127.0.0.1:%d\r\nContent-Length: %zu\r\n%s\r\n%s",
+                     path, port, strlen(body), headers, body);
+    return web_raw(port, req, (size_t)n, out, cap, 20);
+}
+
+static const char *web_body(const char *answer) {
+    const char *b = strstr(answer, "\r\n\r\n");
+    return b ? b + 4 : "";
+}
+
+/* The Prometheus text format, line by line: comments "# HELP name text" and
+ * "# TYPE name counter|gauge|histogram|summary|untyped", samples
+ * "name{label="value",...} number". Returns the number of samples, or -1
+ * with the bad line in bad. */
+static int metrics_check(const char *text, char *bad, size_t bad_len) {
+    int samples = 0;
+    for (const char *line = text; *line;) {
+        size_t len = strcspn(line, "\n");
+        char l[1024];
+        snprintf(l, sizeof l, "%.*s", (int)(len < sizeof l - 1 ? len : sizeof l - 1), line);
+        line += len + (line[len] == '\n');
+        if (!l[0]) continue;
+        int ok = 0;
+        if (l[0] == '#') {
+            char kind[16], name[200], type[32];
+            ok = sscanf(l, "# %15s %199s", kind, name) == 2 && strcmp(kind, "HELP") == 0;
+            if (!ok && sscanf(l, "# TYPE %199s %31s", name, type) == 2)
+                ok = strstr(" counter gauge histogram summary untyped ", type) != NULL;
+        } else {
+            const char *p = l;
+            while (*p && (isalnum((unsigned char)*p) || *p == '_' || *p == ':')) p++;
+            ok = p > l && !isdigit((unsigned char)l[0]);
+            if (ok && *p == '{') {
+                p++;
+                while (ok && *p != '}') {
+                    const char *n0 = p;
+                    while (isalnum((unsigned char)*p) || *p == '_') p++;
+                    ok = p > n0 && p[0] == '=' && p[1] == '"';
+                    if (!ok) break;
+                    p += 2;
+                    while (*p && *p != '"') p += (*p == '\\' && p[1]) ? 2 : 1;
+                    ok = *p == '"';
+                    if (!ok) break;
+                    p++;
+                    if (*p == ',') p++;
+                }
+                if (ok) p++;
+            }
+            char *end;
+            if (ok && *p == ' ') {
+                const char *v = p + 1;
+                if (strncmp(v, "+Inf", 4) == 0 || strncmp(v, "NaN", 3) == 0) end = (char *)v + (v[0] == '+' ? 4 : 3);
+                else strtod(v, &end);
+                ok = end > v && (*end == '\0' || *end == ' ');
+            } else ok = 0;
+            samples += ok;
+        }
+        if (!ok) {
+            snprintf(bad, bad_len, "%s", l);
+            return -1;
+        }
+    }
+    return samples;
+}
+
+
+
+/* The metric's value (first sample line starting with name), or -1. */
+static double metric(const char *text, const char *name) {
+    const char *p = text;
+    while ((p = strstr(p, name))) {
+        if ((p == text || p[-1] == '\n') && p[strlen(name)] == ' ') return strtod(p + strlen(name) + 1, NULL);
+        p += strlen(name);
+    }
+    return -1;
+}
+
+static int submit(const web *w, const char *args, char *out, size_t cap) {
+    char cmd[4096];
+    snprintf(cmd, sizeof cmd, "TESSERA_COORDINATOR=%s %s submit %s", w->addr, harness_tessera(), args);
+    return util_run(cmd, out, cap);
+}
+
+TEST(http_dashboard_endpoints_events_limits) {
+    web w;
+    if (web_start(&w, "http-basic", 1, NULL)) {
+        CHECK(0, "coordinator did not start its dashboard; log %s", w.log);
+        return;
+    }
+    static char out[1 << 20];
+    CHECK(web_get(w.http, "/healthz", "", out, sizeof out) == 200 && strcmp(web_body(out), "ok\n") == 0,
+          "/healthz: %.200s", out);
+    /* an event stream opened before the job, read while it renders */
+    int es = web_connect(w.http);
+    char req[256];
+    int rn = snprintf(req, sizeof req, "GET /api/events HTTP/1.1\r\nHost: 127.0.0.1:%d\r\n\r\n", w.http);
+    CHECK(es >= 0 && send(es, req, (size_t)rn, MSG_NOSIGNAL) == rn, "cannot open /api/events");
+    util_sleep(0.2);
+    char sub[4096];
+    int st = submit(&w, SCENE " --tile-size 16 --spp 16 --wait", sub, sizeof sub);
+    CHECK(st == 0, "submit --wait failed (%d): %s", st, sub);
+    static char ev[1 << 18];
+    size_t evlen = 0;
+    for (int waited = 0; es >= 0 && waited < 5000 && evlen + 1 < sizeof ev;) {
+        struct pollfd p = {es, POLLIN, 0};
+        if (poll(&p, 1, 100) <= 0) {
+            waited += 100;
+            continue;
+        }
+        ssize_t n = recv(es, ev + evlen, sizeof ev - 1 - evlen, 0);
+        if (n <= 0) break;
+        evlen += (size_t)n;
+        ev[evlen] = '\0';
+        if (util_file_count(w.log, "done") && strstr(ev, "\"tile\":15,") && strstr(ev, "\"kind\":\"done\"")) {
+            /* 16 tiles of 16 px: count the done events */
+            int done = 0;
+            for (const char *q = ev; (q = strstr(q, "\"kind\":\"done\"")); q++) done++;
+            if (done >= 16) break;
+        }
+    }
+    ev[evlen] = '\0';
+    if (es >= 0) close(es);
+    int done = 0, assign = 0;
+    for (const char *q = ev; (q = strstr(q, "\"kind\":\"done\"")); q++) done++;
+    for (const char *q = ev; (q = strstr(q, "\"kind\":\"assign\"")); q++) assign++;
+    CHECK(strstr(ev, "text/event-stream") != NULL, "no event-stream header: %.300s", ev);
+    CHECK(done == 16 && assign >= 16, "expected 16 tile-done events and >= 16 assignments, got %d and %d: %.500s",
+          done, assign, ev);
+    CHECK(strstr(ev, "\"worker\":\"webworker\"") && strstr(ev, "\"x0\":48"), "events lack worker or rect: %.300s",
+          ev);
+    /* jobs and workers */
+    CHECK(web_get(w.http, "/api/jobs", "", out, sizeof out) == 200 && strstr(out, "\"id\":1,") &&
+              strstr(out, "\"state\":\"done\"") && strstr(out, "\"tiles_total\":16"),
+          "/api/jobs: %.300s", out);
+    CHECK(web_get(w.http, "/api/workers", "", out, sizeof out) == 200 && strstr(out, "\"name\":\"webworker\""),
+          "/api/workers: %.300s", out);
+    /* metrics */
+    CHECK(web_get(w.http, "/metrics", "", out, sizeof out) == 200, "/metrics: %.200s", out);
+    char bad[1024] = "";
+    const char *m = web_body(out);
+    int samples = metrics_check(m, bad, sizeof bad);
+    CHECK(samples > 20, "/metrics does not parse (%d samples), bad line: %s", samples, bad);
+    CHECK(metric(m, "tessera_tiles_rendered_total") == 16, "tiles rendered %g", metric(m, "tessera_tiles_rendered_total"));
+    CHECK(metric(m, "tessera_samples_total") == 64.0 * 64 * 16, "samples %g", metric(m, "tessera_samples_total"));
+    CHECK(metric(m, "tessera_workers") == 1 && metric(m, "tessera_tile_seconds_count") == 16,
+          "workers %g, latency count %g", metric(m, "tessera_workers"), metric(m, "tessera_tile_seconds_count"));
+    CHECK(strstr(m, "tessera_jobs{state=\"done\"} 1\n") && strstr(m, "tessera_tile_seconds_bucket{le=\"+Inf\"} 16\n"),
+          "jobs by state or histogram missing");
+    /* the Prometheus project's own parser, when python has it */
+    /* (Debian's python3-prometheus-client is under /usr/bin/python3, which
+     * a pyenv python3 earlier in PATH does not see) */
+    const char *py = system("python3 -c 'import prometheus_client' 2>/dev/null") == 0 ? "python3"
+                     : system("/usr/bin/python3 -c 'import prometheus_client' 2>/dev/null") == 0 ? "/usr/bin/python3"
+                                                                                                 : NULL;
+    if (py) {
+        char path[300], cmd[1024], pout[4096];
+        snprintf(path, sizeof path, "%s", util_temp_path("metrics.txt"));
+        FILE *f = fopen(path, "w");
+        if (f) fputs(m, f), fclose(f);
+        snprintf(cmd, sizeof cmd, "%s tests/prom_parse.py %s", py, path);
+        CHECK(util_run(cmd, pout, sizeof pout) == 0, "prometheus_client could not parse /metrics: %s", pout);
+        printf("    prometheus_client: %.100s", pout);
+    } else {
+        printf("    (python3 prometheus_client not installed: the built-in line check only)\n");
+    }
+    /* preview */
+    CHECK(web_get(w.http, "/api/jobs/1/preview.png", "", out, sizeof out) == 200 &&
+              memcmp(web_body(out), "\x89PNG", 4) == 0,
+          "preview: %.100s", out);
+    CHECK(web_get(w.http, "/api/jobs/9/preview.png", "", out, sizeof out) == 404, "preview of no job: %.100s", out);
+    CHECK(web_get(w.http, "/../etc/passwd", "", out, sizeof out) == 404, "path: %.100s", out);
+    /* limits */
+    static char big[200000];
+    int n = snprintf(big, sizeof big, "POST /api/jobs/1/cancel HTTP/1.1\r\nHost: x\r\nContent-Length: 150000\r\n\r\n");
+    memset(big + n, 'a', 150000);
+    CHECK(web_raw(w.http, big, (size_t)n + 150000, out, sizeof out, 20) == 413, "big body: %.100s", out);
+    n = snprintf(big, sizeof big, "GET /healthz HTTP/1.1\r\n");
+    for (int i = 0; i < 100; i++) n += snprintf(big + n, sizeof big - (size_t)n, "X-Filler-%d: %d\r\n", i, i);
+    n += snprintf(big + n, sizeof big - (size_t)n, "\r\n");
+    CHECK(web_raw(w.http, big, (size_t)n, out, sizeof out, 20) == 431, "100 headers: %.100s", out);
+    CHECK(web_raw(w.http, "BREW / HTCPCP/1.0\r\n\r\n", 21, out, sizeof out, 20) == 400, "garbage: %.100s", out);
+    /* a client that sends half a request is closed after the idle timeout, and
+     * meanwhile the server answers others */
+    int idle = web_connect(w.http);
+    CHECK(idle >= 0 && send(idle, "GET /hea", 8, MSG_NOSIGNAL) == 8, "idle client");
+    CHECK(web_get(w.http, "/healthz", "", out, sizeof out) == 200, "healthz beside an idle client");
+    if (idle >= 0) close(idle);
+    /* CSRF: a POST without the token is refused; with it, it works */
+    CHECK(web_post(w.http, "/api/jobs/1/cancel", "", "", out, sizeof out) == 403, "POST without CSRF: %.100s", out);
+    web_get(w.http, "/api/csrf", "", out, sizeof out);
+    char csrf[128] = "", hdr[300];
+    const char *c = strstr(out, "\"csrf\":\"");
+    if (c) snprintf(csrf, sizeof csrf, "%.64s", c + 8);
+    snprintf(hdr, sizeof hdr, "X-CSRF-Token: %s\r\nOrigin: http://evil.example\r\n", csrf);
+    CHECK(web_post(w.http, "/api/jobs/1/cancel", hdr, "", out, sizeof out) == 403, "cross-origin POST: %.100s", out);
+    snprintf(hdr, sizeof hdr, "X-CSRF-Token: %s\r\n", csrf);
+    CHECK(web_post(w.http, "/api/jobs/1/cancel", hdr, "", out, sizeof out) == 409 && strstr(out, "already done"),
+          "cancel of a done job: %.200s", out);
+    CHECK(web_get(w.http, "/", "Host: attacker.example\r\n", out, sizeof out) == 403 ||
+              web_raw(w.http, "GET / HTTP/1.1\r\nHost: attacker.example\r\n\r\n", 42, out, sizeof out, 20) == 403,
+          "DNS-rebinding Host accepted: %.100s", out);
+    CHECK(web_get(w.http, "/", "", out, sizeof out) == 200 && strstr(out, "<title>Tessera</title>"), "index: %.100s",
+          out);
+    web_stop(&w);
+}
+
+TEST(http_dashboard_token_and_binding) {
+    char token[300]; /* util_write_temp's buffer is reused by the next call */
+    snprintf(token, sizeof token, "%s", util_write_temp("web-token", "sesame-web-123\n"));
+    const char *extra[] = {"--token-file", token, NULL};
+    web w;
+    if (web_start(&w, "http-token", 0, extra)) {
+        CHECK(0, "coordinator did not start; log %s", w.log);
+        return;
+    }
+    static char out[1 << 16];
+    CHECK(web_get(w.http, "/healthz", "", out, sizeof out) == 200, "healthz needs no token");
+    CHECK(web_get(w.http, "/api/jobs", "", out, sizeof out) == 401, "no token: %.100s", out);
+    CHECK(web_get(w.http, "/metrics", "", out, sizeof out) == 401, "metrics without token: %.100s", out);
+    CHECK(web_get(w.http, "/", "", out, sizeof out) == 303 && strstr(out, "Location: /login"), "page: %.100s", out);
+    CHECK(web_get(w.http, "/api/jobs", "Authorization: Bearer wrong\r\n", out, sizeof out) == 401, "wrong bearer");
+    CHECK(web_get(w.http, "/api/jobs", "Authorization: Bearer sesame-web-123\r\n", out, sizeof out) == 200,
+          "bearer: %.100s", out);
+    CHECK(web_post(w.http, "/login", "", "token=nope", out, sizeof out) == 303 && !strstr(out, "Set-Cookie"),
+          "bad login: %.200s", out);
+    CHECK(web_post(w.http, "/login", "", "token=sesame-web-123", out, sizeof out) == 303, "login: %.200s", out);
+    const char *ck = strstr(out, "Set-Cookie: tessera_session=");
+    CHECK(ck && strstr(out, "HttpOnly") && strstr(out, "SameSite=Strict"), "cookie: %.300s", out);
+    char cookie[200] = "", hdr[300];
+    if (ck) sscanf(ck + 12, "%199[^;]", cookie);
+    snprintf(hdr, sizeof hdr, "Cookie: other=1; %s\r\n", cookie);
+    CHECK(web_get(w.http, "/api/jobs", hdr, out, sizeof out) == 200, "cookie session: %.100s", out);
+    web_stop(&w);
+    /* a non-loopback address without a token refuses to start */
+    char cmd[4096], cout[4096], dir[300];
+    snprintf(dir, sizeof dir, "%s", util_temp_path("http-open"));
+    snprintf(cmd, sizeof cmd, "%s --listen 127.0.0.1:%d --data-dir %s --http 0.0.0.0:%d",
+             util_bin("tessera-coordinator"), util_free_port(), dir, util_free_port());
+    int st = util_run(cmd, cout, sizeof cout);
+    CHECK(st != 0 && strstr(cout, "not a loopback address") && strstr(cout, "--insecure"),
+          "non-loopback without a token (%d): %s", st, cout);
+}
+
+/* Count red-dominant and green-dominant pixels in the left and right halves
+ * of an RGB image. */
+static void count_walls(const uint8_t *px, int w, int h, int red[2], int green[2]) {
+    red[0] = red[1] = green[0] = green[1] = 0;
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            const uint8_t *p = px + 3 * ((size_t)y * w + x);
+            int side = x >= w / 2;
+            if (p[0] > 60 && p[0] > 2 * p[1] && p[0] > 2 * p[2]) red[side]++;
+            if (p[1] > 60 && p[1] > 1.5 * p[0] && p[1] > 1.5 * p[2]) green[side]++;
+        }
+}
+
+TEST(http_dashboard_chromium_job_page) {
+    if (system("chromium --version >/dev/null 2>&1") != 0) {
+        printf("    SKIP: chromium cannot start here (install Debian's chromium to run this test)\n");
+        return;
+    }
+    web w;
+    if (web_start(&w, "http-chromium", 1, NULL)) {
+        CHECK(0, "coordinator did not start; log %s", w.log);
+        return;
+    }
+    char sub[4096];
+    int st = submit(&w, "scenes/cornell-box.json --width 256 --height 256 --spp 16 --tile-size 32 --wait", sub,
+                    sizeof sub);
+    CHECK(st == 0, "submit failed (%d): %s", st, sub);
+    char shot[300], cmd[2048], out[8192];
+    snprintf(shot, sizeof shot, "%s", util_temp_path("dashboard.png"));
+    unlink(shot);
+    snprintf(cmd, sizeof cmd,
+             "timeout 120 chromium --headless --no-sandbox --disable-gpu --hide-scrollbars --virtual-time-budget=5000 "
+             "--user-data-dir=%s --screenshot=%s --window-size=800,600 http://127.0.0.1:%d/job/1 2>&1",
+             util_temp_path("chromium-profile"), shot, w.http);
+    st = util_run(cmd, out, sizeof out);
+    png_image img = {.version = PNG_IMAGE_VERSION};
+    uint8_t *px = NULL;
+    if (png_image_begin_read_from_file(&img, shot)) {
+        img.format = PNG_FORMAT_RGB;
+        px = malloc(PNG_IMAGE_SIZE(img));
+        if (px && !png_image_finish_read(&img, NULL, px, 0, NULL)) {
+            free(px);
+            px = NULL;
+        }
+    }
+    if (!px) {
+        printf("    SKIP: chromium ran (%d) but wrote no screenshot: %.300s\n", st, out);
+        web_stop(&w);
+        return;
+    }
+    /* the image sits in the page's left 520 px; split it there */
+    int red[2], green[2];
+    int wide = img.width < 520 ? (int)img.width : 520;
+    uint8_t *crop = malloc((size_t)wide * img.height * 3);
+    for (unsigned y = 0; crop && y < img.height; y++) memcpy(crop + (size_t)y * wide * 3, px + (size_t)y * img.width * 3, (size_t)wide * 3);
+    count_walls(crop, wide, (int)img.height, red, green);
+    printf("    screenshot %ux%u: red pixels left %d right %d, green left %d right %d\n", img.width, img.height,
+           red[0], red[1], green[0], green[1]);
+    CHECK(red[0] > 2000 && red[0] > 20 * (red[1] + 1) && green[1] > 2000 && green[1] > 20 * (green[0] + 1),
+          "the Cornell box is not the right way round in the job page (screenshot %s)", shot);
+    free(crop);
+    free(px);
+    web_stop(&w);
+}
+
+/* `tessera render --http`: the local farm's render is served while it runs. */
+TEST(http_dashboard_render_listen) {
+    int port = util_free_port();
+    char http[64], log[300], path[4096], outimg[300];
+    snprintf(http, sizeof http, "127.0.0.1:%d", port);
+    snprintf(log, sizeof log, "%s", util_temp_path("render-http.log"));
+    snprintf(outimg, sizeof outimg, "%s", util_temp_path("render-http.pfm"));
+    snprintf(path, sizeof path, "%s", harness_tessera());
+    const char *argv[] = {path, "render", "scenes/cornell-box.json", "--width", "128", "--height", "128", "--spp",
+                          "64", "--tile-size", "16", "--workers", "1", "--http", http, "-o", outimg, NULL};
+    pid_t pid = util_spawn(argv, log);
+    CHECK(util_wait_for_text(log, "watch the render at http://127.0.0.1:", LONG) == 0, "no dashboard line in %s", log);
+    static char out[1 << 18];
+    int jobs = 0, png = 0, workers = 0;
+    for (int i = 0; i < 200 && !(jobs && png && workers); i++) {
+        jobs = jobs || (web_get(port, "/api/jobs", "", out, sizeof out) == 200 && strstr(out, "\"state\":\"running\""));
+        png = png || (web_get(port, "/api/jobs/1/preview.png", "", out, sizeof out) == 200 &&
+                      memcmp(web_body(out), "\x89PNG", 4) == 0);
+        workers = workers || (web_get(port, "/metrics", "", out, sizeof out) == 200 &&
+                              metric(web_body(out), "tessera_workers") == 1);
+        util_sleep(0.05);
+    }
+    CHECK(jobs && png && workers, "render --http: jobs %d, preview %d, workers %d", jobs, png, workers);
+    CHECK(util_wait(pid, LONG, NULL) == 0, "render --http failed; log %s", log);
+    CHECK(web_get(port, "/healthz", "", out, sizeof out) == 0, "the dashboard outlived the render");
+}
+
+/* An event stream that reads nothing is dropped once it falls behind (the
+ * coordinator keeps at most 256 KiB for it), and the render finishes. */
+TEST(http_dashboard_stalled_stream_dropped) {
+    web w;
+    if (web_start(&w, "http-stall", 1, NULL)) {
+        CHECK(0, "coordinator did not start; log %s", w.log);
+        return;
+    }
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    int small = 4096;
+    setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
+    struct sockaddr_in a = {.sin_family = AF_INET, .sin_port = htons((uint16_t)w.http)};
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    char req[128];
+    int n = snprintf(req, sizeof req, "GET /api/events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+    CHECK(connect(fd, (struct sockaddr *)&a, sizeof a) == 0 && send(fd, req, (size_t)n, 0) == n, "stream");
+    char sub[4096];
+    /* 4096 tiles: two events each, about 1.1 MB of events */
+    int st = submit(&w, "scenes/cornell-box.json --width 256 --height 256 --spp 1 --tile-size 4 --wait", sub,
+                    sizeof sub);
+    CHECK(st == 0, "render beside a stalled stream failed (%d): %s", st, sub);
+    static char out[1 << 16];
+    web_get(w.http, "/metrics", "", out, sizeof out);
+    CHECK(metric(web_body(out), "tessera_http_streams_dropped_total") == 1 &&
+              metric(web_body(out), "tessera_tiles_rendered_total") == 4096,
+          "dropped %g, tiles %g", metric(web_body(out), "tessera_http_streams_dropped_total"),
+          metric(web_body(out), "tessera_tiles_rendered_total"));
+    close(fd);
+    web_stop(&w);
+}
