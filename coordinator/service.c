@@ -3,6 +3,7 @@
  * old jobs, signals and start-up. The job store is jobstore.c. */
 #define _GNU_SOURCE
 #include "service_internal.h"
+#include "paging.h"
 
 void svc_log(const char *fmt, ...) {
     va_list ap;
@@ -17,14 +18,15 @@ double svc_wall_now(void) {
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
+static void client_error(client *cl, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+
 static void client_send_json(client *cl, cJSON *m) {
     size_t len;
     uint8_t *f = m ? wire_frame_json(m, &len) : NULL;
     cJSON_Delete(m);
     if (f) conn_send(cl->c, f, len);
+    else client_error(cl, "the answer is larger than a frame (%u bytes) or memory ran out", WIRE_JSON_MAX);
 }
-
-static void client_error(client *cl, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 
 static void client_error(client *cl, const char *fmt, ...) {
     char reason[1024];
@@ -157,7 +159,7 @@ static void on_status(client *cl, const cJSON *m) {
     }
     farm_worker_info wi[1];
     cJSON_AddNumberToObject(r, "workers", farm_list_workers(s->f, wi, 0));
-    client_send_json(cl, r);
+    paging_send(cl->c, r, "jobs"); /* pages when the listing passes a frame */
 }
 
 static void on_workers(client *cl) {
@@ -180,7 +182,7 @@ static void on_workers(client *cl) {
         cJSON_AddItemToArray(arr, o);
     }
     free(wi);
-    client_send_json(cl, r);
+    paging_send(cl->c, r, "workers");
 }
 
 static sjob *request_job(client *cl, const cJSON *m, const char *type) {
