@@ -50,6 +50,32 @@ static int opt_int(const cJSON *m, const char *key, long lo, long hi, long *out)
     return 0;
 }
 
+/* A submit's "seed": a string of 1 to 20 decimal digits within 64 bits
+ * (no sign, no space). Returns 0, or -1. */
+static int request_seed(const cJSON *v, uint64_t *out) {
+    if (!cJSON_IsString(v)) return -1;
+    const char *t = v->valuestring;
+    size_t n = strlen(t);
+    if (n < 1 || n > 20 || strspn(t, "0123456789") != n) return -1;
+    errno = 0;
+    unsigned long long x = strtoull(t, NULL, 10);
+    if (errno == ERANGE) return -1;
+    *out = (uint64_t)x;
+    return 0;
+}
+
+/* The submit fields that are not numbers: name a string, nee/mis booleans.
+ * Returns NULL or the fault. */
+static const char *request_bad_field(const cJSON *m) {
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(m, "name");
+    if (v && (!cJSON_IsString(v) || strlen(v->valuestring) >= 256)) return "name must be a string under 256 bytes";
+    v = cJSON_GetObjectItemCaseSensitive(m, "nee");
+    if (v && !cJSON_IsBool(v)) return "nee must be true or false";
+    v = cJSON_GetObjectItemCaseSensitive(m, "mis");
+    if (v && !cJSON_IsBool(v)) return "mis must be true or false";
+    return NULL;
+}
+
 static void on_submit(client *cl, const cJSON *m) {
     service *s = cl->svc;
     char err[1024], hash[SCENE_BUNDLE_HASH_HEX], path[4096];
@@ -59,10 +85,15 @@ static void on_submit(client *cl, const cJSON *m) {
     if (!cJSON_IsString(h) || strcmp(h->valuestring, hash) != 0)
         return client_error(cl, "submit: \"scene\" is not the hash of the uploaded scene (%s)", hash);
     long w = -1, ht = -1, spp = -1, depth = -1, pri = 0, tile = s->o.tile_size;
-    if (opt_int(m, "width", 1, LIMIT_SIDE, &w) || opt_int(m, "height", 1, LIMIT_SIDE, &ht) ||
-        opt_int(m, "spp", 1, LIMIT_SPP, &spp) || opt_int(m, "max_depth", 1, LIMIT_DEPTH, &depth) ||
-        opt_int(m, "priority", -1000000, 1000000, &pri) || opt_int(m, "tile_size", 1, s->o.farm.max_tile_side, &tile))
-        return client_error(cl, "submit: width, height, spp, max_depth, priority or tile_size out of range");
+    const struct { const char *key; long lo, hi; long *out; } ints[] = {
+        {"width", 1, LIMIT_SIDE, &w}, {"height", 1, LIMIT_SIDE, &ht}, {"spp", 1, LIMIT_SPP, &spp},
+        {"max_depth", 1, LIMIT_DEPTH, &depth}, {"priority", -1000000, 1000000, &pri},
+        {"tile_size", 1, s->o.farm.max_tile_side, &tile}};
+    for (size_t i = 0; i < sizeof ints / sizeof ints[0]; i++)
+        if (opt_int(m, ints[i].key, ints[i].lo, ints[i].hi, ints[i].out))
+            return client_error(cl, "submit: %s must be an integer from %ld to %ld", ints[i].key, ints[i].lo, ints[i].hi);
+    const char *bad = request_bad_field(m);
+    if (bad) return client_error(cl, "submit: %s", bad);
     const cJSON *sname = cJSON_GetObjectItemCaseSensitive(m, "sampler");
     sampler_kind sampler = SAMPLER_SOBOL;
     if (sname && (!cJSON_IsString(sname) || sampler_parse(sname->valuestring, &sampler) != 0))
@@ -73,9 +104,14 @@ static void on_submit(client *cl, const cJSON *m) {
     if (scene_bundle_parse(cl->bundle, cl->bundle_len, &b, err, sizeof err)) return client_error(cl, "%s", err);
     scene_overrides ov = {(int)w, (int)ht, (int)spp, (int)depth, 0, 0};
     const cJSON *seed = cJSON_GetObjectItemCaseSensitive(m, "seed");
-    if (cJSON_IsString(seed)) {
+    if (seed) {
+        if (request_seed(seed, &ov.seed)) {
+            scene_bundle_free(&b);
+            return client_error(cl, "submit: seed must be a decimal integer from 0 to 18446744073709551615 "
+                                    "in a string, got %.40s%s", cJSON_IsString(seed) ? seed->valuestring : "a non-string",
+                                cJSON_IsString(seed) && strlen(seed->valuestring) > 40 ? "..." : "");
+        }
         ov.has_seed = 1;
-        ov.seed = strtoull(seed->valuestring, NULL, 10);
     }
     scene *sc = scene_load_bundle(&b, &ov, err, sizeof err);
     scene_bundle_free(&b);

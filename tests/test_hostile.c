@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <poll.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <time.h>
@@ -15,6 +16,9 @@
 
 #include "fileio.h"
 #include "harness.h"
+#include "net/protocol.h"
+#include "net/wire.h"
+#include "render/scene_bundle.h"
 #include "util.h"
 
 #define HASH "0000000000000000000000000000000000000000000000000000000000000000"
@@ -156,4 +160,118 @@ TEST(hostile_silent_coordinator_is_a_timeout_not_a_hang) {
     CHECK(rc != 0, "status against a silent coordinator exited 0");
     CHECK(strstr(out, "did not answer within 1 s") != NULL, "no timeout message: %s", out);
     CHECK(t < 5, "the client waited %.1f s for a silent coordinator (timeout 1 s)", t);
+}
+
+/* ---- a raw client: the protocol by hand, for what the CLI never sends ---- */
+
+static int raw_send(int fd, int kind, const void *body, size_t len) {
+    uint8_t hdr[WIRE_HEADER_BYTES];
+    wire_put_u32(hdr, (uint32_t)(len + 1));
+    hdr[4] = (uint8_t)kind;
+    if (send(fd, hdr, sizeof hdr, MSG_NOSIGNAL) != (ssize_t)sizeof hdr) return -1;
+    const uint8_t *p = body;
+    while (len > 0) {
+        ssize_t n = send(fd, p, len, MSG_NOSIGNAL);
+        if (n <= 0) return -1;
+        p += n;
+        len -= (size_t)n;
+    }
+    return 0;
+}
+
+static int raw_send_text(int fd, const char *json) { return raw_send(fd, WIRE_KIND_JSON, json, strlen(json)); }
+
+/* Read one JSON frame's text into out (NUL-terminated) within timeout_s.
+ * Returns 0, or -1 on EOF, timeout or a non-JSON frame. */
+static int raw_read(int fd, char *out, size_t cap, double timeout_s) {
+    uint8_t hdr[WIRE_HEADER_BYTES];
+    size_t have = 0, need = sizeof hdr, len = 0;
+    double end = now_s() + timeout_s;
+    while (have < need) {
+        struct pollfd pf = {fd, POLLIN, 0};
+        int left = (int)((end - now_s()) * 1000);
+        if (left <= 0 || poll(&pf, 1, left) <= 0) return -1;
+        ssize_t n = have < sizeof hdr ? recv(fd, hdr + have, sizeof hdr - have, 0)
+                                      : recv(fd, out + have - sizeof hdr, need - have, 0);
+        if (n <= 0) return -1;
+        have += (size_t)n;
+        if (have == sizeof hdr) {
+            len = wire_get_u32(hdr) - 1;
+            if (hdr[4] != WIRE_KIND_JSON || len + 1 > cap) return -1;
+            need = sizeof hdr + len;
+        }
+    }
+    out[len] = 0;
+    return 0;
+}
+
+/* Connect to c as a client (no token) and say hello. Returns the socket
+ * after the welcome, or -1. */
+static int raw_open(const coord *c) {
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    struct sockaddr_in a = {.sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
+    a.sin_port = htons((uint16_t)c->port);
+    char buf[4096], hello[512];
+    snprintf(hello, sizeof hello,
+             "{\"type\":\"hello\",\"role\":\"client\",\"protocol\":%d,\"build\":\"%s\",\"name\":\"raw\",\"threads\":1}",
+             PROTOCOL_VERSION, protocol_build_id());
+    if (fd < 0 || connect(fd, (struct sockaddr *)&a, sizeof a) != 0 || raw_read(fd, buf, sizeof buf, 5) ||
+        raw_send_text(fd, hello) ||
+        raw_read(fd, buf, sizeof buf, 5) || !strstr(buf, "welcome")) {
+        if (fd >= 0) close(fd);
+        return -1;
+    }
+    return fd;
+}
+
+/* Upload the bundle of scene path on fd; its hash in hash. Returns 0/-1. */
+static int raw_upload(int fd, const char *path, char hash[SCENE_BUNDLE_HASH_HEX]) {
+    scene_bundle b;
+    char err[512];
+    if (scene_bundle_read(path, &b, err, sizeof err)) return -1;
+    size_t len;
+    uint8_t *bytes = scene_bundle_serialise(&b, &len);
+    scene_bundle_free(&b);
+    if (!bytes) return -1;
+    scene_bundle_hash(bytes, len, hash);
+    int rc = raw_send(fd, WIRE_KIND_SCENE, bytes, len);
+    free(bytes);
+    return rc;
+}
+
+/* A submit with each bad field from a client that is not the CLI: refused,
+ * naming the field, and nothing is queued. */
+TEST(hostile_submit_fields_are_checked_by_the_coordinator) {
+    coord c = {0};
+    if (coord_start(&c, "hostile-fields", NULL)) {
+        CHECK(0, "coordinator did not start; log %s", c.log);
+        return;
+    }
+    int fd = raw_open(&c);
+    char hash[SCENE_BUNDLE_HASH_HEX], msg[1024], ans[4096];
+    CHECK(fd >= 0 && raw_upload(fd, "tests/scenes/cornell-small.json", hash) == 0, "cannot connect and upload");
+    static const struct { const char *field, *want; } bad[] = {
+        {"\"seed\":\"abc\"", "seed"},          {"\"seed\":\"-1\"", "seed"},
+        {"\"seed\":\"18446744073709551616\"", "seed"}, {"\"seed\":\" 5\"", "seed"},
+        {"\"seed\":5", "seed"},                {"\"width\":1e30", "width"},
+        {"\"spp\":-3", "spp"},                 {"\"tile_size\":0.5", "tile_size"},
+        {"\"name\":7", "name"},                {"\"nee\":\"no\"", "nee"},
+    };
+    for (size_t i = 0; fd >= 0 && i < sizeof bad / sizeof bad[0]; i++) {
+        snprintf(msg, sizeof msg, "{\"type\":\"submit\",\"scene\":\"%s\",\"name\":\"x\",%s}", hash, bad[i].field);
+        if (strncmp(bad[i].field, "\"name\"", 6) == 0)
+            snprintf(msg, sizeof msg, "{\"type\":\"submit\",\"scene\":\"%s\",%s}", hash, bad[i].field);
+        int rc = raw_send_text(fd, msg) || raw_read(fd, ans, sizeof ans, 10);
+        CHECK(rc == 0, "no answer to %s", bad[i].field);
+        CHECK(strstr(ans, "\"error\"") && strstr(ans, bad[i].want), "%s: answer does not refuse %s: %s", bad[i].field,
+              bad[i].want, ans);
+    }
+    snprintf(msg, sizeof msg, "{\"type\":\"submit\",\"scene\":\"%s\",\"name\":\"ok\",\"seed\":\"18446744073709551615\"}",
+             hash);
+    CHECK(fd >= 0 && raw_send_text(fd, msg) == 0 && raw_read(fd, ans, sizeof ans, 10) == 0 && strstr(ans, "submitted"),
+          "the largest seed was refused: %s", ans);
+    if (fd >= 0) close(fd);
+    char out[8192];
+    CHECK(cli(&c, out, sizeof out, "status") == 0 && !strstr(out, "  x"), "a refused submit was queued: %s", out);
+    coord_stop(&c);
 }
