@@ -44,8 +44,8 @@ static void store_job_release(sjob *j) {
     free(j->journaled);
     j->rgb = NULL;
     j->journaled = NULL;
-    if (j->tiles_fd >= 0) close(j->tiles_fd);
-    j->tiles_fd = -1;
+    tjournal_close(j->journal);
+    j->journal = NULL;
 }
 
 sjob *store_find_job(service *s, uint32_t id) {
@@ -55,48 +55,50 @@ sjob *store_find_job(service *s, uint32_t id) {
     return NULL;
 }
 
-/* Append a finished tile to the journal and sync it: the farm counts the
- * tile only when this returns 0. */
+/* A batch of the job's journal ended (tjournal_cb): its tiles count now,
+ * or the job fails naming the journal and the fault. */
+static void store_on_batch(void *ctx, const uint32_t *tiles, int n, int error) {
+    sjob *j = ctx;
+    service *s = j->svc;
+    uint32_t id = j->desc.id;
+    char msg[600], path[4096];
+    if (error) {
+        store_job_path(s, id, "tiles", path, sizeof path);
+        snprintf(msg, sizeof msg, "%.400s: cannot journal tile %u: %s", path, tiles[0], strerror(error));
+    }
+    for (int i = 0; i < n && j->state == SJOB_RUNNING && j->journal; i++) {
+        j->tiles_done += !error;
+        farm_tile_durable(s->f, id, tiles[i], error ? msg : NULL); /* may end the job */
+    }
+}
+
+/* Queue a finished tile's record in the journal: the farm counts the tile
+ * when its batch is synced (store_on_batch). */
 static int store_on_tile_done(void *ctx, uint32_t tile, const tile_rect *r, char *err, size_t err_len) {
     sjob *j = ctx;
     size_t w = (size_t)tile_width(r), n = 3 * w * (size_t)tile_height(r);
-    size_t len = 16 + 4 * n;
+    size_t len = JOURNAL_RECORD_OVERHEAD + 4 * n;
     uint8_t *rec = malloc(len);
-    if (!rec) {
+    float *px = malloc(4 * n);
+    if (!rec || !px) {
+        free(rec);
+        free(px);
         snprintf(err, err_len, "out of memory journaling tile %u", tile);
         return -1;
     }
     wire_put_u32(rec, JOURNAL_MAGIC);
     wire_put_u32(rec + 4, tile);
     wire_put_u32(rec + 8, (uint32_t)n);
-    float *px = (float *)malloc(4 * n);
-    for (int y = r->y0; px && y < r->y1; y++)
+    for (int y = r->y0; y < r->y1; y++)
         memcpy(px + 3 * w * (size_t)(y - r->y0), j->rgb + 3 * ((size_t)y * (size_t)j->desc.width + (size_t)r->x0),
                12 * w);
-    for (size_t i = 0; px && i < n; i++) wire_put_f32(rec + 12 + 4 * i, px[i]);
-    if (px) wire_put_u32(rec + 12 + 4 * n, journal_record_check(tile, px, n));
-    size_t written = 0;
-    int e = px ? 0 : ENOMEM;
-    while (!e && written < len) { /* a short write (disk full, file limit) is followed by the error */
-        ssize_t wr = write(j->tiles_fd, rec + written, len - written);
-        if (wr > 0) written += (size_t)wr;
-        else e = wr < 0 ? errno : EIO;
-    }
-    if (!e && fdatasync(j->tiles_fd) != 0) e = errno;
-    int rc = e ? -1 : 0;
-    if (rc) {
-        char path[4096];
-        store_job_path(j->svc, j->desc.id, "tiles", path, sizeof path);
-        snprintf(err, err_len, "%.400s: cannot journal tile %u: %s", path, tile, strerror(e));
-        off_t end = lseek(j->tiles_fd, 0, SEEK_CUR);
-        if (written > 0 && end >= (off_t)written && ftruncate(j->tiles_fd, end - (off_t)written) != 0) {
-            /* a torn record left behind is cut off at the next start */
-        }
-    }
+    for (size_t i = 0; i < n; i++) wire_put_f32(rec + 12 + 4 * i, px[i]);
+    wire_put_u32(rec + 12 + 4 * n, journal_record_check(tile, px, n));
+    int rc = tjournal_append(j->journal, tile, rec, len);
     free(px);
     free(rec);
-    if (rc == 0) j->tiles_done++;
-    return rc;
+    if (rc) snprintf(err, err_len, "out of memory journaling tile %u", tile);
+    return rc ? -1 : FARM_TILE_PENDING;
 }
 
 void store_on_job_event(void *ctx, const farm_report *r, int done) {
@@ -125,6 +127,12 @@ void store_on_job_event(void *ctx, const farm_report *r, int done) {
     if (store_save_job(j, err, sizeof err)) svc_log("job %u: %s", j->desc.id, err);
     svc_log("job %u %s (%d tiles from the journal, %d rendered in this run)%s%s", j->desc.id, state_names[j->state],
             j->tiles_resumed, j->tiles_done - j->tiles_resumed, j->error[0] ? ": " : "", j->error);
+    if (j->journal) {
+        uint64_t batches;
+        int largest;
+        tjournal_stats(j->journal, &batches, &largest);
+        svc_log("job %u: journal: %" PRIu64 " synced batches, up to %d tiles in one", j->desc.id, batches, largest);
+    }
     store_job_path(s, j->desc.id, "tiles", path, sizeof path);
     if (j->state != SJOB_CANCELLED) unlink(path); /* done: the image has it; failed: never resumed */
     store_job_release(j);
@@ -135,11 +143,8 @@ void store_on_job_event(void *ctx, const farm_report *r, int done) {
 int store_job_start(service *s, sjob *j, const uint8_t *bundle, size_t len, char *err, size_t err_len) {
     char path[4096];
     store_job_path(s, j->desc.id, "tiles", path, sizeof path);
-    j->tiles_fd = open(path, O_WRONLY | O_CREAT | O_APPEND, 0644);
-    if (j->tiles_fd < 0) {
-        snprintf(err, err_len, "%.400s: cannot open the tile journal: %s", path, strerror(errno));
-        return -1;
-    }
+    j->journal = tjournal_open(&s->loop, path, store_on_batch, j, err, err_len);
+    if (!j->journal) return -1;
     farm_job_options fo = {.tile_size = j->tile_size, .priority = j->priority, .done = j->journaled,
                            .on_tile = store_on_tile_done};
     j->started = svc_wall_now();
@@ -154,7 +159,6 @@ sjob *store_job_new(service *s) {
     sjob *j = calloc(1, sizeof *j);
     if (!j) return NULL;
     j->svc = s;
-    j->tiles_fd = -1;
     TAILQ_INSERT_TAIL(&s->jobs, j, link);
     return j;
 }

@@ -12,6 +12,8 @@ void svc_log(const char *fmt, ...) {
     va_end(ap);
 }
 
+double svc_longest_stall_ms(const service *s) { return loopstat_longest_ms(&s->stat); }
+
 double svc_wall_now(void) {
     struct timespec ts;
     clock_gettime(CLOCK_REALTIME, &ts);
@@ -195,6 +197,7 @@ static void on_status(client *cl, const cJSON *m) {
     }
     farm_worker_info wi[1];
     cJSON_AddNumberToObject(r, "workers", farm_list_workers(s->f, wi, 0));
+    cJSON_AddNumberToObject(r, "longest_stall_ms", svc_longest_stall_ms(s));
     paging_send(cl->c, r, "jobs"); /* pages when the listing passes a frame */
 }
 
@@ -388,8 +391,17 @@ static void on_expiry(uv_timer_t *t) {
     }
 }
 
+static void on_stat_timer(uv_timer_t *t) {
+    service *s = t->data;
+    svc_log("loop: longest iteration %.1f ms in the last 10 s (%.1f ms since the start)", loopstat_take_window(&s->stat),
+            loopstat_longest_ms(&s->stat));
+}
+
 static void on_farm_closed(void *ctx) {
     service *s = ctx;
+    svc_log("loop: longest iteration %.1f ms since the start", loopstat_longest_ms(&s->stat));
+    loopstat_stop(&s->stat);
+    uv_close((uv_handle_t *)&s->stat_timer, NULL);
     uv_close((uv_handle_t *)&s->expiry, NULL);
     uv_close((uv_handle_t *)&s->sigint, NULL);
     uv_close((uv_handle_t *)&s->sigterm, NULL);
@@ -434,6 +446,7 @@ int service_run(const service_options *o) {
     }
     signal(SIGXFSZ, SIG_IGN); /* a file-size limit is a write error to report, not a reason to die */
     uv_loop_init(&s->loop);
+    if (loopstat_start(&s->loop, &s->stat)) svc_log("loop: cannot measure its iterations; stalls go unreported");
     s->o.farm.on_client = on_client;
     s->o.farm.client_ctx = s;
     s->f = farm_new(&s->loop, &s->o.farm, err, sizeof err);
@@ -453,6 +466,9 @@ int service_run(const service_options *o) {
     uv_timer_init(&s->loop, &s->expiry);
     s->expiry.data = s;
     uv_timer_start(&s->expiry, on_expiry, 1000, 60000);
+    uv_timer_init(&s->loop, &s->stat_timer);
+    s->stat_timer.data = s;
+    if (o->farm.verbose) uv_timer_start(&s->stat_timer, on_stat_timer, 10000, 10000);
     uv_run(&s->loop, UV_RUN_DEFAULT);
     farm_free(s->f);
     while (!TAILQ_EMPTY(&s->jobs)) store_job_unlink_free(s, TAILQ_FIRST(&s->jobs));

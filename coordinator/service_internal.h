@@ -6,7 +6,8 @@
  *                cancel, fetch), expiry, signals, start-up.
  *
  * Data dir layout (every file written whole to a temporary name, synced and
- * renamed, except the tile journal, which is appended and synced per tile):
+ * renamed, except the tile journal, which is appended and synced in batches
+ * off the loop thread, tjournal.h):
  *   scenes/HASH     uploaded scene bundles, named by their BLAKE2b hash
  *   jobs/ID.json    a job: what to render and its state
  *   jobs/ID.tiles   finished tiles of a running job: records of
@@ -43,6 +44,8 @@
 #include "render/scene.h"
 #include "data_lock.h"
 #include "journal.h"
+#include "tjournal.h"
+#include "loopstat.h"
 #include "service.h"
 
 #define WIRE_KIND_IMAGE 'I'
@@ -64,7 +67,7 @@ typedef struct sjob {
     int tiles_done, tiles_resumed;
     trace_stats stats;
     double submitted, started, finished; /* wall clock, seconds */
-    int tiles_fd;
+    struct tjournal *journal; /* while running: tiles synced off the loop (tjournal.h) */
     TAILQ_ENTRY(sjob) link; /* on the service's jobs, oldest first */
 } sjob;
 
@@ -74,6 +77,8 @@ typedef struct service {
     farm *f;
     uv_signal_t sigint, sigterm;
     uv_timer_t expiry;
+    uv_timer_t stat_timer; /* -v: the longest loop iteration every 10 s */
+    loopstat stat;         /* loop stalls (loopstat.h); svc_longest_stall_ms */
     TAILQ_HEAD(sjob_list, sjob) jobs;
     uint32_t next_id;
     int stopping;
@@ -121,6 +126,10 @@ void store_load_jobs(service *s);
 
 /* A log line (log.h) from the service. */
 void svc_log(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+
+/* The longest busy iteration of the service's loop so far, in ms (for the
+ * status answer and a dashboard). */
+double svc_longest_stall_ms(const service *s);
 
 /* Wall-clock seconds since the epoch. */
 double svc_wall_now(void);
