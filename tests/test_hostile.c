@@ -18,6 +18,7 @@
 #include "harness.h"
 #include "net/protocol.h"
 #include "net/wire.h"
+#include "render/scene.h"
 #include "render/scene_bundle.h"
 #include "util.h"
 
@@ -340,4 +341,45 @@ TEST(hostile_kill9_mid_render_loses_no_counted_tile) {
     util_wait(w1, 10, NULL);
     util_wait(w2, 10, NULL);
     coord_stop(&c);
+}
+
+/* A scene of n materials, each used by one sphere; the last name repeated
+ * when dup. malloc'd text. */
+static char *many_materials(int n, int dup) {
+    size_t cap = (size_t)n * 160 + 1024, len = 0;
+    char *t = malloc(cap);
+    if (!t) return NULL;
+    len += (size_t)snprintf(t + len, cap - len,
+                            "{\"render\": {\"width\": 8, \"height\": 8, \"spp\": 1}, \"camera\": {\"type\": "
+                            "\"perspective\", \"position\": [0, 0, -10], \"look_at\": [0, 0, 0], \"up\": [0, 1, 0], "
+                            "\"fov\": 40}, \"materials\": {");
+    for (int i = 0; i < n + dup; i++)
+        len += (size_t)snprintf(t + len, cap - len, "%s\"m%d\": {\"type\": \"diffuse\", \"albedo\": [0.5, 0.5, 0.5]}",
+                                i ? ", " : "", i < n ? i : n - 1);
+    len += (size_t)snprintf(t + len, cap - len, "}, \"shapes\": [");
+    for (int i = 0; i < n; i++)
+        len += (size_t)snprintf(t + len, cap - len,
+                                "%s{\"type\": \"sphere\", \"center\": [0, 0, %d], \"radius\": 0.5, \"material\": \"m%d\"}",
+                                i ? ", " : "", i, n - 1 - i);
+    snprintf(t + len, cap - len, "]}");
+    return t;
+}
+
+/* 100,000 materials (each used once) load in linear time: the duplicate
+ * check and each shape's material look-up hash the names (30 s before). A
+ * name given twice is still refused, naming it. */
+TEST(hostile_scene_of_100000_materials_loads_in_linear_time) {
+    char *text = many_materials(100000, 0), err[512];
+    double t0 = now_s();
+    scene *s = text ? util_scene_from_text(text, err, sizeof err) : NULL;
+    double t = now_s() - t0;
+    CHECK(s != NULL, "scene of 100,000 materials refused: %s", s ? "" : err);
+    CHECK(t < 10.0, "loading 100,000 materials took %.1f s (want < 10 s: linear; quadratic took 30 s)", t);
+    if (s) scene_free(s);
+    free(text);
+    text = many_materials(1000, 1);
+    s = text ? util_scene_from_text(text, err, sizeof err) : NULL;
+    CHECK(!s && strstr(err, "materials.m999") && strstr(err, "defined twice"), "duplicate not refused: %s", err);
+    if (s) scene_free(s);
+    free(text);
 }

@@ -12,6 +12,7 @@
 
 #include "accel.h"
 #include "json_field.h"
+#include "name_index.h"
 #include "obj.h"
 #include "scene_bundle.h"
 #include "scene.h"
@@ -48,6 +49,7 @@ typedef struct {
     json_ctx j;
     const scene_bundle *bundle; /* the scene text and its meshes */
     const char **material_names;
+    name_index material_index; /* name -> material slot, for linear checks */
     tri_d *tris;
     size_t tri_count, tri_cap;
     sphere_d *spheres;
@@ -191,16 +193,16 @@ static int load_materials(loader *L, const cJSON *root) {
     /* Slot 0 is the implicit "reflects nothing" material of bare emitters. */
     s->materials = calloc((size_t)n + 1, sizeof(material));
     L->material_names = calloc((size_t)n + 1, sizeof(char *));
-    if (!s->materials || !L->material_names) return jf_fail(&L->j, "materials", NULL, "out of memory");
+    if (!s->materials || !L->material_names || name_index_init(&L->material_index, (size_t)n))
+        return jf_fail(&L->j, "materials", NULL, "out of memory");
     s->materials[0].kind = MATERIAL_NONE;
     L->material_names[0] = "";
     s->material_count = 1;
     for (const cJSON *m = ms ? ms->child : NULL; m; m = m->next) {
         char where[320];
         snprintf(where, sizeof where, "materials.%s", m->string);
-        for (uint32_t i = 1; i < s->material_count; i++)
-            if (strcmp(L->material_names[i], m->string) == 0)
-                return jf_fail(&L->j, where, NULL, "material defined twice");
+        if (name_index_add(&L->material_index, m->string, s->material_count) != 0)
+            return jf_fail(&L->j, where, NULL, "material defined twice");
         if (load_material(L, m, where, &s->materials[s->material_count])) return -1;
         L->material_names[s->material_count++] = m->string;
     }
@@ -219,11 +221,11 @@ static int shape_material(loader *L, const cJSON *sh, const char *where, int emi
         *out = 0;
         return 0;
     }
-    for (uint32_t i = 1; i < L->s->material_count; i++)
-        if (strcmp(L->material_names[i], name) == 0) {
-            *out = i;
-            return 0;
-        }
+    int64_t i = name_index_find(&L->material_index, name);
+    if (i >= 1) {
+        *out = (uint32_t)i;
+        return 0;
+    }
     return jf_fail(&L->j, where, "material", "unknown material \"%s\"", name);
 }
 
@@ -663,6 +665,7 @@ scene *scene_load_bundle(const scene_bundle *b, const scene_overrides *ov, char 
     if (rc == 0) L.s->path = strdup(path);
     cJSON_Delete(root);
     free(L.material_names);
+    name_index_free(&L.material_index);
     free(L.tris);
     free(L.spheres);
     free(L.emitters);
