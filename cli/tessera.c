@@ -493,7 +493,7 @@ static void usage_coordinator(FILE *f) {
             "      --listen HOST:PORT   where to listen (default 127.0.0.1:7000)\n"
             "      --data-dir DIR       journal, uploaded scenes and results (required)\n"
             "      --tile-size N        tile side in pixels (default 32)\n"
-            "      --max-upload MIB     largest scene plus meshes a client may send (default 256)\n"
+            "      --max-upload MIB     largest scene plus meshes a client may send (default 64)\n"
             "      --max-jobs N         queued and running jobs at once (default 100)\n"
             "      --keep-hours H       delete finished jobs after H hours (default 24)\n"
             "      --token-file F       workers and clients must prove they know this secret\n"

@@ -11,7 +11,10 @@
 
 typedef struct {
     uv_check_t check;
-    uint64_t last_ns, last_idle_ns;
+    uint64_t last_ns, last_idle_ns, last_cpu_ns;
+    double longest_cpu_ms;    /* CPU time of the loop thread in one iteration:
+                                 the work the loop did, without the time the
+                                 machine gave to others (a loaded host) */
     double longest_ms;        /* since start */
     double window_ms;         /* since the last loopstat_take_window */
     unsigned long iterations;
@@ -23,6 +26,9 @@ int loopstat_start(uv_loop_t *loop, loopstat *ls);
 
 /* The longest iteration since the start, in milliseconds. */
 double loopstat_longest_ms(const loopstat *ls);
+
+/* The most CPU time the loop thread spent in one iteration, in ms. */
+double loopstat_longest_cpu_ms(const loopstat *ls);
 
 /* The longest iteration since the last call (then reset). */
 double loopstat_take_window(loopstat *ls);

@@ -78,14 +78,80 @@ static const char *request_bad_field(const cJSON *m) {
     return NULL;
 }
 
+/* The scene of a submit was checked (upload.h): make the job, or say why
+ * not. Frees u; frees cl when it went away meanwhile. */
+static void submit_checked(upload *u) {
+    client *cl = u->ctx;
+    service *s = cl->svc;
+    char err[1024], path[4096];
+    cl->validating = 0;
+    if (cl->closed) {
+        free(cl->bundle);
+        free(cl);
+        upload_free(u);
+        return;
+    }
+    if (!cl->bundle) { /* give the bundle back for the next submit, unless a new one came */
+        cl->bundle = u->bundle;
+        cl->bundle_len = u->len;
+        u->bundle = NULL;
+    }
+    if (u->rc) {
+        client_error(cl, "%s", u->err); /* the scene's own message: file, line, field */
+        upload_free(u);
+        return;
+    }
+    const submit_req *q = &cl->req;
+    sjob *j = store_job_new(s);
+    if (!j) {
+        upload_free(u);
+        return client_error(cl, "out of memory");
+    }
+    const render_settings *st = &u->settings;
+    j->desc = (proto_job){.id = s->next_id++, .width = st->width, .height = st->height, .spp = st->spp,
+                          .max_depth = st->max_depth, .seed = st->seed};
+    j->desc.integrator.no_nee = q->no_nee;
+    j->desc.integrator.no_mis = q->no_mis;
+    j->desc.integrator.sampler = q->sampler;
+    memcpy(j->desc.scene_hash, u->hash, sizeof u->hash);
+    snprintf(j->name, sizeof j->name, "%s", q->name);
+    j->priority = (int)q->priority;
+    j->tile_size = (int)q->tile_size;
+    j->submitted = svc_wall_now();
+    j->tile_count = render_split_tiles(j->desc.width, j->desc.height, j->tile_size, NULL, 0);
+    j->rgb = calloc((size_t)j->desc.width * (size_t)j->desc.height * 3, sizeof(float));
+    int rc = j->rgb ? 0 : -1;
+    if (!j->rgb) snprintf(err, sizeof err, "out of memory for a %dx%d image", j->desc.width, j->desc.height);
+    if (rc == 0) rc = store_save_job(j, err, sizeof err);
+    if (rc == 0) rc = store_job_start(s, j, u->bundle ? u->bundle : cl->bundle, u->bundle ? u->len : cl->bundle_len,
+                                      err, sizeof err);
+    upload_free(u);
+    if (rc) {
+        svc_log("submit from %s refused: %s", cl->addr, err);
+        store_job_path(s, j->desc.id, "json", path, sizeof path);
+        unlink(path);
+        store_job_unlink_free(s, j);
+        return client_error(cl, "%s", err);
+    }
+    svc_log("job %u submitted from %s: %s, %dx%d, %d spp, priority %d", j->desc.id, cl->addr, j->name, j->desc.width,
+            j->desc.height, j->desc.spp, j->priority);
+    cJSON *r = cJSON_CreateObject();
+    cJSON_AddStringToObject(r, "type", "submitted");
+    cJSON_AddNumberToObject(r, "job", j->desc.id);
+    client_send_json(cl, r);
+}
+
+/* A submit: every field checked here, on the loop (cheap); the scene is
+ * hashed, parsed, validated and stored off the loop (upload.h), then
+ * submit_checked makes the job. */
 static void on_submit(client *cl, const cJSON *m) {
     service *s = cl->svc;
-    char err[1024], hash[SCENE_BUNDLE_HASH_HEX], path[4096];
     const cJSON *h = cJSON_GetObjectItemCaseSensitive(m, "scene"), *name = cJSON_GetObjectItemCaseSensitive(m, "name");
+    if (cl->validating) return client_error(cl, "submit: the previous submit's scene is still being checked");
     if (!cl->bundle) return client_error(cl, "submit: no scene was uploaded before it");
-    scene_bundle_hash(cl->bundle, cl->bundle_len, hash);
-    if (!cJSON_IsString(h) || strcmp(h->valuestring, hash) != 0)
-        return client_error(cl, "submit: \"scene\" is not the hash of the uploaded scene (%s)", hash);
+    if (!cJSON_IsString(h) || strlen(h->valuestring) != SCENE_BUNDLE_HASH_HEX - 1)
+        return client_error(cl, "submit: \"scene\" must be the uploaded scene's hash (%d hex digits)",
+                            SCENE_BUNDLE_HASH_HEX - 1);
     long w = -1, ht = -1, spp = -1, depth = -1, pri = 0, tile = s->o.tile_size;
     const struct { const char *key; long lo, hi; long *out; } ints[] = {
         {"width", 1, LIMIT_SIDE, &w}, {"height", 1, LIMIT_SIDE, &ht}, {"spp", 1, LIMIT_SPP, &spp},
@@ -100,61 +166,33 @@ static void on_submit(client *cl, const cJSON *m) {
     sampler_kind sampler = SAMPLER_SOBOL;
     if (sname && (!cJSON_IsString(sname) || sampler_parse(sname->valuestring, &sampler) != 0))
         return client_error(cl, "submit: sampler must be \"sobol\" or \"random\"");
-    if (store_running_jobs(s) >= s->o.max_jobs)
-        return client_error(cl, "the queue is full (%d jobs); try again later", s->o.max_jobs);
-    scene_bundle b;
-    if (scene_bundle_parse(cl->bundle, cl->bundle_len, &b, err, sizeof err)) return client_error(cl, "%s", err);
     scene_overrides ov = {(int)w, (int)ht, (int)spp, (int)depth, 0, 0};
     const cJSON *seed = cJSON_GetObjectItemCaseSensitive(m, "seed");
     if (seed) {
-        if (request_seed(seed, &ov.seed)) {
-            scene_bundle_free(&b);
+        if (request_seed(seed, &ov.seed))
             return client_error(cl, "submit: seed must be a decimal integer from 0 to 18446744073709551615 "
                                     "in a string, got %.40s%s", cJSON_IsString(seed) ? seed->valuestring : "a non-string",
                                 cJSON_IsString(seed) && strlen(seed->valuestring) > 40 ? "..." : "");
-        }
         ov.has_seed = 1;
     }
-    scene *sc = scene_load_bundle(&b, &ov, err, sizeof err);
-    scene_bundle_free(&b);
-    if (!sc) return client_error(cl, "%s", err); /* the scene's own message: file, line, field */
-    sjob *j = store_job_new(s);
-    if (!j) {
-        scene_free(sc);
-        return client_error(cl, "out of memory");
-    }
-    j->desc = (proto_job){.id = s->next_id++, .width = sc->settings.width, .height = sc->settings.height,
-                          .spp = sc->settings.spp, .max_depth = sc->settings.max_depth, .seed = sc->settings.seed};
-    j->desc.integrator.no_nee = cJSON_IsFalse(cJSON_GetObjectItemCaseSensitive(m, "nee"));
-    j->desc.integrator.no_mis = cJSON_IsFalse(cJSON_GetObjectItemCaseSensitive(m, "mis"));
-    j->desc.integrator.sampler = sampler;
-    memcpy(j->desc.scene_hash, hash, sizeof hash);
-    snprintf(j->name, sizeof j->name, "%s", cJSON_IsString(name) ? name->valuestring : "scene");
-    scene_free(sc);
-    j->priority = (int)pri;
-    j->tile_size = (int)tile;
-    j->submitted = svc_wall_now();
-    j->tile_count = render_split_tiles(j->desc.width, j->desc.height, j->tile_size, NULL, 0);
-    j->rgb = calloc((size_t)j->desc.width * (size_t)j->desc.height * 3, sizeof(float));
-    snprintf(path, sizeof path, "%s/scenes/%s", s->o.data_dir, hash);
-    int rc = j->rgb ? 0 : -1;
-    if (!j->rgb) snprintf(err, sizeof err, "out of memory for a %dx%d image", j->desc.width, j->desc.height);
-    if (rc == 0) rc = file_write_atomic(path, cl->bundle, cl->bundle_len, err, sizeof err);
-    if (rc == 0) rc = store_save_job(j, err, sizeof err);
-    if (rc == 0) rc = store_job_start(s, j, cl->bundle, cl->bundle_len, err, sizeof err);
-    if (rc) {
-        svc_log("submit from %s refused: %s", cl->addr, err);
-        store_job_path(s, j->desc.id, "json", path, sizeof path);
-        unlink(path);
-        store_job_unlink_free(s, j);
-        return client_error(cl, "%s", err);
-    }
-    svc_log("job %u submitted from %s: %s, %dx%d, %d spp, priority %d", j->desc.id, cl->addr, j->name, j->desc.width,
-            j->desc.height, j->desc.spp, j->priority);
-    cJSON *r = cJSON_CreateObject();
-    cJSON_AddStringToObject(r, "type", "submitted");
-    cJSON_AddNumberToObject(r, "job", j->desc.id);
-    client_send_json(cl, r);
+    if (store_running_jobs(s) + upload_queue_length(&s->uploads) >= s->o.max_jobs)
+        return client_error(cl, "the queue is full (%d jobs); try again later", s->o.max_jobs);
+    upload *u = calloc(1, sizeof *u);
+    if (!u) return client_error(cl, "out of memory");
+    u->bundle = cl->bundle; /* the upload's now; given back when it ends */
+    u->len = cl->bundle_len;
+    cl->bundle = NULL;
+    snprintf(u->claimed_hash, sizeof u->claimed_hash, "%s", h->valuestring);
+    u->ov = ov;
+    snprintf(u->store_path_dir, sizeof u->store_path_dir, "%s/scenes", s->o.data_dir);
+    u->done = submit_checked;
+    u->ctx = cl;
+    cl->req = (submit_req){.priority = pri, .tile_size = tile, .sampler = sampler,
+                           .no_nee = cJSON_IsFalse(cJSON_GetObjectItemCaseSensitive(m, "nee")),
+                           .no_mis = cJSON_IsFalse(cJSON_GetObjectItemCaseSensitive(m, "mis"))};
+    snprintf(cl->req.name, sizeof cl->req.name, "%s", cJSON_IsString(name) ? name->valuestring : "scene");
+    cl->validating = 1;
+    upload_queue_add(&s->uploads, u);
 }
 
 static cJSON *job_status_json(const sjob *j) {
@@ -198,6 +236,7 @@ static void on_status(client *cl, const cJSON *m) {
     farm_worker_info wi[1];
     cJSON_AddNumberToObject(r, "workers", farm_list_workers(s->f, wi, 0));
     cJSON_AddNumberToObject(r, "longest_stall_ms", svc_longest_stall_ms(s));
+    cJSON_AddNumberToObject(r, "longest_stall_cpu_ms", loopstat_longest_cpu_ms(&s->stat));
     paging_send(cl->c, r, "jobs"); /* pages when the listing passes a frame */
 }
 
@@ -348,6 +387,11 @@ static void client_on_close(conn *c, const char *reason) {
     client *cl = conn_data(c);
     if (conn_malformed(c)) svc_log("client %s: %s; disconnecting", cl->addr, reason);
     free(cl->bundle);
+    cl->bundle = NULL;
+    if (cl->validating) { /* its scene is being checked: freed by submit_checked */
+        cl->closed = 1;
+        return;
+    }
     free(cl);
 }
 
@@ -399,7 +443,8 @@ static void on_stat_timer(uv_timer_t *t) {
 
 static void on_farm_closed(void *ctx) {
     service *s = ctx;
-    svc_log("loop: longest iteration %.1f ms since the start", loopstat_longest_ms(&s->stat));
+    svc_log("loop: longest iteration %.1f ms since the start (%.1f ms of CPU)", loopstat_longest_ms(&s->stat),
+            loopstat_longest_cpu_ms(&s->stat));
     loopstat_stop(&s->stat);
     uv_close((uv_handle_t *)&s->stat_timer, NULL);
     uv_close((uv_handle_t *)&s->expiry, NULL);
@@ -458,6 +503,7 @@ int service_run(const service_options *o) {
     }
     svc_log("listening on %s:%d, data in %s", o->farm.host, farm_port(s->f), o->data_dir);
     store_load_jobs(s);
+    upload_queue_init(&s->uploads, &s->loop);
     uv_signal_init(&s->loop, &s->sigint);
     uv_signal_init(&s->loop, &s->sigterm);
     s->sigint.data = s->sigterm.data = s;

@@ -46,6 +46,7 @@
 #include "journal.h"
 #include "tjournal.h"
 #include "loopstat.h"
+#include "upload.h"
 #include "service.h"
 
 #define WIRE_KIND_IMAGE 'I'
@@ -79,10 +80,19 @@ typedef struct service {
     uv_timer_t expiry;
     uv_timer_t stat_timer; /* -v: the longest loop iteration every 10 s */
     loopstat stat;         /* loop stalls (loopstat.h); svc_longest_stall_ms */
+    upload_queue uploads;  /* scenes being checked off the loop (upload.h) */
     TAILQ_HEAD(sjob_list, sjob) jobs;
     uint32_t next_id;
     int stopping;
 } service;
+
+/* What a submit asks besides its scene, kept while the scene is checked. */
+typedef struct {
+    long priority, tile_size;
+    sampler_kind sampler;
+    int no_nee, no_mis;
+    char name[256];
+} submit_req;
 
 /* A connected client (submit, status, ...). */
 typedef struct {
@@ -91,6 +101,9 @@ typedef struct {
     char addr[64];
     uint8_t *bundle; /* the last scene uploaded */
     size_t bundle_len;
+    int validating;  /* a submit's scene is on the upload queue */
+    int closed;      /* gone while validating: freed when the check ends */
+    submit_req req;  /* that submit's other fields */
 } client;
 
 /* ---- shared between the files ---- */
