@@ -14,6 +14,12 @@ void svc_log(const char *fmt, ...) {
 
 double svc_longest_stall_ms(const service *s) { return loopstat_longest_ms(&s->stat); }
 
+double svc_mono_now(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
 double svc_wall_now(void) {
     struct timespec ts;
     clock_gettime(CLOCK_REALTIME, &ts);
@@ -351,6 +357,7 @@ static void on_fetch(client *cl, const cJSON *m) {
 
 static int client_on_frame(conn *c, int kind, const uint8_t *body, size_t len) {
     client *cl = conn_data(c);
+    cl->last_frame = svc_mono_now();
     if (kind == WIRE_KIND_SCENE) {
         free(cl->bundle);
         cl->bundle = malloc(len ? len : 1);
@@ -388,6 +395,7 @@ static void client_on_close(conn *c, const char *reason) {
     if (conn_malformed(c)) svc_log("client %s: %s; disconnecting", cl->addr, reason);
     free(cl->bundle);
     cl->bundle = NULL;
+    TAILQ_REMOVE(&cl->svc->clients, cl, link);
     if (cl->validating) { /* its scene is being checked: freed by submit_checked */
         cl->closed = 1;
         return;
@@ -407,6 +415,9 @@ static void on_client(void *ctx, conn *c, const cJSON *hello, const char *addr) 
     cl->svc = s;
     cl->c = c;
     snprintf(cl->addr, sizeof cl->addr, "%s", addr);
+    cl->last_bytes = cl->last_frame = cl->window_start = svc_mono_now();
+    cl->seen_bytes = conn_bytes_in(c);
+    TAILQ_INSERT_TAIL(&s->clients, cl, link);
     conn_set_callbacks(c, &client_cbs, cl);
     conn_set_max_frame(c, s->o.max_upload + 1);
     cJSON *w = cJSON_CreateObject();
@@ -435,6 +446,44 @@ static void on_expiry(uv_timer_t *t) {
     }
 }
 
+#define TRICKLE_WINDOW_S 10.0
+#define TRICKLE_MIN_BYTES 1024 /* a frame in progress must grow by this much per window */
+
+/* Close clients that are idle (no request and no byte for
+ * --client-timeout; one whose submit is being checked is busy, not idle)
+ * or that trickle a frame (less than TRICKLE_MIN_BYTES in TRICKLE_WINDOW_S,
+ * or in --client-timeout when that is shorter). Each close is logged once, naming the client. */
+static void on_sweep(uv_timer_t *t) {
+    service *s = t->data;
+    double now = svc_mono_now(), limit = s->o.client_timeout_s > 0 ? s->o.client_timeout_s : 30;
+    client *cl, *next;
+    TAILQ_FOREACH_SAFE(cl, &s->clients, link, next) {
+        uint64_t in = conn_bytes_in(cl->c);
+        if (in != cl->seen_bytes) cl->last_bytes = now;
+        cl->window_bytes += in - cl->seen_bytes;
+        cl->seen_bytes = in;
+        const char *why = NULL;
+        char reason[160];
+        if (!cl->validating && now - cl->last_bytes > limit) {
+            snprintf(reason, sizeof reason, "idle for %.0f s (--client-timeout)", now - cl->last_bytes);
+            why = reason;
+        } else if (now - cl->window_start >= (limit < TRICKLE_WINDOW_S ? limit : TRICKLE_WINDOW_S)) {
+            if (conn_pending(cl->c) > 0 && cl->window_bytes < TRICKLE_MIN_BYTES) {
+                snprintf(reason, sizeof reason, "sent %" PRIu64 " bytes of a frame in %.0f s (under %d bytes per %.0f s)",
+                         cl->window_bytes, now - cl->window_start, TRICKLE_MIN_BYTES, TRICKLE_WINDOW_S);
+                why = reason;
+            }
+            cl->window_bytes = 0;
+            cl->window_start = now;
+        }
+        if (why) {
+            svc_log("client %s closed: %s", cl->addr, why);
+            client_error(cl, "closing the connection: %s", why);
+            conn_close(cl->c, why, 1);
+        }
+    }
+}
+
 static void on_stat_timer(uv_timer_t *t) {
     service *s = t->data;
     svc_log("loop: longest iteration %.1f ms in the last 10 s (%.1f ms since the start)", loopstat_take_window(&s->stat),
@@ -447,6 +496,7 @@ static void on_farm_closed(void *ctx) {
             loopstat_longest_cpu_ms(&s->stat));
     loopstat_stop(&s->stat);
     uv_close((uv_handle_t *)&s->stat_timer, NULL);
+    uv_close((uv_handle_t *)&s->sweep, NULL);
     uv_close((uv_handle_t *)&s->expiry, NULL);
     uv_close((uv_handle_t *)&s->sigint, NULL);
     uv_close((uv_handle_t *)&s->sigterm, NULL);
@@ -482,6 +532,7 @@ int service_run(const service_options *o) {
     char err[600];
     if (!s) return 1;
     TAILQ_INIT(&s->jobs);
+    TAILQ_INIT(&s->clients);
     s->o = *o;
     s->next_id = 1;
     if (prepare_data_dir(o->data_dir, err, sizeof err) || data_dir_lock(o->data_dir, err, sizeof err) < 0) {
@@ -515,6 +566,9 @@ int service_run(const service_options *o) {
     uv_timer_init(&s->loop, &s->stat_timer);
     s->stat_timer.data = s;
     if (o->farm.verbose) uv_timer_start(&s->stat_timer, on_stat_timer, 10000, 10000);
+    uv_timer_init(&s->loop, &s->sweep);
+    s->sweep.data = s;
+    uv_timer_start(&s->sweep, on_sweep, 1000, 1000);
     uv_run(&s->loop, UV_RUN_DEFAULT);
     farm_free(s->f);
     while (!TAILQ_EMPTY(&s->jobs)) store_job_unlink_free(s, TAILQ_FIRST(&s->jobs));

@@ -16,6 +16,7 @@ typedef struct {
     size_t max_upload;    /* largest scene bundle a client may send */
     int max_jobs;         /* queued and running jobs at once */
     double keep_s;        /* finished jobs are deleted after this long */
+    double client_timeout_s; /* a client that sends nothing this long is closed (0: 30 s) */
 } service_options;
 
 /* Run the service until SIGINT or SIGTERM. Returns the exit status: 0

@@ -81,6 +81,8 @@ typedef struct service {
     uv_timer_t stat_timer; /* -v: the longest loop iteration every 10 s */
     loopstat stat;         /* loop stalls (loopstat.h); svc_longest_stall_ms */
     upload_queue uploads;  /* scenes being checked off the loop (upload.h) */
+    uv_timer_t sweep;      /* closes idle and trickling clients every second */
+    TAILQ_HEAD(client_list, client) clients;
     TAILQ_HEAD(sjob_list, sjob) jobs;
     uint32_t next_id;
     int stopping;
@@ -95,7 +97,7 @@ typedef struct {
 } submit_req;
 
 /* A connected client (submit, status, ...). */
-typedef struct {
+typedef struct client {
     service *svc;
     conn *c;
     char addr[64];
@@ -104,6 +106,11 @@ typedef struct {
     int validating;  /* a submit's scene is on the upload queue */
     int closed;      /* gone while validating: freed when the check ends */
     submit_req req;  /* that submit's other fields */
+    uint64_t seen_bytes;           /* conn_bytes_in at the last sweep */
+    double last_bytes, last_frame; /* monotonic seconds: last byte, last whole frame */
+    uint64_t window_bytes;         /* bytes in the current 10 s window while mid-frame */
+    double window_start;
+    TAILQ_ENTRY(client) link;      /* on the service's clients while connected */
 } client;
 
 /* ---- shared between the files ---- */
@@ -143,6 +150,9 @@ void svc_log(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 /* The longest busy iteration of the service's loop so far, in ms (for the
  * status answer and a dashboard). */
 double svc_longest_stall_ms(const service *s);
+
+/* Monotonic seconds (for timeouts). */
+double svc_mono_now(void);
 
 /* Wall-clock seconds since the epoch. */
 double svc_wall_now(void);

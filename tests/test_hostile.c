@@ -451,3 +451,45 @@ TEST(hostile_large_upload_is_checked_off_the_loop) {
     util_wait(w, 10, NULL);
     coord_stop(&c);
 }
+
+/* Clients that finish the hello and then say nothing, and one that trickles
+ * an upload a byte at a time, are closed after --client-timeout (each close
+ * logged once); a legitimate status is answered throughout. */
+TEST(hostile_idle_and_trickling_clients_are_closed) {
+    coord c = {0};
+    const char *extra[] = {"--client-timeout", "1", NULL};
+    if (coord_start(&c, "hostile-idle", extra)) {
+        CHECK(0, "coordinator did not start; log %s", c.log);
+        return;
+    }
+    enum { IDLE = 50 };
+    int fds[IDLE], opened = 0;
+    for (int i = 0; i < IDLE; i++) opened += (fds[i] = raw_open(&c)) >= 0;
+    CHECK(opened == IDLE, "only %d of %d idle clients got in", opened, IDLE);
+    int tr = raw_open(&c);
+    uint8_t hdr[WIRE_HEADER_BYTES];
+    wire_put_u32(hdr, 100001);
+    hdr[4] = WIRE_KIND_SCENE;
+    CHECK(tr >= 0 && send(tr, hdr, sizeof hdr, MSG_NOSIGNAL) == (ssize_t)sizeof hdr, "trickler could not start");
+    char out[4096], ans[4096];
+    int tr_closed = 0;
+    for (int i = 0; i < 40 && !tr_closed; i++) { /* a byte every 0.1 s for up to 4 s */
+        tr_closed = send(tr, "x", 1, MSG_NOSIGNAL) != 1;
+        util_sleep(0.1);
+        CHECK(cli(&c, out, sizeof out, "status") == 0, "status failed beside idle clients: %s", out);
+    }
+    int closed = 0;
+    for (int i = 0; i < IDLE; i++) { /* each gets a last error naming the timeout, then EOF */
+        if (fds[i] < 0) continue;
+        int got = raw_read(fds[i], ans, sizeof ans, 3) == 0 && strstr(ans, "--client-timeout");
+        char b;
+        closed += got && recv(fds[i], &b, 1, 0) == 0;
+        close(fds[i]);
+    }
+    CHECK(closed == IDLE, "%d of %d idle clients were closed after --client-timeout 1", closed, IDLE);
+    CHECK(raw_read(tr, ans, sizeof ans, 3) == 0 && strstr(ans, "bytes of a frame"), "trickler not closed: %s", ans);
+    close(tr);
+    CHECK(util_file_count(c.log, "idle for") == IDLE, "%d idle closes logged (want %d, once each)",
+          util_file_count(c.log, "idle for"), IDLE);
+    coord_stop(&c);
+}
