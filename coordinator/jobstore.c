@@ -39,7 +39,11 @@ int store_save_job(sjob *j, char *err, size_t err_len) {
     return rc;
 }
 
+static void on_save_timer_closed(uv_handle_t *h);
+
 static void store_job_release(sjob *j) {
+    if (j->save_timer) uv_close((uv_handle_t *)j->save_timer, on_save_timer_closed);
+    j->save_timer = NULL;
     free(j->rgb);
     free(j->journaled);
     j->rgb = NULL;
@@ -101,30 +105,20 @@ static int store_on_tile_done(void *ctx, uint32_t tile, const tile_rect *r, char
     return rc ? -1 : FARM_TILE_PENDING;
 }
 
-void store_on_job_event(void *ctx, const farm_report *r, int done) {
-    sjob *j = ctx;
+/* Whether an error is the disk being full (wait for space, lose nothing)
+ * rather than a fault. */
+static int out_of_space(int e, const char *msg) {
+    return e == ENOSPC || e == EDQUOT || strstr(msg, strerror(ENOSPC)) || strstr(msg, strerror(EDQUOT));
+}
+
+/* Record the job's end: its file, the log, and (done and recorded) its
+ * journal removed; a failed or cancelled job keeps its journal until it
+ * expires, so nothing durable is deleted. */
+static void store_job_conclude(sjob *j) {
     service *s = j->svc;
-    j->stats = r->stats;
-    if (!done) return;
-    char err[600] = "", path[4096];
-    j->finished = svc_wall_now();
-    if (r->cancelled) {
-        j->state = SJOB_CANCELLED;
-    } else if (r->failed) {
-        j->state = SJOB_FAILED;
-        snprintf(j->error, sizeof j->error, "%s", r->error);
-    } else {
-        image img = {j->desc.width, j->desc.height, j->rgb};
-        image_write_options wo = {0};
-        store_job_path(s, j->desc.id, "pfm", path, sizeof path);
-        if (image_write(path, &img, &wo, err, sizeof err) == 0) {
-            j->state = SJOB_DONE;
-        } else {
-            j->state = SJOB_FAILED;
-            snprintf(j->error, sizeof j->error, "%.500s", err);
-        }
-    }
-    if (store_save_job(j, err, sizeof err)) svc_log("job %u: %s", j->desc.id, err);
+    char err[600], path[4096];
+    int saved = store_save_job(j, err, sizeof err) == 0;
+    if (!saved) svc_log("job %u: %s", j->desc.id, err);
     svc_log("job %u %s (%d tiles from the journal, %d rendered in this run)%s%s", j->desc.id, state_names[j->state],
             j->tiles_resumed, j->tiles_done - j->tiles_resumed, j->error[0] ? ": " : "", j->error);
     if (j->journal) {
@@ -134,16 +128,89 @@ void store_on_job_event(void *ctx, const farm_report *r, int done) {
         svc_log("job %u: journal: %" PRIu64 " synced batches, up to %d tiles in one", j->desc.id, batches, largest);
     }
     store_job_path(s, j->desc.id, "tiles", path, sizeof path);
-    if (j->state != SJOB_CANCELLED) unlink(path); /* done: the image has it; failed: never resumed */
+    if (j->state == SJOB_DONE && saved) unlink(path); /* the image has it all */
     store_job_release(j);
+}
+
+static void on_save_timer_closed(uv_handle_t *h) { free(h); }
+
+/* Write the finished image. Returns 0; 1 when the disk is full (the job
+ * stays running with its frame and journal, and a timer tries again); -1
+ * on another error (in j->error). */
+static int store_save_image(sjob *j) {
+    char err[600], path[4096];
+    image img = {j->desc.width, j->desc.height, j->rgb};
+    image_write_options wo = {0};
+    store_job_path(j->svc, j->desc.id, "pfm", path, sizeof path);
+    errno = 0;
+    if (image_write(path, &img, &wo, err, sizeof err) == 0) return 0;
+    if (out_of_space(errno, err)) return 1;
+    snprintf(j->error, sizeof j->error, "%.500s", err);
+    return -1;
+}
+
+static void on_save_retry(uv_timer_t *t) {
+    sjob *j = t->data;
+    int rc = store_save_image(j);
+    if (rc == 1) return; /* still full: the timer goes on */
+    uv_close((uv_handle_t *)t, on_save_timer_closed);
+    j->save_timer = NULL;
+    j->error[0] = rc == 0 ? 0 : j->error[0];
+    j->state = rc == 0 ? SJOB_DONE : SJOB_FAILED;
+    svc_log("job %u: %s", j->desc.id, rc == 0 ? "space is back; the image is saved" : "the image cannot be saved");
+    store_job_conclude(j);
+}
+
+void store_on_job_event(void *ctx, const farm_report *r, int done) {
+    sjob *j = ctx;
+    service *s = j->svc;
+    j->stats = r->stats;
+    if (!done) return;
+    j->finished = svc_wall_now();
+    if (r->cancelled) {
+        j->state = SJOB_CANCELLED;
+    } else if (r->failed) {
+        j->state = SJOB_FAILED;
+        snprintf(j->error, sizeof j->error, "%s", r->error);
+    } else {
+        int rc = store_save_image(j);
+        if (rc == 1 && (j->save_timer = malloc(sizeof *j->save_timer)) != NULL) {
+            snprintf(j->error, sizeof j->error, "paused: no space left to save the image; retrying every %d s",
+                     TJOURNAL_RETRY_MS / 1000);
+            svc_log("job %u: %s (its tiles stay in the journal)", j->desc.id, j->error);
+            uv_timer_init(&s->loop, j->save_timer);
+            uv_unref((uv_handle_t *)j->save_timer); /* a stopping service does not wait for space */
+            j->save_timer->data = j;
+            uv_timer_start(j->save_timer, on_save_retry, TJOURNAL_RETRY_MS, TJOURNAL_RETRY_MS);
+            farm_forget(s->f, j->desc.id);
+            return; /* still "running": a restart replays the journal */
+        }
+        if (rc == 1) snprintf(j->error, sizeof j->error, "no space left to save the image");
+        j->state = rc == 0 ? SJOB_DONE : SJOB_FAILED;
+    }
+    store_job_conclude(j);
     farm_forget(s->f, j->desc.id);
+}
+
+/* The journal of j ran out of space or got it back (tjournal_pause_cb):
+ * logged once each way, and shown in status as the job's note. */
+static void store_on_journal_pause(void *ctx, int error) {
+    sjob *j = ctx;
+    if (error) {
+        snprintf(j->error, sizeof j->error, "paused: the tile journal is out of space (%s); finished tiles wait in "
+                 "memory and count once written", strerror(error));
+        svc_log("job %u: %s; retrying every %d s", j->desc.id, j->error, TJOURNAL_RETRY_MS / 1000);
+    } else {
+        j->error[0] = 0;
+        svc_log("job %u: space is back; the tile journal resumed", j->desc.id);
+    }
 }
 
 /* Hand a job (new or resumed) to the farm, opening its tile journal. */
 int store_job_start(service *s, sjob *j, const uint8_t *bundle, size_t len, char *err, size_t err_len) {
     char path[4096];
     store_job_path(s, j->desc.id, "tiles", path, sizeof path);
-    j->journal = tjournal_open(&s->loop, path, store_on_batch, j, err, err_len);
+    j->journal = tjournal_open(&s->loop, path, store_on_batch, store_on_journal_pause, j, err, err_len);
     if (!j->journal) return -1;
     farm_job_options fo = {.tile_size = j->tile_size, .priority = j->priority, .done = j->journaled,
                            .on_tile = store_on_tile_done};

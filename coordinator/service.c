@@ -572,6 +572,7 @@ int service_run(const service_options *o) {
     uv_run(&s->loop, UV_RUN_DEFAULT);
     farm_free(s->f);
     while (!TAILQ_EMPTY(&s->jobs)) store_job_unlink_free(s, TAILQ_FIRST(&s->jobs));
+    uv_run(&s->loop, UV_RUN_NOWAIT); /* the close callbacks of the jobs' journals and timers */
     uv_loop_close(&s->loop);
     free(s);
     return 0;

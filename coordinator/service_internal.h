@@ -69,6 +69,7 @@ typedef struct sjob {
     trace_stats stats;
     double submitted, started, finished; /* wall clock, seconds */
     struct tjournal *journal; /* while running: tiles synced off the loop (tjournal.h) */
+    uv_timer_t *save_timer;   /* rendered, waiting for space to save the image */
     TAILQ_ENTRY(sjob) link; /* on the service's jobs, oldest first */
 } sjob;
 

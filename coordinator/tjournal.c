@@ -26,12 +26,36 @@ struct tjournal {
     off_t durable;           /* file length of whole, synced records */
     batch queued, writing;   /* writing: the pool thread's while busy */
     int busy, in_cb, closing;
+    int paused;              /* out of space: records kept, retried by the timer */
+    uv_timer_t retry;
     int error;               /* errno of the batch just written */
     uint64_t batches;
     int largest;
     tjournal_cb cb;
+    tjournal_pause_cb on_pause;
     void *ctx;
 };
+
+/* Room for len more bytes and one more tile in b. Returns 0 or -1. */
+static int batch_reserve(batch *b, size_t len, int tiles) {
+    if (b->len + len > b->cap) {
+        size_t cap = b->cap ? b->cap : 65536;
+        while (cap < b->len + len) cap *= 2;
+        uint8_t *d = realloc(b->data, cap);
+        if (!d) return -1;
+        b->data = d;
+        b->cap = cap;
+    }
+    if (b->n + tiles > b->tiles_cap) {
+        int cap = b->tiles_cap ? b->tiles_cap : 64;
+        while (cap < b->n + tiles) cap *= 2;
+        uint32_t *t = realloc(b->tiles, (size_t)cap * sizeof *t);
+        if (!t) return -1;
+        b->tiles = t;
+        b->tiles_cap = cap;
+    }
+    return 0;
+}
 
 static void batch_free(batch *b) {
     free(b->data);
@@ -39,7 +63,8 @@ static void batch_free(batch *b) {
     memset(b, 0, sizeof *b);
 }
 
-tjournal *tjournal_open(uv_loop_t *loop, const char *path, tjournal_cb cb, void *ctx, char *err, size_t err_len) {
+tjournal *tjournal_open(uv_loop_t *loop, const char *path, tjournal_cb cb, tjournal_pause_cb on_pause, void *ctx,
+                        char *err, size_t err_len) {
     tjournal *jr = calloc(1, sizeof *jr);
     if (!jr) {
         snprintf(err, err_len, "%.400s: out of memory for the tile journal", path);
@@ -56,8 +81,12 @@ tjournal *tjournal_open(uv_loop_t *loop, const char *path, tjournal_cb cb, void 
     jr->durable = st.st_size;
     jr->loop = loop;
     jr->cb = cb;
+    jr->on_pause = on_pause;
     jr->ctx = ctx;
     jr->work.data = jr;
+    uv_timer_init(loop, &jr->retry);
+    uv_unref((uv_handle_t *)&jr->retry); /* waiting for space never keeps a stopping service alive */
+    jr->retry.data = jr;
     return jr;
 }
 
@@ -81,6 +110,7 @@ static void write_batch(uv_work_t *w) {
 }
 
 static void after_batch(uv_work_t *w, int status);
+static void start_batch(tjournal *jr);
 
 static void start_batch(tjournal *jr) {
     batch t = jr->writing;
@@ -97,17 +127,55 @@ static void start_batch(tjournal *jr) {
     }
 }
 
-static void tjournal_free(tjournal *jr) {
-    close(jr->fd);
+static void on_timer_closed(uv_handle_t *h) {
+    tjournal *jr = h->data;
     batch_free(&jr->queued);
     batch_free(&jr->writing);
     free(jr);
+}
+
+static void tjournal_free(tjournal *jr) {
+    close(jr->fd);
+    uv_close((uv_handle_t *)&jr->retry, on_timer_closed);
+}
+
+/* Out of space: the batch goes back in front of the queue, whole, and is
+ * tried again in TJOURNAL_RETRY_MS. Returns 0, or -1 when out of memory. */
+static int requeue(tjournal *jr) {
+    batch *w = &jr->writing, *q = &jr->queued;
+    if (batch_reserve(w, q->len, q->n)) return -1;
+    memcpy(w->data + w->len, q->data, q->len);
+    memcpy(w->tiles + w->n, q->tiles, (size_t)q->n * sizeof *q->tiles);
+    w->len += q->len;
+    w->n += q->n;
+    batch t = *q;
+    *q = *w;
+    *w = t;
+    w->len = 0;
+    w->n = 0;
+    return 0;
+}
+
+static void on_retry(uv_timer_t *t) {
+    tjournal *jr = t->data;
+    if (!jr->closing && !jr->busy && jr->queued.n > 0) start_batch(jr);
 }
 
 static void after_batch(uv_work_t *w, int status) {
     (void)status;
     tjournal *jr = w->data;
     jr->busy = 0;
+    int space = jr->error == ENOSPC || jr->error == EDQUOT;
+    if (!jr->closing && space && requeue(jr) == 0) { /* nothing counted, nothing lost: wait for space */
+        if (!jr->paused && jr->on_pause) jr->on_pause(jr->ctx, jr->error);
+        jr->paused = 1;
+        uv_timer_start(&jr->retry, on_retry, TJOURNAL_RETRY_MS, 0);
+        return;
+    }
+    if (!jr->closing && !jr->error && jr->paused) {
+        jr->paused = 0;
+        if (jr->on_pause) jr->on_pause(jr->ctx, 0);
+    }
     if (!jr->closing) {
         if (!jr->error) jr->durable += (off_t)jr->writing.len;
         jr->in_cb = 1;
@@ -123,25 +191,11 @@ static void after_batch(uv_work_t *w, int status) {
 
 int tjournal_append(tjournal *jr, uint32_t tile, const uint8_t *rec, size_t len) {
     batch *b = &jr->queued;
-    if (b->len + len > b->cap) {
-        size_t cap = b->cap ? b->cap : 65536;
-        while (cap < b->len + len) cap *= 2;
-        uint8_t *d = realloc(b->data, cap);
-        if (!d) return -1;
-        b->data = d;
-        b->cap = cap;
-    }
-    if (b->n == b->tiles_cap) {
-        int cap = b->tiles_cap ? 2 * b->tiles_cap : 64;
-        uint32_t *t = realloc(b->tiles, (size_t)cap * sizeof *t);
-        if (!t) return -1;
-        b->tiles = t;
-        b->tiles_cap = cap;
-    }
+    if (batch_reserve(b, len, 1)) return -1;
     memcpy(b->data + b->len, rec, len);
     b->len += len;
     b->tiles[b->n++] = tile;
-    if (!jr->busy) start_batch(jr);
+    if (!jr->busy && !jr->paused) start_batch(jr);
     return 0;
 }
 

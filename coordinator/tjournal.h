@@ -5,7 +5,9 @@
  * together in the next one. A tile counts only once its batch is durable:
  * the callback names the batch's tiles with the outcome. A failed batch is
  * cut off the file again (ftruncate to the last durable length), so the
- * file holds only whole, synced records (the format is journal.h's). */
+ * file holds only whole, synced records (the format is journal.h's).
+ * Out of space (ENOSPC, EDQUOT) is not a failure: the batch is kept, not
+ * counted, and written when space returns; other errors fail its tiles. */
 #ifndef TESSERA_TJOURNAL_H
 #define TESSERA_TJOURNAL_H
 
@@ -18,9 +20,17 @@ typedef struct tjournal tjournal;
 /* A batch ended: tiles[0..n) are durable (error 0) or not (error: errno). */
 typedef void (*tjournal_cb)(void *ctx, const uint32_t *tiles, int n, int error);
 
-/* Open (create, append to) the journal at path. Returns NULL with
- * "PATH: reason" in err. */
-tjournal *tjournal_open(uv_loop_t *loop, const char *path, tjournal_cb cb, void *ctx, char *err, size_t err_len);
+/* The journal ran out of space (error: ENOSPC or EDQUOT) and holds its
+ * records in memory, retrying every TJOURNAL_RETRY_MS; or (error 0) space
+ * came back and they were written. Called once per change. */
+typedef void (*tjournal_pause_cb)(void *ctx, int error);
+
+#define TJOURNAL_RETRY_MS 1000
+
+/* Open (create, append to) the journal at path; on_pause may be NULL.
+ * Returns NULL with "PATH: reason" in err. */
+tjournal *tjournal_open(uv_loop_t *loop, const char *path, tjournal_cb cb, tjournal_pause_cb on_pause, void *ctx,
+                        char *err, size_t err_len);
 
 /* Queue the record of tile (len bytes, copied) and start a batch when none
  * is being written. Returns 0, or -1 when out of memory. */
