@@ -29,6 +29,7 @@
 #include "net/protocol.h"
 #include "render/scene.h"
 #include "render/scene_bundle.h"
+#include "render/bundle_paths.h"
 #include "net/wire.h"
 #include "limit.h"
 #include "image/image_meta.h"
@@ -356,6 +357,10 @@ static int do_submit(const cli_args *a, const char *scene_path) {
     char err[1024], hash[SCENE_BUNDLE_HASH_HEX], out_default[512];
     scene_bundle b;
     if (scene_bundle_read(scene_path, &b, err, sizeof err)) return cli_fail("%s", err);
+    if (bundle_paths_check(&b, scene_path, err, sizeof err)) { /* never send a file from outside the scene's folder */
+        scene_bundle_free(&b);
+        return cli_fail("%s", err);
+    }
     size_t len;
     uint8_t *bytes = scene_bundle_serialise(&b, &len);
     scene_bundle_free(&b);

@@ -589,3 +589,53 @@ TEST(hostile_full_disk_pauses_the_job_and_loses_nothing) {
     snprintf(cmd, sizeof cmd, "umount %s 2>&1", mnt);
     CHECK(util_run(cmd, out, sizeof out) == 0, "umount: %s", out);
 }
+
+/* submit refuses a scene that names a file outside its own folder (a
+ * "../" path, an absolute path, a symbolic link out), naming the path and
+ * sending nothing; a mesh inside the folder is sent. */
+TEST(hostile_submit_uploads_only_files_under_the_scene_folder) {
+    coord c = {0};
+    if (coord_start(&c, "hostile-paths", NULL)) {
+        CHECK(0, "coordinator did not start; log %s", c.log);
+        return;
+    }
+    char dir[256], secret[300], link[300], scene[300], text[1024], out[8192], args[700];
+    snprintf(dir, sizeof dir, "%s", util_temp_path("hostile-paths-scene"));
+    mkdir(dir, 0755);
+    snprintf(secret, sizeof secret, "%s", util_temp_path("hostile-secret.obj"));
+    FILE *f = fopen(secret, "w");
+    if (f) fputs("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", f), fclose(f);
+    snprintf(link, sizeof link, "%s/inside.obj", dir);
+    unlink(link);
+    CHECK(symlink(secret, link) == 0, "cannot make a symlink");
+    snprintf(text, sizeof text, "%s/ok.obj", dir);
+    f = fopen(text, "w");
+    if (f) fputs("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", f), fclose(f);
+    const char *names[] = {"../hostile-secret.obj", secret, "inside.obj"};
+    for (int i = 0; i < 3; i++) {
+        snprintf(scene, sizeof scene, "%s/s%d.json", dir, i);
+        snprintf(text, sizeof text,
+                 "{\"camera\": {\"type\": \"perspective\", \"position\": [0, 0, -3], \"look_at\": [0, 0, 0], \"fov\": 40},"
+                 " \"materials\": {\"w\": {\"type\": \"diffuse\", \"albedo\": [0.5, 0.5, 0.5]}},"
+                 " \"shapes\": [{\"type\": \"mesh\", \"file\": \"%s\", \"material\": \"w\"}]}",
+                 names[i]);
+        f = fopen(scene, "w");
+        if (f) fputs(text, f), fclose(f);
+        snprintf(args, sizeof args, "submit %s", scene);
+        int st = cli(&c, out, sizeof out, args);
+        CHECK(st != 0 && strstr(out, names[i]) && strstr(out, "outside the scene's folder"),
+              "a mesh at %s was not refused (%d): %s", names[i], st, out);
+    }
+    CHECK(!util_file_count(c.log, "submitted"), "a refused scene reached the coordinator; log %s", c.log);
+    snprintf(scene, sizeof scene, "%s/good.json", dir);
+    snprintf(text, sizeof text,
+             "{\"render\": {\"width\": 8, \"height\": 8, \"spp\": 1}, \"camera\": {\"type\": \"perspective\", "
+             "\"position\": [0, 0, -3], \"look_at\": [0, 0, 0], \"fov\": 40},"
+             " \"materials\": {\"w\": {\"type\": \"diffuse\", \"albedo\": [0.5, 0.5, 0.5]}},"
+             " \"shapes\": [{\"type\": \"mesh\", \"file\": \"ok.obj\", \"material\": \"w\"}]}");
+    f = fopen(scene, "w");
+    if (f) fputs(text, f), fclose(f);
+    snprintf(args, sizeof args, "submit %s", scene);
+    CHECK(cli(&c, out, sizeof out, args) == 0, "a mesh inside the folder was refused: %s", out);
+    coord_stop(&c);
+}
