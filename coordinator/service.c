@@ -431,19 +431,7 @@ static void on_client(void *ctx, conn *c, const cJSON *hello, const char *addr) 
 
 static void on_expiry(uv_timer_t *t) {
     service *s = t->data;
-    double now = svc_wall_now();
-    sjob *j, *next;
-    TAILQ_FOREACH_SAFE(j, &s->jobs, link, next) {
-        if (j->state == SJOB_RUNNING || now - j->finished < s->o.keep_s) continue;
-        static const char *const exts[] = {"json", "pfm", "tiles"};
-        char path[4096];
-        for (int i = 0; i < 3; i++) {
-            store_job_path(s, j->desc.id, exts[i], path, sizeof path);
-            unlink(path);
-        }
-        svc_log("job %u expired and was deleted", j->desc.id);
-        store_job_unlink_free(s, j);
-    }
+    if (retention_sweep(s)) uv_timer_start(&s->expiry, on_expiry, 100, 2000); /* a backlog: soon again */
 }
 
 #define TRICKLE_WINDOW_S 10.0
@@ -562,7 +550,7 @@ int service_run(const service_options *o) {
     uv_signal_start(&s->sigterm, on_signal, SIGTERM);
     uv_timer_init(&s->loop, &s->expiry);
     s->expiry.data = s;
-    uv_timer_start(&s->expiry, on_expiry, 1000, 60000);
+    uv_timer_start(&s->expiry, on_expiry, 1000, 2000);
     uv_timer_init(&s->loop, &s->stat_timer);
     s->stat_timer.data = s;
     if (o->farm.verbose) uv_timer_start(&s->stat_timer, on_stat_timer, 10000, 10000);

@@ -16,6 +16,7 @@ typedef struct {
     size_t max_upload;    /* largest scene bundle a client may send */
     int max_jobs;         /* queued and running jobs at once */
     double keep_s;        /* finished jobs are deleted after this long */
+    int keep_jobs;        /* at most this many finished jobs are kept (0: no cap) */
     double client_timeout_s; /* a client that sends nothing this long is closed (0: 30 s) */
 } service_options;
 

@@ -145,6 +145,10 @@ int store_running_jobs(const service *s);
 /* Resume every job in the data dir, oldest first. */
 void store_load_jobs(service *s);
 
+/* Expire finished jobs (--keep-hours), keep at most --keep-jobs, remove
+ * scenes no job names (retention.c). Returns 1 when more is left to do. */
+int retention_sweep(service *s);
+
 /* A log line (log.h) from the service. */
 void svc_log(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 

@@ -140,7 +140,8 @@ TEST(hostile_status_of_10000_kept_jobs_answers_within_a_second) {
     coord c = {0};
     snprintf(c.dir, sizeof c.dir, "%s", util_temp_path("hostile-list"));
     CHECK(write_kept_jobs(c.dir, 10000) == 0, "cannot write the job files");
-    if (coord_start(&c, "hostile-list", NULL)) {
+    const char *keep[] = {"--keep-jobs", "20000", NULL};
+    if (coord_start(&c, "hostile-list", keep)) {
         CHECK(0, "coordinator did not start; log %s", c.log);
         return;
     }
@@ -637,5 +638,53 @@ TEST(hostile_submit_uploads_only_files_under_the_scene_folder) {
     if (f) fputs(text, f), fclose(f);
     snprintf(args, sizeof args, "submit %s", scene);
     CHECK(cli(&c, out, sizeof out, args) == 0, "a mesh inside the folder was refused: %s", out);
+    coord_stop(&c);
+}
+
+/* Bytes in the regular files under dir (recursive), or -1. */
+static long long dir_bytes(const char *dir) {
+    char cmd[600], out[256];
+    snprintf(cmd, sizeof cmd, "find %s -type f ! -name '*.lock' ! -name lock -printf '%%s\\n' | awk '{s+=$1} END {print s+0}'",
+             dir);
+    if (util_run(cmd, out, sizeof out) != 0) return -1;
+    return atoll(out);
+}
+
+/* Finished jobs past --keep-jobs are deleted, oldest first, and each
+ * uploaded scene goes once no kept job names it; with --keep-hours 0 every
+ * finished job goes and the data dir returns to its starting size. */
+TEST(hostile_kept_jobs_are_capped_and_their_scenes_removed) {
+    coord c = {0};
+    const char *extra[] = {"--keep-jobs", "1", NULL};
+    if (coord_start(&c, "hostile-keep", extra)) {
+        CHECK(0, "coordinator did not start; log %s", c.log);
+        return;
+    }
+    pid_t w = worker_start(&c, "r1");
+    char out[8192], scenes[400];
+    snprintf(scenes, sizeof scenes, "%s/scenes", c.dir);
+    long long start = dir_bytes(c.dir);
+    char args[600];
+    snprintf(args, sizeof args, "submit tests/scenes/cornell-small.json --spp 1 --wait -o %s",
+             util_temp_path("hostile-keep-1.pfm"));
+    CHECK(cli(&c, out, sizeof out, args) == 0, "submit: %s", out);
+    CHECK(cli(&c, out, sizeof out, "submit scenes/cornell-box.json --width 16 --height 16 --spp 1") == 0, "submit: %s",
+          out);
+    CHECK(util_wait_for_text(c.log, "job 2 done (", 30) == 0, "job 2 did not finish; log %s", c.log);
+    CHECK(util_wait_for_text(c.log, "job 1 was over --keep-jobs", 10) == 0, "job 1 not deleted past --keep-jobs 1");
+    CHECK(util_wait_for_text(c.log, "removed: no kept job names it", 10) == 0, "job 1's scene was not removed");
+    char cmd[600];
+    snprintf(cmd, sizeof cmd, "ls %s | wc -l", scenes);
+    CHECK(util_run(cmd, out, sizeof out) == 0 && atoi(out) == 1, "%s holds %s scenes (want 1: job 2's)", scenes, out);
+    kill(c.pid, SIGTERM);
+    util_wait(c.pid, 30, NULL);
+    const char *gone[] = {"--keep-hours", "0", NULL};
+    CHECK(coord_start(&c, "hostile-keep", gone) == 0, "restart failed; log %s", c.log);
+    CHECK(util_wait_for_text(c.log, "job 2 expired", 10) == 0, "job 2 did not expire with --keep-hours 0");
+    util_sleep(0.5);
+    long long end = dir_bytes(c.dir);
+    CHECK(end == start, "the data dir holds %lld bytes after every job expired; %lld at the start", end, start);
+    kill(w, SIGTERM);
+    util_wait(w, 10, NULL);
     coord_stop(&c);
 }
