@@ -214,3 +214,10 @@ install: $(if $(filter $(BUILD)/bin,$(INSTALL_FROM)),$(TESSERA) $(WORKER))
 uninstall:
 	rm -f "$(DESTDIR)$(PREFIX)/bin/tessera" "$(DESTDIR)$(PREFIX)/bin/tessera-worker" \
 	      "$(DESTDIR)$(PREFIX)/bin/tessera-coordinator"
+
+# ---- Reliability (issue 20, issue 18 item 3) --------------------------------
+# bench-journal: tiles/s of the load test through the job service with its
+# tile journal on (bench/journal.sh ROUNDS CONNECTIONS; README "Reliability").
+.PHONY: bench-journal
+bench-journal: $(TESSERA) $(LOADGEN)
+	bench/journal.sh 3 100
