@@ -360,13 +360,22 @@ static int client_on_frame(conn *c, int kind, const uint8_t *body, size_t len) {
     cl->last_frame = svc_mono_now();
     if (kind == WIRE_KIND_SCENE) {
         free(cl->bundle);
-        cl->bundle = malloc(len ? len : 1);
+        /* Keep the frame's own memory (already faulted in): a move within
+         * it, not a copy into fresh pages, on the loop thread. */
+        uint8_t *mem = conn_take_frame(c);
+        if (mem && body == mem + WIRE_HEADER_BYTES) {
+            memmove(mem, body, len);
+            cl->bundle = mem;
+        } else {
+            cl->bundle = malloc(len ? len : 1);
+            if (cl->bundle) memcpy(cl->bundle, body, len);
+            free(mem); /* after the copy: body may lie in it */
+        }
         if (!cl->bundle) {
             client_error(cl, "out of memory for a %zu-byte scene", len);
             conn_close(c, "out of memory", 1);
             return 1;
         }
-        memcpy(cl->bundle, body, len);
         cl->bundle_len = len;
         return 0;
     }
@@ -455,8 +464,11 @@ static void on_sweep(uv_timer_t *t) {
         if (!cl->validating && now - cl->last_bytes > limit) {
             snprintf(reason, sizeof reason, "idle for %.0f s (--client-timeout)", now - cl->last_bytes);
             why = reason;
+        } else if (conn_pending(cl->c) == 0) { /* between frames: the trickle window starts with the next one */
+            cl->window_bytes = 0;
+            cl->window_start = now;
         } else if (now - cl->window_start >= (limit < TRICKLE_WINDOW_S ? limit : TRICKLE_WINDOW_S)) {
-            if (conn_pending(cl->c) > 0 && cl->window_bytes < TRICKLE_MIN_BYTES) {
+            if (cl->window_bytes < TRICKLE_MIN_BYTES) {
                 snprintf(reason, sizeof reason, "sent %" PRIu64 " bytes of a frame in %.0f s (under %d bytes per %.0f s)",
                          cl->window_bytes, now - cl->window_start, TRICKLE_MIN_BYTES, TRICKLE_WINDOW_S);
                 why = reason;

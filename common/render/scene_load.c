@@ -22,6 +22,7 @@
 #define MAX_SPP LIMIT_SPP
 #define MAX_DEPTH LIMIT_DEPTH
 #define BIG 1e30 /* bound for coordinates: anything larger is surely a mistake */
+#define MESH_SCALE_MAX 1e6 /* a mesh scaled by 1e30 rendered black: float intersection maths overflows */
 
 typedef struct {
     double p[3][3];
@@ -342,7 +343,7 @@ static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat
     const char *file;
     double scale, translate[3];
     if (jf_string(&L->j, sh, where, "file", 1, &file) ||
-        jf_number(&L->j, sh, where, "scale", 0, 1, 0, BIG, &scale) ||
+        jf_number(&L->j, sh, where, "scale", 0, 1, 0, MESH_SCALE_MAX, &scale) ||
         jf_vec3(&L->j, sh, where, "translate", 0, zero, -BIG, BIG, translate))
         return -1;
     if (!(scale > 0)) return jf_fail(&L->j, where, "scale", "must be greater than 0");
