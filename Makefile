@@ -294,3 +294,10 @@ DEB_PACKAGES += chromium python3-prometheus-client
 fuzz: $(FUZZ_BUILD)/fuzz_http
 $(FUZZ_BUILD)/fuzz_http: tests/fuzz/fuzz_http.c $(FUZZ_BUILD)/coordinator/http.o $(FUZZ_COMMON_OBJ)
 	clang $(FUZZ_CFLAGS) -fsanitize=fuzzer -o $@ $^ $(LDLIBS)
+
+# ---- Reliability (issue 20, issue 18 item 3) --------------------------------
+# bench-journal: tiles/s of the load test through the job service with its
+# tile journal on (bench/journal.sh ROUNDS CONNECTIONS; README "Reliability").
+.PHONY: bench-journal
+bench-journal: $(TESSERA) $(LOADGEN)
+	bench/journal.sh 3 100

@@ -19,6 +19,7 @@
 #include <string.h>
 #include <strings.h>
 #include <sys/socket.h>
+#include <sys/time.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -30,6 +31,7 @@
 #include "render/model_files.h"
 #include "render/scene.h"
 #include "render/scene_bundle.h"
+#include "render/bundle_paths.h"
 #include "net/wire.h"
 #include "limit.h"
 #include "log.h"
@@ -93,11 +95,22 @@ static int send_all(cli *c, const uint8_t *p, size_t len) {
     return 0;
 }
 
+/* How long a read may wait: IO_TIMEOUT_MS, or $TESSERA_CLIENT_TIMEOUT
+ * seconds (1 to 86400) when set. */
+static int io_timeout_ms(void) {
+    const char *e = getenv("TESSERA_CLIENT_TIMEOUT");
+    char *end;
+    long s = e && *e ? strtol(e, &end, 10) : 0;
+    return e && *e && *end == 0 && s >= 1 && s <= 86400 ? (int)s * 1000 : IO_TIMEOUT_MS;
+}
+
 static int read_all(cli *c, uint8_t *p, size_t len) {
     while (len > 0) {
         struct pollfd pf = {c->fd, POLLIN, 0};
-        int r = poll(&pf, 1, IO_TIMEOUT_MS);
-        if (r == 0) return cli_fail("the coordinator at %s did not answer within %d s", c->where, IO_TIMEOUT_MS / 1000);
+        int r = poll(&pf, 1, io_timeout_ms());
+        if (r == 0)
+            return cli_fail("the coordinator at %s did not answer within %d s (TESSERA_CLIENT_TIMEOUT sets the wait)",
+                            c->where, io_timeout_ms() / 1000);
         ssize_t n = r > 0 ? recv(c->fd, p, len, 0) : -1;
         if (n < 0 && errno == EINTR) continue; /* poll's or recv's: a signal (SIGINT during --wait) */
         if (n <= 0) return cli_fail("lost the coordinator at %s: %s", c->where, n == 0 ? "connection closed" : strerror(errno));
@@ -177,6 +190,9 @@ static int cli_open(cli *c, const cli_args *args) {
     int saved = 0;
     for (struct addrinfo *a = res; a && c->fd < 0; a = a->ai_next) {
         c->fd = socket(a->ai_family, a->ai_socktype, 0);
+        int ms = io_timeout_ms(); /* Linux applies the send timeout to connect() too */
+        struct timeval tv = {ms / 1000, (ms % 1000) * 1000};
+        if (c->fd >= 0) setsockopt(c->fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
         if (c->fd >= 0 && connect(c->fd, a->ai_addr, a->ai_addrlen) != 0) {
             saved = errno;
             close(c->fd);
@@ -224,11 +240,34 @@ static void cli_close(cli *c) {
 
 /* ---- requests ------------------------------------------------------------------ */
 
+/* A listing the coordinator sent as pages ("more": true on all but the
+ * last, docs/protocol.md): read the rest and append their arrays under key
+ * to first's. Returns first, or NULL (printed; first freed). */
+static cJSON *read_pages(cli *c, cJSON *first, const char *want, const char *key) {
+    cJSON *all = cJSON_GetObjectItemCaseSensitive(first, key);
+    while (first && cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(first, "more"))) {
+        cJSON *next = read_answer(c, want);
+        if (!next) {
+            cJSON_Delete(first);
+            return NULL;
+        }
+        cJSON *arr = cJSON_GetObjectItemCaseSensitive(next, key), *item;
+        while (all && arr && (item = cJSON_DetachItemViaPointer(arr, arr->child)) != NULL) cJSON_AddItemToArray(all, item);
+        cJSON_ReplaceItemInObjectCaseSensitive(first, "more", cJSON_CreateBool(
+                                                                  cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(next, "more"))));
+        cJSON_Delete(next);
+    }
+    cJSON_DeleteItemFromObjectCaseSensitive(first, "more");
+    return first;
+}
+
 static cJSON *request(cli *c, const char *type, long job, const char *want) {
     cJSON *m = cJSON_CreateObject();
     cJSON_AddStringToObject(m, "type", type);
     if (job >= 0) cJSON_AddNumberToObject(m, "job", (double)job);
-    return send_json(c, m) ? NULL : read_answer(c, want);
+    cJSON *r = send_json(c, m) ? NULL : read_answer(c, want);
+    const char *key = strcmp(want, "status") == 0 ? "jobs" : strcmp(want, "workers") == 0 ? "workers" : NULL;
+    return r && key ? read_pages(c, r, want, key) : r;
 }
 
 
@@ -367,7 +406,8 @@ static int do_submit(const cli_args *a, const char *scene_path) {
     char err[1024], hash[SCENE_BUNDLE_HASH_HEX], out_default[512];
     scene_bundle b;
     if (scene_bundle_read(scene_path, &b, err, sizeof err)) return cli_fail("%s", err);
-    if (a->camera && model_bundle_select_camera(&b, a->camera, err, sizeof err)) {
+    if ((a->camera && model_bundle_select_camera(&b, a->camera, err, sizeof err)) ||
+        bundle_paths_check(&b, scene_path, err, sizeof err)) { /* never send a file from outside the scene's folder */
         scene_bundle_free(&b);
         return cli_fail("%s", err);
     }

@@ -569,9 +569,11 @@ static void usage_coordinator(FILE *f) {
             "      --listen HOST:PORT   where to listen (default 127.0.0.1:7000)\n"
             "      --data-dir DIR       journal, uploaded scenes and results (required)\n"
             "      --tile-size N        tile side in pixels (default 32)\n"
-            "      --max-upload MIB     largest scene plus meshes a client may send (default 256)\n"
+            "      --max-upload MIB     largest scene plus meshes a client may send (default 64)\n"
             "      --max-jobs N         queued and running jobs at once (default 100)\n"
             "      --keep-hours H       delete finished jobs after H hours (default 24)\n"
+            "      --keep-jobs N        keep at most N finished jobs, oldest deleted first (default 1000)\n"
+            "      --client-timeout S   close a client that sends nothing for S s (default 30)\n"
             "      --token-file F       workers and clients must prove they know this secret\n"
             "      --heartbeat S, --worker-timeout S, --lease S   as for tessera render\n"
             "      --http ADDR:PORT     serve the web dashboard and /metrics there (loopback unless\n"
@@ -589,7 +591,7 @@ static int print_version(void) {
 
 static int cmd_coordinator(int argc, char **argv) {
     service_options o = {.tile_size = 32, .max_upload = (size_t)LIMIT_UPLOAD_DEFAULT_MIB << 20, .max_jobs = 100,
-                         .keep_s = 86400};
+                         .keep_s = 86400, .client_timeout_s = 30, .keep_jobs = 1000};
     farm_options_default(&o.farm);
     const char *listen = "127.0.0.1:7000", *token = NULL;
     char host[256], err[300];
@@ -608,6 +610,8 @@ static int cmd_coordinator(int argc, char **argv) {
         {.name = "max-upload", .kind = ARG_INT, .dest = &upload_mib, .lo = 1, .hi = LIMIT_UPLOAD_MAX_MIB},
         {.name = "max-jobs", .kind = ARG_INT, .dest = &o.max_jobs, .lo = 1, .hi = 100000},
         {.name = "keep-hours", .kind = ARG_DOUBLE, .dest = &keep_hours, .lo = 0, .hi = 1e6},
+        {.name = "keep-jobs", .kind = ARG_INT, .dest = &o.keep_jobs, .lo = 1, .hi = 10000000},
+        {.name = "client-timeout", .kind = ARG_DOUBLE, .dest = &o.client_timeout_s, .lo = 0.1, .hi = 86400},
         {.name = "heartbeat", .kind = ARG_DOUBLE, .dest = &o.farm.heartbeat_s, .lo = 0.01, .hi = 3600},
         {.name = "worker-timeout", .kind = ARG_DOUBLE, .dest = &o.farm.timeout_s, .lo = 0.05, .hi = 86400},
         {.name = "lease", .kind = ARG_DOUBLE, .dest = &o.farm.lease_s, .lo = 0.1, .hi = 1e7},

@@ -9,7 +9,7 @@
 #define LIMIT_DEPTH 1024        /* path vertices (max_depth) */
 #define LIMIT_BUNDLE_BYTES (512u << 20)    /* a scene and every file it names */
 #define LIMIT_BUNDLE_FILES 4096            /* files in one bundle */
-#define LIMIT_UPLOAD_DEFAULT_MIB 256       /* tessera-coordinator --max-upload default */
+#define LIMIT_UPLOAD_DEFAULT_MIB 64        /* tessera-coordinator --max-upload default: taken in (one copy on the loop) without a stall over 100 ms */
 #define LIMIT_UPLOAD_MAX_MIB 512           /* ...and the most it may be set to */
 #define LIMIT_ANSWER_BYTES ((size_t)2 << 30) /* the largest answer a client reads */
 

@@ -76,9 +76,13 @@ typedef struct {
 typedef void (*farm_job_cb)(void *ctx, const farm_report *r, int done);
 
 /* Called when a checked tile is about to count as done, with its pixels
- * already in the frame. Return 0; non-zero fails the job with the message
- * the callee wrote into err (e.g. the journal could not be written). */
+ * already in the frame. Return 0 (it counts now); FARM_TILE_PENDING (it
+ * counts when the caller says so with farm_tile_durable, e.g. once its
+ * journal record is synced; meanwhile it is neither handed out again nor
+ * counted); or -1, which fails the job with the message the callee wrote
+ * into err (e.g. the journal could not be written). */
 typedef int (*farm_tile_cb)(void *ctx, uint32_t tile, const tile_rect *rect, char *err, size_t err_len);
+#define FARM_TILE_PENDING 1
 
 typedef struct {
     int tile_size;
@@ -102,6 +106,11 @@ typedef struct {
  * when out of memory. */
 int farm_submit(farm *f, const proto_job *desc, const uint8_t *bundle, size_t bundle_len,
                 const farm_job_options *o, float *rgb, farm_job_cb cb, void *ctx);
+
+/* A tile whose on_tile returned FARM_TILE_PENDING is durable (error NULL:
+ * it counts now, and may finish the job) or could not be made so (error:
+ * the job fails with it). Ignored for a job that ended or was forgotten. */
+void farm_tile_durable(farm *f, uint32_t job, uint32_t tile, const char *error);
 
 /* Stop a job: its workers are told to drop it, its callback runs with
  * cancelled set. Returns 0, or -1 if no such job is running. */

@@ -34,6 +34,7 @@
 #define FARM_TICK_MS 100
 
 #define HELLO_TIMEOUT_S 10.0
+#define FARM_DEPARTED_MAX 256 /* departed workers remembered: 312 bytes each, not one per hello for ever */
 
 #define MAX_CREDITS 4096
 
@@ -121,8 +122,9 @@ struct farm {
     int port;
     LIST_HEAD(peer_list, peer) peers;
     TAILQ_HEAD(job_list, job) jobs;
-    peer_record *departed;
+    peer_record *departed; /* the latest FARM_DEPARTED_MAX departures */
     int departed_count, departed_cap;
+    unsigned long long departed_dropped; /* older ones, counted only */
     uint64_t closed_bytes_in, closed_bytes_out;
     int closing, open_handles;
     void (*closed_cb)(void *);

@@ -223,6 +223,11 @@ static void peer_record_departure(farm *f, peer *p, const char *why) {
     f->closed_bytes_in += p->rec.bytes_in;
     f->closed_bytes_out += p->rec.bytes_out;
     if (p->state == PEER_HELLO && p->rec.name[0] == '\0') return; /* never introduced itself */
+    if (f->departed_count == FARM_DEPARTED_MAX) { /* a long-lived service: keep the latest, count the rest */
+        memmove(f->departed, f->departed + 1, (size_t)(FARM_DEPARTED_MAX - 1) * sizeof *f->departed);
+        f->departed_count--;
+        f->departed_dropped++;
+    }
     if (f->departed_count == f->departed_cap) {
         int cap = f->departed_cap ? 2 * f->departed_cap : 16;
         peer_record *d = realloc(f->departed, (size_t)cap * sizeof *d);
@@ -387,6 +392,9 @@ void farm_print_workers(const farm *f, FILE *out) {
         if (p->state != PEER_HELLO)
             print_record(out, &p->rec, p->state == PEER_STALLED ? "stalled" : "connected", conn_bytes_in(p->c),
                          conn_bytes_out(p->c));
+    if (f->departed_dropped)
+        fprintf(out, "(%llu earlier departures not listed; the last %d follow)\n",
+                (unsigned long long)f->departed_dropped, FARM_DEPARTED_MAX);
     for (int i = 0; i < f->departed_count; i++) {
         char state[160];
         snprintf(state, sizeof state, "left: %s", f->departed[i].why);

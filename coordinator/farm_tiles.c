@@ -68,18 +68,32 @@ int farm_on_tile(peer *p, const uint8_t *body, size_t len) {
         farm_log(f, "%s: late result for tile %u of job %u used (nobody had finished it)", p->label, h.tile, h.job);
     film_put_tile(&j->film, r, px);
     free(px);
-    if (j->on_tile && j->on_tile(j->ctx, h.tile, &j->rects[h.tile], err, sizeof err)) {
+    int rc = j->on_tile ? j->on_tile(j->ctx, h.tile, &j->rects[h.tile], err, sizeof err) : 0;
+    if (rc < 0) {
         farm_job_fail(f, j, "%s", err);
         return 0;
     }
-    j->done[h.tile] = 1;
-    j->rep.tiles_done++;
+    int pending = rc == FARM_TILE_PENDING;
+    j->done[h.tile] = pending ? 2 : 1; /* 2: landed, counted once durable (farm_tile_durable) */
+    j->rep.tiles_done += !pending;
     j->tile_seconds += took;
     trace_stats_add(&j->rep.stats, &h.stats);
     p->rec.tiles++;
     p->rec.samples += h.stats.samples;
     farm_emit(f, FARM_EV_DONE, j, h.tile, p->rec.name, took, h.stats.samples, 0);
     if (j->holders[h.tile]) job_cancel_copies(f, j, h.tile, p);
-    if (j->rep.tiles_done == j->tile_count) farm_job_finish(f, j);
+    if (!pending && j->rep.tiles_done == j->tile_count) farm_job_finish(f, j);
     return 0;
+}
+
+void farm_tile_durable(farm *f, uint32_t job_id, uint32_t tile, const char *error) {
+    job *j = farm_find_job(f, job_id);
+    if (!j || j->finished || tile >= (uint32_t)j->tile_count || j->done[tile] != 2) return;
+    if (error) {
+        farm_job_fail(f, j, "%s", error);
+        return;
+    }
+    j->done[tile] = 1;
+    j->rep.tiles_done++;
+    if (j->rep.tiles_done == j->tile_count) farm_job_finish(f, j);
 }

@@ -40,13 +40,17 @@ int store_save_job(sjob *j, char *err, size_t err_len) {
     return rc;
 }
 
+static void on_save_timer_closed(uv_handle_t *h);
+
 static void store_job_release(sjob *j) {
+    if (j->save_timer) uv_close((uv_handle_t *)j->save_timer, on_save_timer_closed);
+    j->save_timer = NULL;
     free(j->rgb);
     free(j->journaled);
     j->rgb = NULL;
     j->journaled = NULL;
-    if (j->tiles_fd >= 0) close(j->tiles_fd);
-    j->tiles_fd = -1;
+    tjournal_close(j->journal);
+    j->journal = NULL;
 }
 
 sjob *store_find_job(service *s, uint32_t id) {
@@ -56,48 +60,106 @@ sjob *store_find_job(service *s, uint32_t id) {
     return NULL;
 }
 
-/* Append a finished tile to the journal and sync it: the farm counts the
- * tile only when this returns 0. */
+/* A batch of the job's journal ended (tjournal_cb): its tiles count now,
+ * or the job fails naming the journal and the fault. */
+static void store_on_batch(void *ctx, const uint32_t *tiles, int n, int error) {
+    sjob *j = ctx;
+    service *s = j->svc;
+    uint32_t id = j->desc.id;
+    char msg[600], path[4096];
+    if (error) {
+        store_job_path(s, id, "tiles", path, sizeof path);
+        snprintf(msg, sizeof msg, "%.400s: cannot journal tile %u: %s", path, tiles[0], strerror(error));
+    }
+    for (int i = 0; i < n && j->state == SJOB_RUNNING && j->journal; i++) {
+        j->tiles_done += !error;
+        farm_tile_durable(s->f, id, tiles[i], error ? msg : NULL); /* may end the job */
+    }
+}
+
+/* Queue a finished tile's record in the journal: the farm counts the tile
+ * when its batch is synced (store_on_batch). */
 static int store_on_tile_done(void *ctx, uint32_t tile, const tile_rect *r, char *err, size_t err_len) {
     sjob *j = ctx;
     size_t w = (size_t)tile_width(r), n = 3 * w * (size_t)tile_height(r);
-    size_t len = 16 + 4 * n;
+    size_t len = JOURNAL_RECORD_OVERHEAD + 4 * n;
     uint8_t *rec = malloc(len);
-    if (!rec) {
+    float *px = malloc(4 * n);
+    if (!rec || !px) {
+        free(rec);
+        free(px);
         snprintf(err, err_len, "out of memory journaling tile %u", tile);
         return -1;
     }
     wire_put_u32(rec, JOURNAL_MAGIC);
     wire_put_u32(rec + 4, tile);
     wire_put_u32(rec + 8, (uint32_t)n);
-    float *px = (float *)malloc(4 * n);
-    for (int y = r->y0; px && y < r->y1; y++)
+    for (int y = r->y0; y < r->y1; y++)
         memcpy(px + 3 * w * (size_t)(y - r->y0), j->rgb + 3 * ((size_t)y * (size_t)j->desc.width + (size_t)r->x0),
                12 * w);
-    for (size_t i = 0; px && i < n; i++) wire_put_f32(rec + 12 + 4 * i, px[i]);
-    if (px) wire_put_u32(rec + 12 + 4 * n, journal_record_check(tile, px, n));
-    size_t written = 0;
-    int e = px ? 0 : ENOMEM;
-    while (!e && written < len) { /* a short write (disk full, file limit) is followed by the error */
-        ssize_t wr = write(j->tiles_fd, rec + written, len - written);
-        if (wr > 0) written += (size_t)wr;
-        else e = wr < 0 ? errno : EIO;
-    }
-    if (!e && fdatasync(j->tiles_fd) != 0) e = errno;
-    int rc = e ? -1 : 0;
-    if (rc) {
-        char path[4096];
-        store_job_path(j->svc, j->desc.id, "tiles", path, sizeof path);
-        snprintf(err, err_len, "%.400s: cannot journal tile %u: %s", path, tile, strerror(e));
-        off_t end = lseek(j->tiles_fd, 0, SEEK_CUR);
-        if (written > 0 && end >= (off_t)written && ftruncate(j->tiles_fd, end - (off_t)written) != 0) {
-            /* a torn record left behind is cut off at the next start */
-        }
-    }
+    for (size_t i = 0; i < n; i++) wire_put_f32(rec + 12 + 4 * i, px[i]);
+    wire_put_u32(rec + 12 + 4 * n, journal_record_check(tile, px, n));
+    int rc = tjournal_append(j->journal, tile, rec, len);
     free(px);
     free(rec);
-    if (rc == 0) j->tiles_done++;
-    return rc;
+    if (rc) snprintf(err, err_len, "out of memory journaling tile %u", tile);
+    return rc ? -1 : FARM_TILE_PENDING;
+}
+
+/* Whether an error is the disk being full (wait for space, lose nothing)
+ * rather than a fault. */
+static int out_of_space(int e, const char *msg) {
+    return e == ENOSPC || e == EDQUOT || strstr(msg, strerror(ENOSPC)) || strstr(msg, strerror(EDQUOT));
+}
+
+/* Record the job's end: its file, the log, and (done and recorded) its
+ * journal removed; a failed or cancelled job keeps its journal until it
+ * expires, so nothing durable is deleted. */
+static void store_job_conclude(sjob *j) {
+    service *s = j->svc;
+    char err[600], path[4096];
+    int saved = store_save_job(j, err, sizeof err) == 0;
+    if (!saved) svc_log("job %u: %s", j->desc.id, err);
+    svc_log("job %u %s (%d tiles from the journal, %d rendered in this run)%s%s", j->desc.id, state_names[j->state],
+            j->tiles_resumed, j->tiles_done - j->tiles_resumed, j->error[0] ? ": " : "", j->error);
+    if (j->journal) {
+        uint64_t batches;
+        int largest;
+        tjournal_stats(j->journal, &batches, &largest);
+        svc_log("job %u: journal: %" PRIu64 " synced batches, up to %d tiles in one", j->desc.id, batches, largest);
+    }
+    store_job_path(s, j->desc.id, "tiles", path, sizeof path);
+    if (j->state == SJOB_DONE && saved) unlink(path); /* the image has it all */
+    store_job_release(j);
+}
+
+static void on_save_timer_closed(uv_handle_t *h) { free(h); }
+
+/* Write the finished image. Returns 0; 1 when the disk is full (the job
+ * stays running with its frame and journal, and a timer tries again); -1
+ * on another error (in j->error). */
+static int store_save_image(sjob *j) {
+    char err[600], path[4096];
+    image img = {j->desc.width, j->desc.height, j->rgb};
+    image_write_options wo = {0};
+    store_job_path(j->svc, j->desc.id, "pfm", path, sizeof path);
+    errno = 0;
+    if (image_write(path, &img, &wo, err, sizeof err) == 0) return 0;
+    if (out_of_space(errno, err)) return 1;
+    snprintf(j->error, sizeof j->error, "%.500s", err);
+    return -1;
+}
+
+static void on_save_retry(uv_timer_t *t) {
+    sjob *j = t->data;
+    int rc = store_save_image(j);
+    if (rc == 1) return; /* still full: the timer goes on */
+    uv_close((uv_handle_t *)t, on_save_timer_closed);
+    j->save_timer = NULL;
+    j->error[0] = rc == 0 ? 0 : j->error[0];
+    j->state = rc == 0 ? SJOB_DONE : SJOB_FAILED;
+    svc_log("job %u: %s", j->desc.id, rc == 0 ? "space is back; the image is saved" : "the image cannot be saved");
+    store_job_conclude(j);
 }
 
 /* The farm handed out the job's first tile: it is rendering, not queued. */
@@ -111,7 +173,6 @@ void store_on_job_event(void *ctx, const farm_report *r, int done) {
     service *s = j->svc;
     j->stats = r->stats;
     if (!done) return;
-    char err[600] = "", path[4096];
     j->finished = svc_wall_now();
     if (r->cancelled) {
         j->state = SJOB_CANCELLED;
@@ -119,34 +180,45 @@ void store_on_job_event(void *ctx, const farm_report *r, int done) {
         j->state = SJOB_FAILED;
         snprintf(j->error, sizeof j->error, "%s", r->error);
     } else {
-        image img = {j->desc.width, j->desc.height, j->rgb};
-        image_write_options wo = {0};
-        store_job_path(s, j->desc.id, "pfm", path, sizeof path);
-        if (image_write(path, &img, &wo, err, sizeof err) == 0) {
-            j->state = SJOB_DONE;
-        } else {
-            j->state = SJOB_FAILED;
-            snprintf(j->error, sizeof j->error, "%.500s", err);
+        int rc = store_save_image(j);
+        if (rc == 1 && (j->save_timer = malloc(sizeof *j->save_timer)) != NULL) {
+            snprintf(j->error, sizeof j->error, "paused: no space left to save the image; retrying every %d s",
+                     TJOURNAL_RETRY_MS / 1000);
+            svc_log("job %u: %s (its tiles stay in the journal)", j->desc.id, j->error);
+            uv_timer_init(&s->loop, j->save_timer);
+            uv_unref((uv_handle_t *)j->save_timer); /* a stopping service does not wait for space */
+            j->save_timer->data = j;
+            uv_timer_start(j->save_timer, on_save_retry, TJOURNAL_RETRY_MS, TJOURNAL_RETRY_MS);
+            farm_forget(s->f, j->desc.id);
+            return; /* still "running": a restart replays the journal */
         }
+        if (rc == 1) snprintf(j->error, sizeof j->error, "no space left to save the image");
+        j->state = rc == 0 ? SJOB_DONE : SJOB_FAILED;
     }
-    if (store_save_job(j, err, sizeof err)) svc_log("job %u: %s", j->desc.id, err);
-    svc_log("job %u %s (%d tiles from the journal, %d rendered in this run)%s%s", j->desc.id, state_names[j->state],
-            j->tiles_resumed, j->tiles_done - j->tiles_resumed, j->error[0] ? ": " : "", j->error);
-    store_job_path(s, j->desc.id, "tiles", path, sizeof path);
-    if (j->state != SJOB_CANCELLED) unlink(path); /* done: the image has it; failed: never resumed */
-    store_job_release(j);
+    store_job_conclude(j);
     farm_forget(s->f, j->desc.id);
+}
+
+/* The journal of j ran out of space or got it back (tjournal_pause_cb):
+ * logged once each way, and shown in status as the job's note. */
+static void store_on_journal_pause(void *ctx, int error) {
+    sjob *j = ctx;
+    if (error) {
+        snprintf(j->error, sizeof j->error, "paused: the tile journal is out of space (%s); finished tiles wait in "
+                 "memory and count once written", strerror(error));
+        svc_log("job %u: %s; retrying every %d s", j->desc.id, j->error, TJOURNAL_RETRY_MS / 1000);
+    } else {
+        j->error[0] = 0;
+        svc_log("job %u: space is back; the tile journal resumed", j->desc.id);
+    }
 }
 
 /* Hand a job (new or resumed) to the farm, opening its tile journal. */
 int store_job_start(service *s, sjob *j, const uint8_t *bundle, size_t len, char *err, size_t err_len) {
     char path[4096];
     store_job_path(s, j->desc.id, "tiles", path, sizeof path);
-    j->tiles_fd = open(path, O_WRONLY | O_CREAT | O_APPEND, 0644);
-    if (j->tiles_fd < 0) {
-        snprintf(err, err_len, "%.400s: cannot open the tile journal: %s", path, strerror(errno));
-        return -1;
-    }
+    j->journal = tjournal_open(&s->loop, path, store_on_batch, store_on_journal_pause, j, err, err_len);
+    if (!j->journal) return -1;
     farm_job_options fo = {.tile_size = j->tile_size, .priority = j->priority, .done = j->journaled,
                            .on_tile = store_on_tile_done, .on_first_assign = store_on_first_assign};
     j->started = svc_wall_now();
@@ -162,7 +234,6 @@ sjob *store_job_new(service *s) {
     sjob *j = calloc(1, sizeof *j);
     if (!j) return NULL;
     j->svc = s;
-    j->tiles_fd = -1;
     TAILQ_INSERT_TAIL(&s->jobs, j, link);
     return j;
 }

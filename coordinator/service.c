@@ -3,6 +3,7 @@
  * old jobs, signals and start-up. The job store is jobstore.c. */
 #define _GNU_SOURCE
 #include "service_internal.h"
+#include "paging.h"
 
 void svc_log(const char *fmt, ...) {
     va_list ap;
@@ -11,20 +12,29 @@ void svc_log(const char *fmt, ...) {
     va_end(ap);
 }
 
+double svc_longest_stall_ms(const service *s) { return loopstat_longest_ms(&s->stat); }
+
+double svc_mono_now(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
 double svc_wall_now(void) {
     struct timespec ts;
     clock_gettime(CLOCK_REALTIME, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
+static void client_error(client *cl, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+
 static void client_send_json(client *cl, cJSON *m) {
     size_t len;
     uint8_t *f = m ? wire_frame_json(m, &len) : NULL;
     cJSON_Delete(m);
     if (f) conn_send(cl->c, f, len);
+    else client_error(cl, "the answer is larger than a frame (%u bytes) or memory ran out", WIRE_JSON_MAX);
 }
-
-static void client_error(client *cl, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 
 static void client_error(client *cl, const char *fmt, ...) {
     char reason[1024];
@@ -48,60 +58,80 @@ static int opt_int(const cJSON *m, const char *key, long lo, long hi, long *out)
     return 0;
 }
 
-static void on_submit(client *cl, const cJSON *m) {
+/* A submit's "seed": a string of 1 to 20 decimal digits within 64 bits
+ * (no sign, no space). Returns 0, or -1. */
+static int request_seed(const cJSON *v, uint64_t *out) {
+    if (!cJSON_IsString(v)) return -1;
+    const char *t = v->valuestring;
+    size_t n = strlen(t);
+    if (n < 1 || n > 20 || strspn(t, "0123456789") != n) return -1;
+    errno = 0;
+    unsigned long long x = strtoull(t, NULL, 10);
+    if (errno == ERANGE) return -1;
+    *out = (uint64_t)x;
+    return 0;
+}
+
+/* The submit fields that are not numbers: name a string, nee/mis booleans.
+ * Returns NULL or the fault. */
+static const char *request_bad_field(const cJSON *m) {
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(m, "name");
+    if (v && (!cJSON_IsString(v) || strlen(v->valuestring) >= 256)) return "name must be a string under 256 bytes";
+    v = cJSON_GetObjectItemCaseSensitive(m, "nee");
+    if (v && !cJSON_IsBool(v)) return "nee must be true or false";
+    v = cJSON_GetObjectItemCaseSensitive(m, "mis");
+    if (v && !cJSON_IsBool(v)) return "mis must be true or false";
+    return NULL;
+}
+
+/* The scene of a submit was checked (upload.h): make the job, or say why
+ * not. Frees u; frees cl when it went away meanwhile. */
+static void submit_checked(upload *u) {
+    client *cl = u->ctx;
     service *s = cl->svc;
-    char err[1024], hash[SCENE_BUNDLE_HASH_HEX], path[4096];
-    const cJSON *h = cJSON_GetObjectItemCaseSensitive(m, "scene"), *name = cJSON_GetObjectItemCaseSensitive(m, "name");
-    if (!cl->bundle) return client_error(cl, "submit: no scene was uploaded before it");
-    scene_bundle_hash(cl->bundle, cl->bundle_len, hash);
-    if (!cJSON_IsString(h) || strcmp(h->valuestring, hash) != 0)
-        return client_error(cl, "submit: \"scene\" is not the hash of the uploaded scene (%s)", hash);
-    long w = -1, ht = -1, spp = -1, depth = -1, pri = 0, tile = s->o.tile_size;
-    if (opt_int(m, "width", 1, LIMIT_SIDE, &w) || opt_int(m, "height", 1, LIMIT_SIDE, &ht) ||
-        opt_int(m, "spp", 1, LIMIT_SPP, &spp) || opt_int(m, "max_depth", 1, LIMIT_DEPTH, &depth) ||
-        opt_int(m, "priority", -1000000, 1000000, &pri) || opt_int(m, "tile_size", 1, s->o.farm.max_tile_side, &tile))
-        return client_error(cl, "submit: width, height, spp, max_depth, priority or tile_size out of range");
-    const cJSON *sname = cJSON_GetObjectItemCaseSensitive(m, "sampler");
-    sampler_kind sampler = SAMPLER_SOBOL;
-    if (sname && (!cJSON_IsString(sname) || sampler_parse(sname->valuestring, &sampler) != 0))
-        return client_error(cl, "submit: sampler must be \"sobol\" or \"random\"");
-    if (store_running_jobs(s) >= s->o.max_jobs)
-        return client_error(cl, "the queue is full (%d jobs); try again later", s->o.max_jobs);
-    scene_bundle b;
-    if (scene_bundle_parse(cl->bundle, cl->bundle_len, &b, err, sizeof err)) return client_error(cl, "%s", err);
-    scene_overrides ov = {(int)w, (int)ht, (int)spp, (int)depth, 0, 0, 1}; /* workers build the intersector */
-    const cJSON *seed = cJSON_GetObjectItemCaseSensitive(m, "seed");
-    if (cJSON_IsString(seed)) {
-        ov.has_seed = 1;
-        ov.seed = strtoull(seed->valuestring, NULL, 10);
+    char err[1024], path[4096];
+    cl->validating = 0;
+    if (cl->closed) {
+        free(cl->bundle);
+        free(cl);
+        upload_free(u);
+        return;
     }
-    scene *sc = scene_load_bundle(&b, &ov, err, sizeof err);
-    scene_bundle_free(&b);
-    if (!sc) return client_error(cl, "%s", err); /* the scene's own message: file, line, field */
+    if (!cl->bundle) { /* give the bundle back for the next submit, unless a new one came */
+        cl->bundle = u->bundle;
+        cl->bundle_len = u->len;
+        u->bundle = NULL;
+    }
+    if (u->rc) {
+        client_error(cl, "%s", u->err); /* the scene's own message: file, line, field */
+        upload_free(u);
+        return;
+    }
+    const submit_req *q = &cl->req;
     sjob *j = store_job_new(s);
     if (!j) {
-        scene_free(sc);
+        upload_free(u);
         return client_error(cl, "out of memory");
     }
-    j->desc = (proto_job){.id = s->next_id++, .width = sc->settings.width, .height = sc->settings.height,
-                          .spp = sc->settings.spp, .max_depth = sc->settings.max_depth, .seed = sc->settings.seed};
-    j->desc.integrator.no_nee = cJSON_IsFalse(cJSON_GetObjectItemCaseSensitive(m, "nee"));
-    j->desc.integrator.no_mis = cJSON_IsFalse(cJSON_GetObjectItemCaseSensitive(m, "mis"));
-    j->desc.integrator.sampler = sampler;
-    memcpy(j->desc.scene_hash, hash, sizeof hash);
-    snprintf(j->name, sizeof j->name, "%s", cJSON_IsString(name) ? name->valuestring : "scene");
-    scene_free(sc);
-    j->priority = (int)pri;
-    j->tile_size = (int)tile;
+    const render_settings *st = &u->settings;
+    j->desc = (proto_job){.id = s->next_id++, .width = st->width, .height = st->height, .spp = st->spp,
+                          .max_depth = st->max_depth, .seed = st->seed};
+    j->desc.integrator.no_nee = q->no_nee;
+    j->desc.integrator.no_mis = q->no_mis;
+    j->desc.integrator.sampler = q->sampler;
+    memcpy(j->desc.scene_hash, u->hash, sizeof u->hash);
+    snprintf(j->name, sizeof j->name, "%s", q->name);
+    j->priority = (int)q->priority;
+    j->tile_size = (int)q->tile_size;
     j->submitted = svc_wall_now();
     j->tile_count = render_split_tiles(j->desc.width, j->desc.height, j->tile_size, NULL, 0);
     j->rgb = calloc((size_t)j->desc.width * (size_t)j->desc.height * 3, sizeof(float));
-    snprintf(path, sizeof path, "%s/scenes/%s", s->o.data_dir, hash);
     int rc = j->rgb ? 0 : -1;
     if (!j->rgb) snprintf(err, sizeof err, "out of memory for a %dx%d image", j->desc.width, j->desc.height);
-    if (rc == 0) rc = file_write_atomic(path, cl->bundle, cl->bundle_len, err, sizeof err);
     if (rc == 0) rc = store_save_job(j, err, sizeof err);
-    if (rc == 0) rc = store_job_start(s, j, cl->bundle, cl->bundle_len, err, sizeof err);
+    if (rc == 0) rc = store_job_start(s, j, u->bundle ? u->bundle : cl->bundle, u->bundle ? u->len : cl->bundle_len,
+                                      err, sizeof err);
+    upload_free(u);
     if (rc) {
         svc_log("submit from %s refused: %s", cl->addr, err);
         store_job_path(s, j->desc.id, "json", path, sizeof path);
@@ -117,6 +147,60 @@ static void on_submit(client *cl, const cJSON *m) {
     cJSON_AddNumberToObject(r, "width", j->desc.width);
     cJSON_AddNumberToObject(r, "height", j->desc.height);
     client_send_json(cl, r);
+}
+
+/* A submit: every field checked here, on the loop (cheap); the scene is
+ * hashed, parsed, validated and stored off the loop (upload.h), then
+ * submit_checked makes the job. */
+static void on_submit(client *cl, const cJSON *m) {
+    service *s = cl->svc;
+    const cJSON *h = cJSON_GetObjectItemCaseSensitive(m, "scene"), *name = cJSON_GetObjectItemCaseSensitive(m, "name");
+    if (cl->validating) return client_error(cl, "submit: the previous submit's scene is still being checked");
+    if (!cl->bundle) return client_error(cl, "submit: no scene was uploaded before it");
+    if (!cJSON_IsString(h) || strlen(h->valuestring) != SCENE_BUNDLE_HASH_HEX - 1)
+        return client_error(cl, "submit: \"scene\" must be the uploaded scene's hash (%d hex digits)",
+                            SCENE_BUNDLE_HASH_HEX - 1);
+    long w = -1, ht = -1, spp = -1, depth = -1, pri = 0, tile = s->o.tile_size;
+    const struct { const char *key; long lo, hi; long *out; } ints[] = {
+        {"width", 1, LIMIT_SIDE, &w}, {"height", 1, LIMIT_SIDE, &ht}, {"spp", 1, LIMIT_SPP, &spp},
+        {"max_depth", 1, LIMIT_DEPTH, &depth}, {"priority", -1000000, 1000000, &pri},
+        {"tile_size", 1, s->o.farm.max_tile_side, &tile}};
+    for (size_t i = 0; i < sizeof ints / sizeof ints[0]; i++)
+        if (opt_int(m, ints[i].key, ints[i].lo, ints[i].hi, ints[i].out))
+            return client_error(cl, "submit: %s must be an integer from %ld to %ld", ints[i].key, ints[i].lo, ints[i].hi);
+    const char *bad = request_bad_field(m);
+    if (bad) return client_error(cl, "submit: %s", bad);
+    const cJSON *sname = cJSON_GetObjectItemCaseSensitive(m, "sampler");
+    sampler_kind sampler = SAMPLER_SOBOL;
+    if (sname && (!cJSON_IsString(sname) || sampler_parse(sname->valuestring, &sampler) != 0))
+        return client_error(cl, "submit: sampler must be \"sobol\" or \"random\"");
+    scene_overrides ov = {(int)w, (int)ht, (int)spp, (int)depth, 0, 0, 1}; /* workers build the intersector */
+    const cJSON *seed = cJSON_GetObjectItemCaseSensitive(m, "seed");
+    if (seed) {
+        if (request_seed(seed, &ov.seed))
+            return client_error(cl, "submit: seed must be a decimal integer from 0 to 18446744073709551615 "
+                                    "in a string, got %.40s%s", cJSON_IsString(seed) ? seed->valuestring : "a non-string",
+                                cJSON_IsString(seed) && strlen(seed->valuestring) > 40 ? "..." : "");
+        ov.has_seed = 1;
+    }
+    if (store_running_jobs(s) + upload_queue_length(&s->uploads) >= s->o.max_jobs)
+        return client_error(cl, "the queue is full (%d jobs); try again later", s->o.max_jobs);
+    upload *u = calloc(1, sizeof *u);
+    if (!u) return client_error(cl, "out of memory");
+    u->bundle = cl->bundle; /* the upload's now; given back when it ends */
+    u->len = cl->bundle_len;
+    cl->bundle = NULL;
+    snprintf(u->claimed_hash, sizeof u->claimed_hash, "%s", h->valuestring);
+    u->ov = ov;
+    snprintf(u->store_path_dir, sizeof u->store_path_dir, "%s/scenes", s->o.data_dir);
+    u->done = submit_checked;
+    u->ctx = cl;
+    cl->req = (submit_req){.priority = pri, .tile_size = tile, .sampler = sampler,
+                           .no_nee = cJSON_IsFalse(cJSON_GetObjectItemCaseSensitive(m, "nee")),
+                           .no_mis = cJSON_IsFalse(cJSON_GetObjectItemCaseSensitive(m, "mis"))};
+    snprintf(cl->req.name, sizeof cl->req.name, "%s", cJSON_IsString(name) ? name->valuestring : "scene");
+    cl->validating = 1;
+    upload_queue_add(&s->uploads, u);
 }
 
 static cJSON *job_status_json(const sjob *j) {
@@ -164,7 +248,9 @@ static void on_status(client *cl, const cJSON *m) {
     }
     farm_worker_info wi[1];
     cJSON_AddNumberToObject(r, "workers", farm_list_workers(s->f, wi, 0));
-    client_send_json(cl, r);
+    cJSON_AddNumberToObject(r, "longest_stall_ms", svc_longest_stall_ms(s));
+    cJSON_AddNumberToObject(r, "longest_stall_cpu_ms", loopstat_longest_cpu_ms(&s->stat));
+    paging_send(cl->c, r, "jobs"); /* pages when the listing passes a frame */
 }
 
 static void on_workers(client *cl) {
@@ -187,7 +273,7 @@ static void on_workers(client *cl) {
         cJSON_AddItemToArray(arr, o);
     }
     free(wi);
-    client_send_json(cl, r);
+    paging_send(cl->c, r, "workers");
 }
 
 static sjob *request_job(client *cl, const cJSON *m, const char *type) {
@@ -278,15 +364,25 @@ static void on_fetch(client *cl, const cJSON *m) {
 
 static int client_on_frame(conn *c, int kind, const uint8_t *body, size_t len) {
     client *cl = conn_data(c);
+    cl->last_frame = svc_mono_now();
     if (kind == WIRE_KIND_SCENE) {
         free(cl->bundle);
-        cl->bundle = malloc(len ? len : 1);
+        /* Keep the frame's own memory (already faulted in): a move within
+         * it, not a copy into fresh pages, on the loop thread. */
+        uint8_t *mem = conn_take_frame(c);
+        if (mem && body == mem + WIRE_HEADER_BYTES) {
+            memmove(mem, body, len);
+            cl->bundle = mem;
+        } else {
+            cl->bundle = malloc(len ? len : 1);
+            if (cl->bundle) memcpy(cl->bundle, body, len);
+            free(mem); /* after the copy: body may lie in it */
+        }
         if (!cl->bundle) {
             client_error(cl, "out of memory for a %zu-byte scene", len);
             conn_close(c, "out of memory", 1);
             return 1;
         }
-        memcpy(cl->bundle, body, len);
         cl->bundle_len = len;
         return 0;
     }
@@ -314,6 +410,12 @@ static void client_on_close(conn *c, const char *reason) {
     client *cl = conn_data(c);
     if (conn_malformed(c)) svc_log("client %s: %s; disconnecting", cl->addr, reason);
     free(cl->bundle);
+    cl->bundle = NULL;
+    TAILQ_REMOVE(&cl->svc->clients, cl, link);
+    if (cl->validating) { /* its scene is being checked: freed by submit_checked */
+        cl->closed = 1;
+        return;
+    }
     free(cl);
 }
 
@@ -329,6 +431,9 @@ static void on_client(void *ctx, conn *c, const cJSON *hello, const char *addr) 
     cl->svc = s;
     cl->c = c;
     snprintf(cl->addr, sizeof cl->addr, "%s", addr);
+    cl->last_bytes = cl->last_frame = cl->window_start = svc_mono_now();
+    cl->seen_bytes = conn_bytes_in(c);
+    TAILQ_INSERT_TAIL(&s->clients, cl, link);
     conn_set_callbacks(c, &client_cbs, cl);
     conn_set_max_frame(c, s->o.max_upload + 1);
     cJSON *w = cJSON_CreateObject();
@@ -342,23 +447,63 @@ static void on_client(void *ctx, conn *c, const cJSON *hello, const char *addr) 
 
 static void on_expiry(uv_timer_t *t) {
     service *s = t->data;
-    double now = svc_wall_now();
-    sjob *j, *next;
-    TAILQ_FOREACH_SAFE(j, &s->jobs, link, next) {
-        if (j->state == SJOB_RUNNING || now - j->finished < s->o.keep_s) continue;
-        static const char *const exts[] = {"json", "pfm", "tiles"};
-        char path[4096];
-        for (int i = 0; i < 3; i++) {
-            store_job_path(s, j->desc.id, exts[i], path, sizeof path);
-            unlink(path);
+    if (retention_sweep(s)) uv_timer_start(&s->expiry, on_expiry, 100, 2000); /* a backlog: soon again */
+}
+
+#define TRICKLE_WINDOW_S 10.0
+#define TRICKLE_MIN_BYTES 1024 /* a frame in progress must grow by this much per window */
+
+/* Close clients that are idle (no request and no byte for
+ * --client-timeout; one whose submit is being checked is busy, not idle)
+ * or that trickle a frame (less than TRICKLE_MIN_BYTES in TRICKLE_WINDOW_S,
+ * or in --client-timeout when that is shorter). Each close is logged once, naming the client. */
+static void on_sweep(uv_timer_t *t) {
+    service *s = t->data;
+    double now = svc_mono_now(), limit = s->o.client_timeout_s > 0 ? s->o.client_timeout_s : 30;
+    client *cl, *next;
+    TAILQ_FOREACH_SAFE(cl, &s->clients, link, next) {
+        uint64_t in = conn_bytes_in(cl->c);
+        if (in != cl->seen_bytes) cl->last_bytes = now;
+        cl->window_bytes += in - cl->seen_bytes;
+        cl->seen_bytes = in;
+        const char *why = NULL;
+        char reason[160];
+        if (!cl->validating && now - cl->last_bytes > limit) {
+            snprintf(reason, sizeof reason, "idle for %.0f s (--client-timeout)", now - cl->last_bytes);
+            why = reason;
+        } else if (conn_pending(cl->c) == 0) { /* between frames: the trickle window starts with the next one */
+            cl->window_bytes = 0;
+            cl->window_start = now;
+        } else if (now - cl->window_start >= (limit < TRICKLE_WINDOW_S ? limit : TRICKLE_WINDOW_S)) {
+            if (cl->window_bytes < TRICKLE_MIN_BYTES) {
+                snprintf(reason, sizeof reason, "sent %" PRIu64 " bytes of a frame in %.0f s (under %d bytes per %.0f s)",
+                         cl->window_bytes, now - cl->window_start, TRICKLE_MIN_BYTES, TRICKLE_WINDOW_S);
+                why = reason;
+            }
+            cl->window_bytes = 0;
+            cl->window_start = now;
         }
-        svc_log("job %u expired and was deleted", j->desc.id);
-        store_job_unlink_free(s, j);
+        if (why) {
+            svc_log("client %s closed: %s", cl->addr, why);
+            client_error(cl, "closing the connection: %s", why);
+            conn_close(cl->c, why, 1);
+        }
     }
+}
+
+static void on_stat_timer(uv_timer_t *t) {
+    service *s = t->data;
+    svc_log("loop: longest iteration %.1f ms in the last 10 s (%.1f ms since the start)", loopstat_take_window(&s->stat),
+            loopstat_longest_ms(&s->stat));
 }
 
 static void on_farm_closed(void *ctx) {
     service *s = ctx;
+    svc_log("loop: longest iteration %.1f ms since the start (%.1f ms of CPU)", loopstat_longest_ms(&s->stat),
+            loopstat_longest_cpu_ms(&s->stat));
+    loopstat_stop(&s->stat);
+    uv_close((uv_handle_t *)&s->stat_timer, NULL);
+    uv_close((uv_handle_t *)&s->sweep, NULL);
     uv_close((uv_handle_t *)&s->expiry, NULL);
     uv_close((uv_handle_t *)&s->sigint, NULL);
     uv_close((uv_handle_t *)&s->sigterm, NULL);
@@ -395,6 +540,7 @@ int service_run(const service_options *o) {
     char err[600];
     if (!s) return 1;
     TAILQ_INIT(&s->jobs);
+    TAILQ_INIT(&s->clients);
     s->o = *o;
     s->next_id = 1;
     if (prepare_data_dir(o->data_dir, err, sizeof err) || data_dir_lock(o->data_dir, err, sizeof err) < 0) {
@@ -404,6 +550,7 @@ int service_run(const service_options *o) {
     }
     signal(SIGXFSZ, SIG_IGN); /* a file-size limit is a write error to report, not a reason to die */
     uv_loop_init(&s->loop);
+    if (loopstat_start(&s->loop, &s->stat)) svc_log("loop: cannot measure its iterations; stalls go unreported");
     s->o.farm.on_client = on_client;
     s->o.farm.client_ctx = s;
     s->f = farm_new(&s->loop, &s->o.farm, err, sizeof err);
@@ -424,6 +571,7 @@ int service_run(const service_options *o) {
         return 1;
     }
     store_load_jobs(s);
+    upload_queue_init(&s->uploads, &s->loop);
     uv_signal_init(&s->loop, &s->sigint);
     uv_signal_init(&s->loop, &s->sigterm);
     s->sigint.data = s->sigterm.data = s;
@@ -431,10 +579,17 @@ int service_run(const service_options *o) {
     uv_signal_start(&s->sigterm, on_signal, SIGTERM);
     uv_timer_init(&s->loop, &s->expiry);
     s->expiry.data = s;
-    uv_timer_start(&s->expiry, on_expiry, 1000, 60000);
+    uv_timer_start(&s->expiry, on_expiry, 1000, 2000);
+    uv_timer_init(&s->loop, &s->stat_timer);
+    s->stat_timer.data = s;
+    if (o->farm.verbose) uv_timer_start(&s->stat_timer, on_stat_timer, 10000, 10000);
+    uv_timer_init(&s->loop, &s->sweep);
+    s->sweep.data = s;
+    uv_timer_start(&s->sweep, on_sweep, 1000, 1000);
     uv_run(&s->loop, UV_RUN_DEFAULT);
     farm_free(s->f);
     while (!TAILQ_EMPTY(&s->jobs)) store_job_unlink_free(s, TAILQ_FIRST(&s->jobs));
+    uv_run(&s->loop, UV_RUN_NOWAIT); /* the close callbacks of the jobs' journals and timers */
     uv_loop_close(&s->loop);
     free(s);
     return 0;

@@ -18,6 +18,8 @@ typedef struct {
     int max_jobs;         /* queued and running jobs at once */
     double keep_s;        /* finished jobs are deleted after this long */
     const dashboard_options *http; /* --http: serve the dashboard (dashboard.h), or NULL */
+    int keep_jobs;        /* at most this many finished jobs are kept (0: no cap) */
+    double client_timeout_s; /* a client that sends nothing this long is closed (0: 30 s) */
 } service_options;
 
 /* Run the service until SIGINT or SIGTERM. Returns the exit status: 0

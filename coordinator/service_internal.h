@@ -6,7 +6,8 @@
  *                cancel, fetch), expiry, signals, start-up.
  *
  * Data dir layout (every file written whole to a temporary name, synced and
- * renamed, except the tile journal, which is appended and synced per tile):
+ * renamed, except the tile journal, which is appended and synced in batches
+ * off the loop thread, tjournal.h):
  *   scenes/HASH     uploaded scene bundles, named by their BLAKE2b hash
  *   jobs/ID.json    a job: what to render and its state
  *   jobs/ID.tiles   finished tiles of a running job: records of
@@ -43,6 +44,9 @@
 #include "render/scene.h"
 #include "data_lock.h"
 #include "journal.h"
+#include "tjournal.h"
+#include "loopstat.h"
+#include "upload.h"
 #include "service.h"
 
 #define WIRE_KIND_IMAGE 'I'
@@ -65,7 +69,8 @@ typedef struct sjob {
     trace_stats stats;
     double first_tile; /* wall clock when this run handed out its first tile (0: queued so far) */
     double submitted, started, finished; /* wall clock, seconds */
-    int tiles_fd;
+    struct tjournal *journal; /* while running: tiles synced off the loop (tjournal.h) */
+    uv_timer_t *save_timer;   /* rendered, waiting for space to save the image */
     TAILQ_ENTRY(sjob) link; /* on the service's jobs, oldest first */
 } sjob;
 
@@ -75,19 +80,40 @@ typedef struct service {
     farm *f;
     uv_signal_t sigint, sigterm;
     uv_timer_t expiry;
+    uv_timer_t stat_timer; /* -v: the longest loop iteration every 10 s */
+    loopstat stat;         /* loop stalls (loopstat.h); svc_longest_stall_ms */
+    upload_queue uploads;  /* scenes being checked off the loop (upload.h) */
+    uv_timer_t sweep;      /* closes idle and trickling clients every second */
+    TAILQ_HEAD(client_list, client) clients;
     TAILQ_HEAD(sjob_list, sjob) jobs;
     uint32_t next_id;
     int stopping;
     struct dashboard *web; /* --http, or NULL (service_web.c) */
 } service;
 
-/* A connected client (submit, status, ...). */
+/* What a submit asks besides its scene, kept while the scene is checked. */
 typedef struct {
+    long priority, tile_size;
+    sampler_kind sampler;
+    int no_nee, no_mis;
+    char name[256];
+} submit_req;
+
+/* A connected client (submit, status, ...). */
+typedef struct client {
     service *svc;
     conn *c;
     char addr[64];
     uint8_t *bundle; /* the last scene uploaded */
     size_t bundle_len;
+    int validating;  /* a submit's scene is on the upload queue */
+    int closed;      /* gone while validating: freed when the check ends */
+    submit_req req;  /* that submit's other fields */
+    uint64_t seen_bytes;           /* conn_bytes_in at the last sweep */
+    double last_bytes, last_frame; /* monotonic seconds: last byte, last whole frame */
+    uint64_t window_bytes;         /* bytes in the current 10 s window while mid-frame */
+    double window_start;
+    TAILQ_ENTRY(client) link;      /* on the service's clients while connected */
 } client;
 
 /* ---- shared between the files ---- */
@@ -121,6 +147,10 @@ int store_running_jobs(const service *s);
 /* Resume every job in the data dir, oldest first. */
 void store_load_jobs(service *s);
 
+/* Expire finished jobs (--keep-hours), keep at most --keep-jobs, remove
+ * scenes no job names (retention.c). Returns 1 when more is left to do. */
+int retention_sweep(service *s);
+
 /* A log line (log.h) from the service. */
 void svc_log(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 
@@ -130,6 +160,12 @@ int service_web_start(service *s, char *err, size_t err_len);
 
 /* Stop it (when started). Can't fail. */
 void service_web_stop(service *s);
+/* The longest busy iteration of the service's loop so far, in ms (for the
+ * status answer and a dashboard). */
+double svc_longest_stall_ms(const service *s);
+
+/* Monotonic seconds (for timeouts). */
+double svc_mono_now(void);
 
 /* Wall-clock seconds since the epoch. */
 double svc_wall_now(void);

@@ -63,6 +63,8 @@ int conn_malformed(const conn *c) { return c->malformed; }
 uint64_t conn_bytes_in(const conn *c) { return c->bytes_in; }
 uint64_t conn_bytes_out(const conn *c) { return c->bytes_out; }
 size_t conn_write_queue(const conn *c) { return c->tcp.write_queue_size; }
+size_t conn_pending(const conn *c) { return wire_decoder_pending(&c->dec); }
+uint8_t *conn_take_frame(conn *c) { return wire_decoder_take(&c->dec); }
 
 static void on_alloc(uv_handle_t *h, size_t suggested, uv_buf_t *buf) {
     (void)suggested;

@@ -76,6 +76,14 @@ uint64_t conn_bytes_in(const conn *c);
 uint64_t conn_bytes_out(const conn *c);
 size_t conn_write_queue(const conn *c);
 
+/* In on_frame: take the memory of the frame being delivered (the body
+ * passed to on_frame is at + WIRE_HEADER_BYTES in it); the caller frees it.
+ * NULL outside a frame callback. */
+uint8_t *conn_take_frame(conn *c);
+
+/* Bytes of a frame received so far but not complete (0 between frames). */
+size_t conn_pending(const conn *c);
+
 /* "ADDRESS:PORT" of the peer, or "?" when unknown. Can't fail. */
 void conn_peer_address(const conn *c, char *out, size_t len);
 

@@ -111,6 +111,13 @@ int wire_decoder_feed(wire_decoder *d, const uint8_t *data, size_t len, wire_fra
     return 0;
 }
 
+uint8_t *wire_decoder_take(wire_decoder *d) {
+    uint8_t *b = d->buf;
+    d->buf = NULL;
+    d->cap = 0;
+    return b;
+}
+
 void wire_decoder_free(wire_decoder *d) {
     free(d->buf);
     memset(d, 0, sizeof *d);

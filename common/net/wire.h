@@ -64,6 +64,12 @@ int wire_decoder_feed(wire_decoder *d, const uint8_t *data, size_t len, wire_fra
  * with this non-zero sent a truncated frame. */
 static inline size_t wire_decoder_pending(const wire_decoder *d) { return d->have; }
 
+/* During a frame callback: take the buffer holding the frame (its body at
+ * + WIRE_HEADER_BYTES; the caller frees it), so that a large body is kept
+ * without copying it into new memory. The decoder allocates afresh for the
+ * next frame. */
+uint8_t *wire_decoder_take(wire_decoder *d);
+
 /* Free the decoder's buffer. */
 void wire_decoder_free(wire_decoder *d);
 

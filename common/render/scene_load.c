@@ -14,6 +14,7 @@
 #include "import.h"
 #include "json_field.h"
 #include "mesh_normals.h"
+#include "name_index.h"
 #include "obj.h"
 #include "scene_bundle.h"
 #include "scene.h"
@@ -24,6 +25,7 @@
 #define MAX_SPP LIMIT_SPP
 #define MAX_DEPTH LIMIT_DEPTH
 #define BIG 1e30 /* bound for coordinates: anything larger is surely a mistake */
+#define MESH_SCALE_MAX 1e6 /* a mesh scaled by 1e30 rendered black: float intersection maths overflows */
 
 typedef struct {
     double p[3][3];
@@ -55,6 +57,7 @@ typedef struct {
     json_ctx j;
     const scene_bundle *bundle; /* the scene text and its meshes */
     const char **material_names;
+    name_index material_index; /* name -> material slot, for linear checks */
     tri_d *tris;
     size_t tri_count, tri_cap;
     sphere_d *spheres;
@@ -218,16 +221,16 @@ static int load_materials(loader *L, const cJSON *root) {
     /* Slot 0 is the implicit "reflects nothing" material of bare emitters. */
     s->materials = calloc((size_t)n + 1, sizeof(material));
     L->material_names = calloc((size_t)n + 1, sizeof(char *));
-    if (!s->materials || !L->material_names) return jf_fail(&L->j, "materials", NULL, "out of memory");
+    if (!s->materials || !L->material_names || name_index_init(&L->material_index, (size_t)n))
+        return jf_fail(&L->j, "materials", NULL, "out of memory");
     s->materials[0].kind = MATERIAL_NONE;
     L->material_names[0] = "";
     s->material_count = 1;
     for (const cJSON *m = ms ? ms->child : NULL; m; m = m->next) {
         char where[320];
         snprintf(where, sizeof where, "materials.%s", m->string);
-        for (uint32_t i = 1; i < s->material_count; i++)
-            if (strcmp(L->material_names[i], m->string) == 0)
-                return jf_fail(&L->j, where, NULL, "material defined twice");
+        if (name_index_add(&L->material_index, m->string, s->material_count) != 0)
+            return jf_fail(&L->j, where, NULL, "material defined twice");
         if (load_material(L, m, where, &s->materials[s->material_count])) return -1;
         L->material_names[s->material_count++] = m->string;
     }
@@ -246,11 +249,11 @@ static int shape_material(loader *L, const cJSON *sh, const char *where, int emi
         *out = 0;
         return 0;
     }
-    for (uint32_t i = 1; i < L->s->material_count; i++)
-        if (strcmp(L->material_names[i], name) == 0) {
-            *out = i;
-            return 0;
-        }
+    int64_t i = name_index_find(&L->material_index, name);
+    if (i >= 1) {
+        *out = (uint32_t)i;
+        return 0;
+    }
     return jf_fail(&L->j, where, "material", "unknown material \"%s\"", name);
 }
 
@@ -459,7 +462,7 @@ static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat
     const char *file;
     double scale, translate[3], smooth;
     if (jf_string(&L->j, sh, where, "file", 1, &file) ||
-        jf_number(&L->j, sh, where, "scale", 0, 1, 0, BIG, &scale) ||
+        jf_number(&L->j, sh, where, "scale", 0, 1, 0, MESH_SCALE_MAX, &scale) ||
         jf_number(&L->j, sh, where, "smooth_angle", 0, -1, 0, 180, &smooth) ||
         jf_vec3(&L->j, sh, where, "translate", 0, zero, -BIG, BIG, translate))
         return -1;
@@ -828,6 +831,7 @@ scene *scene_load_bundle(const scene_bundle *b, const scene_overrides *ov, char 
     if (rc == 0) L.s->path = strdup(path);
     cJSON_Delete(root);
     free(L.material_names);
+    name_index_free(&L.material_index);
     free(L.tris);
     free(L.spheres);
     free(L.emitters);
