@@ -70,6 +70,9 @@ static void usage_render(FILE *f) {
             "      --worker-timeout S a silent worker's tiles go to others after S s (default 5)\n"
             "      --lease S          longest a worker may hold one tile (default 300)\n"
             "      --token-file F     workers must prove they know this secret (local ones get it)\n"
+            "      --audit FRACTION   render this fraction of tiles (0 to 1, chosen at random) on\n"
+            "                         two workers and compare the bytes (needs 2 workers, 3 to\n"
+            "                         settle a mismatch); a worker that differs is quarantined\n"
             "      --tile-size N      tile side in pixels (default 32)\n"
             "      --passes N         render each tile's samples in N sequential passes\n"
             "                         (the image is bit-identical for every N)\n"
@@ -170,6 +173,8 @@ static void render_args_check(render_args *a) {
     if (!(a->farm.heartbeat_s < a->farm.timeout_s))
         args_usage_error("tessera render", "--worker-timeout (%g s) must be longer than --heartbeat (%g s)",
                          a->farm.timeout_s, a->farm.heartbeat_s);
+    if (a->farm.audit > 0 && !a->listen && a->workers < 2)
+        args_usage_error("tessera render", "--audit needs two workers or more (--workers N or --listen)");
     render_args_check_output(a);
     if (a->farm.drop_s < 6 * a->farm.timeout_s) a->farm.drop_s = 6 * a->farm.timeout_s;
     if (a->tile_size > a->farm.max_tile_side) a->farm.max_tile_side = a->tile_size;
@@ -192,6 +197,7 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         {.name = "workers", .kind = ARG_INT, .dest = &a->workers, .lo = 0, .hi = 4096},
         {.name = "listen", .kind = ARG_STRING, .dest = &a->listen},
         {.name = "token-file", .kind = ARG_STRING, .dest = &a->token_file},
+        {.name = "audit", .kind = ARG_DOUBLE, .dest = &a->farm.audit, .lo = 0, .hi = 1},
         {.name = "heartbeat", .kind = ARG_DOUBLE, .dest = &a->farm.heartbeat_s, .lo = 0.01, .hi = 3600},
         {.name = "worker-timeout", .kind = ARG_DOUBLE, .dest = &a->farm.timeout_s, .lo = 0.05, .hi = 86400},
         {.name = "lease", .kind = ARG_DOUBLE, .dest = &a->farm.lease_s, .lo = 0.1, .hi = 1e7},
@@ -497,7 +503,7 @@ static void usage_coordinator(FILE *f) {
             "      --max-jobs N         queued and running jobs at once (default 100)\n"
             "      --keep-hours H       delete finished jobs after H hours (default 24)\n"
             "      --token-file F       workers and clients must prove they know this secret\n"
-            "      --heartbeat S, --worker-timeout S, --lease S   as for tessera render\n"
+            "      --heartbeat S, --worker-timeout S, --lease S, --audit FRACTION   as for tessera render\n"
             "  -v, --verbose            log every worker event\n");
 }
 
@@ -528,6 +534,7 @@ static int cmd_coordinator(int argc, char **argv) {
         {.name = "worker-timeout", .kind = ARG_DOUBLE, .dest = &o.farm.timeout_s, .lo = 0.05, .hi = 86400},
         {.name = "lease", .kind = ARG_DOUBLE, .dest = &o.farm.lease_s, .lo = 0.1, .hi = 1e7},
         {.name = "token-file", .kind = ARG_STRING, .dest = &token},
+        {.name = "audit", .kind = ARG_DOUBLE, .dest = &o.farm.audit, .lo = 0, .hi = 1},
         {.name = "verbose", .short_name = 'v', .kind = ARG_FLAG, .dest = &o.farm.verbose},
         {.name = "version", .kind = ARG_FLAG, .dest = &version},
         {NULL}};

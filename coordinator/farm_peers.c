@@ -274,6 +274,7 @@ void farm_on_connection(uv_stream_t *server, int status) {
     p->c = c;
     p->joined = p->last_heard = p->last_sent = farm_now(f);
     p->rec.joined = p->joined;
+    p->rec.serial = ++f->next_serial;
     if (uv_accept(server, (uv_stream_t *)conn_tcp(c)) != 0 || conn_start(c) != 0) {
         snprintf(p->label, sizeof p->label, "connection");
         LIST_INSERT_HEAD(&f->peers, p, link);
@@ -365,6 +366,7 @@ int farm_list_workers(const farm *f, farm_worker_info *out, int max) {
             w->samples = p->rec.samples;
             w->connected_s = now - p->joined;
             w->silent_s = now - p->last_heard;
+            w->quarantined = p->rec.quarantined;
         }
         n++;
     }
@@ -372,9 +374,11 @@ int farm_list_workers(const farm *f, farm_worker_info *out, int max) {
 }
 
 static void print_record(FILE *out, const peer_record *r, const char *state, uint64_t in, uint64_t out_b) {
-    fprintf(out, "  %-20s %-22s %3d threads %6llu tiles %8.2f Msamples  in %8.1f KiB  out %8.1f KiB  %s\n",
+    char q[48] = "";
+    if (r->quarantined) snprintf(q, sizeof q, "  QUARANTINED in %d job%s", r->quarantined, r->quarantined > 1 ? "s" : "");
+    fprintf(out, "  %-20s %-22s %3d threads %6llu tiles %8.2f Msamples  in %8.1f KiB  out %8.1f KiB  %s%s\n",
             r->name, r->addr, r->threads, (unsigned long long)r->tiles, (double)r->samples / 1e6,
-            (double)in / 1024.0, (double)out_b / 1024.0, state);
+            (double)in / 1024.0, (double)out_b / 1024.0, state, q);
 }
 
 void farm_print_workers(const farm *f, FILE *out) {
@@ -388,4 +392,8 @@ void farm_print_workers(const farm *f, FILE *out) {
         snprintf(state, sizeof state, "left: %s", f->departed[i].why);
         print_record(out, &f->departed[i], state, f->departed[i].bytes_in, f->departed[i].bytes_out);
     }
+    if (f->opt.audit > 0)
+        fprintf(out, "  audit (%g of tiles): %llu tiles checked by two workers, %llu mismatches, %llu workers quarantined\n",
+                f->opt.audit, (unsigned long long)f->audited, (unsigned long long)f->audit_mismatches,
+                (unsigned long long)f->quarantined);
 }
