@@ -1,6 +1,8 @@
 /* farm_peers.c - the farm's side of each worker connection: accept, the
  * authenticated hello, control messages (ready, give back, failed), the
  * heartbeat clock that finds stalled and silent workers, departures. */
+#include <sodium.h>
+
 #include "farm_internal.h"
 
 static void peer_send(peer *p, uint8_t *frame, size_t len) {
@@ -113,6 +115,9 @@ static int on_hello(peer *p, const cJSON *m) {
         farm_log(f, "%s refused: %s", p->label, reason);
         return peer_refuse(p, "refused", reason);
     }
+    const cJSON *peer_nonce = cJSON_GetObjectItemCaseSensitive(m, "nonce");
+    if (f->opt.auth.enabled && !(cJSON_IsString(peer_nonce) && strlen(peer_nonce->valuestring) < 200))
+        return peer_violation(p, "hello: no nonce (with a token the link is encrypted, and its keys need one)");
     p->rec.threads = (int)threads->valuedouble;
     p->state = PEER_ACTIVE;
     size_t max_frame = proto_tile_frame_max(f->opt.max_tile_side);
@@ -125,6 +130,13 @@ static int on_hello(peer *p, const cJSON *m) {
     cJSON_AddNumberToObject(w, "timeout_ms", f->opt.timeout_s * 1e3);
     farm_add_proof(f, m, w);
     peer_send_json(p, w);
+    if (f->opt.auth.enabled) { /* the welcome went in clear; from here on every frame is sealed */
+        unsigned char down[AUTH_KEY_BYTES], up[AUTH_KEY_BYTES];
+        auth_link_keys(&f->opt.auth, p->nonce, peer_nonce->valuestring, down, up);
+        conn_seal(p->c, down, up);
+        sodium_memzero(down, sizeof down);
+        sodium_memzero(up, sizeof up);
+    }
     if (f->opt.verbose) farm_log(f, "%s joined with %d threads", p->label, p->rec.threads);
     return 0;
 }
