@@ -220,3 +220,23 @@ TEST(seal_dropped_frame_ends_the_link) {
 TEST(seal_cut_frame_ends_the_link) {
     run_tampered("cut-up", 1, T_CUT, 2, "in the middle of a frame");
 }
+
+/* No token: links in clear, so beyond loopback only with --insecure. */
+TEST(seal_no_token_only_on_loopback_unless_insecure) {
+    char cmd[1024], out[8192];
+    const char *img = util_temp_path("seal-insecure.pfm");
+    snprintf(cmd, sizeof cmd, "%s render " SCENE " --listen 0.0.0.0:0 -o %s", harness_tessera(), img);
+    int st = util_run(cmd, out, sizeof out);
+    CHECK(st == 2 && strstr(out, "without --token-file"), "expected a usage error, got %d: %s", st, out);
+    snprintf(cmd, sizeof cmd, "%s --connect 10.255.255.1:7000", util_bin("tessera-worker"));
+    st = util_run(cmd, out, sizeof out);
+    CHECK(st == 2 && strstr(out, "without --token-file"), "worker: expected a usage error, got %d: %s", st, out);
+    snprintf(cmd, sizeof cmd, "%s render " SCENE " --listen 0.0.0.0:0 --insecure --workers 2 --spp 4 -o %s",
+             harness_tessera(), img);
+    st = util_run(cmd, out, sizeof out);
+    CHECK(st == 0, "--insecure refused (%d): %s", st, out);
+    snprintf(cmd, sizeof cmd, "%s render " SCENE " --listen 127.0.0.1:0 --workers 2 --spp 4 -o %s",
+             harness_tessera(), img);
+    st = util_run(cmd, out, sizeof out);
+    CHECK(st == 0, "loopback without a token refused (%d): %s", st, out);
+}
