@@ -146,3 +146,45 @@ TEST(audit_needs_two_workers) {
     st = util_run(cmd, out, sizeof out);
     CHECK(st == 2, "--audit 1.5 accepted (%d): %s", st, out);
 }
+
+/* The job service (tessera-coordinator --audit 1.0): F is quarantined, the
+ * fetched image is the single-process one, `tessera workers` says so. */
+TEST(audit_service_quarantines_and_tessera_workers_shows_it) {
+    char dir[256], log[256], addr[64], coord[4096], cmd[1024], out[8192], img[256], wlog[3][256];
+    snprintf(dir, sizeof dir, "%s", util_temp_path("audit-svc"));
+    snprintf(log, sizeof log, "%s", util_temp_path("audit-svc.log"));
+    snprintf(img, sizeof img, "%s", util_temp_path("audit-svc.pfm"));
+    unlink(log);
+    int port = util_free_port();
+    snprintf(addr, sizeof addr, "127.0.0.1:%d", port);
+    snprintf(coord, sizeof coord, "%s", util_bin("tessera-coordinator"));
+    const char *argv[] = {coord, "--listen", addr, "--data-dir", dir, "--audit", "1.0", NULL};
+    pid_t svc = util_spawn(argv, log);
+    CHECK(util_wait_for_text(log, "listening on", LONG) == 0, "coordinator did not start; log %s", log);
+    static const char *const names[] = {"A", "B", "F"};
+    pid_t w[3];
+    for (int i = 0; i < 3; i++) {
+        char lname[64];
+        snprintf(lname, sizeof lname, "audit-svc-%s.log", names[i]);
+        snprintf(wlog[i], sizeof wlog[i], "%s", util_temp_path(lname));
+        w[i] = start_worker(wlog[i], port, names[i], i == 2 ? "scale:1e-6" : NULL);
+    }
+    for (int i = 0; i < 3; i++) /* all three in before the job: F surely gets tiles */
+        CHECK(util_wait_for_text(wlog[i], "joined the farm", LONG) == 0, "%s never joined; log %s", names[i], wlog[i]);
+    snprintf(cmd, sizeof cmd, "TESSERA_COORDINATOR=%s %s submit " SCENE " --tile-size 8 --wait -o %s", addr,
+             harness_tessera(), img);
+    int st = util_run(cmd, out, sizeof out);
+    CHECK(st == 0, "submit --wait failed (%d): %s; log %s", st, out, log);
+    CHECK(util_same_file(img, audit_reference(64)), "the fetched image differs from the single-process one; log %s",
+          log);
+    snprintf(cmd, sizeof cmd, "TESSERA_COORDINATOR=%s %s workers", addr, harness_tessera());
+    st = util_run(cmd, out, sizeof out);
+    CHECK(st == 0 && strstr(out, "QUARANTINED in 1 jobs") && util_file_count(log, "worker F (127.0.0.1:"),
+          "F not shown as quarantined (%d): %s; log %s", st, out, log);
+    for (int i = 0; i < 3; i++) {
+        kill(w[i], SIGTERM);
+        util_wait(w[i], LONG, NULL);
+    }
+    kill(svc, SIGTERM);
+    CHECK(util_wait(svc, LONG, NULL) == 0, "coordinator did not exit cleanly; log %s", log);
+}
