@@ -221,8 +221,8 @@ static void audit_quarantine(farm *f, job *j, uint32_t serial, const char *who) 
         redo++;
         farm_requeue_tile(j, (uint32_t)t); /* unless held or still in the ring */
     }
-    farm_log(f, "job %u: %s is quarantined for this job; %d tiles it alone delivered will be rendered again", j->desc.id,
-             who, redo);
+    farm_log(f, "job %u: %s is quarantined for this job; %d tiles it alone delivered will be rendered again",
+             j->desc.id, who, redo);
 }
 
 /* A result for tile t of job j from p, after the farm's checks (px: its

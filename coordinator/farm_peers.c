@@ -387,7 +387,8 @@ int farm_list_workers(const farm *f, farm_worker_info *out, int max) {
 
 static void print_record(FILE *out, const peer_record *r, const char *state, uint64_t in, uint64_t out_b) {
     char q[48] = "";
-    if (r->quarantined) snprintf(q, sizeof q, "  QUARANTINED in %d job%s", r->quarantined, r->quarantined > 1 ? "s" : "");
+    if (r->quarantined)
+        snprintf(q, sizeof q, "  QUARANTINED in %d job%s", r->quarantined, r->quarantined > 1 ? "s" : "");
     fprintf(out, "  %-20s %-22s %3d threads %6llu tiles %8.2f Msamples  in %8.1f KiB  out %8.1f KiB  %s%s\n",
             r->name, r->addr, r->threads, (unsigned long long)r->tiles, (double)r->samples / 1e6,
             (double)in / 1024.0, (double)out_b / 1024.0, state, q);
@@ -405,7 +406,8 @@ void farm_print_workers(const farm *f, FILE *out) {
         print_record(out, &f->departed[i], state, f->departed[i].bytes_in, f->departed[i].bytes_out);
     }
     if (f->opt.audit > 0)
-        fprintf(out, "  audit (%g of tiles): %llu tiles checked by two workers, %llu mismatches, %llu workers quarantined\n",
+        fprintf(out,
+                "  audit (%g of tiles): %llu tiles checked by two workers, %llu mismatches, %llu workers quarantined\n",
                 f->opt.audit, (unsigned long long)f->audited, (unsigned long long)f->audit_mismatches,
                 (unsigned long long)f->quarantined);
 }

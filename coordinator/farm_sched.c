@@ -227,8 +227,8 @@ int farm_submit(farm *f, const proto_job *desc, const uint8_t *bundle, size_t bu
     j->first_start = calloc(n, sizeof *j->first_start);
     j->queue = calloc(n, sizeof *j->queue);
     j->scene = bundle_len < UINT32_MAX ? conn_blob_new(WIRE_HEADER_BYTES + bundle_len) : NULL;
-    if (audit_new(j, f->opt.audit) ||!j->rects || !j->done || !j->holders || !j->queued || !j->failures || !j->first_start || !j->queue ||
-        !j->scene) {
+    if (!j->rects || !j->done || !j->holders || !j->queued || !j->failures || !j->first_start || !j->queue ||
+        !j->scene || audit_new(j, f->opt.audit)) {
         farm_job_free(j);
         return -1;
     }
