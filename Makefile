@@ -227,3 +227,11 @@ slurm-test: $(TESSERA) $(WORKER)
 SLURM_BENCH_ROUNDS ?= 3
 slurm-bench: $(TESSERA) $(WORKER)
 	tests/slurm/run.sh $(BUILD)/bin --bench-layout $(SLURM_BENCH_ROUNDS)
+
+# ---- issue 17: trust on hostile networks --------------------------------------
+# What sealed links and audited tiles cost: five configurations of the local
+# farm run interleaved (bench/trust.sh; printed, not asserted).
+.PHONY: bench-trust
+TRUST_BENCH_ROUNDS ?= 5
+bench-trust: $(TESSERA) $(WORKER)
+	bench/trust.sh $(BUILD)/bin scenes/cornell-box.json 16 $(TRUST_BENCH_ROUNDS) 32

@@ -6,7 +6,7 @@
 #   plain     --workers N, no token (frames in clear on loopback)
 #   sealed    --workers N --token-file T (every frame sealed, conn_seal)
 #   audit-X   --workers N --audit X (X of the tiles rendered twice)
-# usage: bench/trust.sh BIN_DIR [SCENE] [SPP] [ROUNDS] [TILE]
+# usage: [TRUST_CONFIGS="plain sealed"] bench/trust.sh BIN_DIR [SCENE] [SPP] [ROUNDS] [TILE]
 set -euo pipefail
 bin=$1
 scene=${2:-scenes/cornell-box.json}
@@ -25,7 +25,7 @@ declare -A runs=(
   [audit-0.1]="--audit 0.1"
   [audit-1.0]="--audit 1.0"
 )
-order=(plain sealed audit-0.02 audit-0.1 audit-1.0)
+read -r -a order <<< "${TRUST_CONFIGS:-plain sealed audit-0.02 audit-0.1 audit-1.0}"
 median() { sort -g | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}'; }
 echo "== $scene, $spp spp, tiles $tile, $workers local workers, $rounds rounds interleaved"
 for r in $(seq "$rounds"); do
@@ -38,11 +38,12 @@ for r in $(seq "$rounds"); do
     echo "$k $(echo "$e - $s" | bc)" >> "$out/times"
     echo "  round $r $k: $(echo "$e - $s" | bc) s"
   done
-  cmp -s "$out/plain.pfm" "$out/sealed.pfm" && cmp -s "$out/plain.pfm" "$out/audit-1.0.pfm" ||
-    echo "  round $r: IMAGES DIFFER"
+  for k in "${order[@]}"; do
+    cmp -s "$out/${order[0]}.pfm" "$out/$k.pfm" || echo "  round $r: $k's image differs from ${order[0]}'s"
+  done
 done
-base=$(awk '$1 == "plain" {print $2}' "$out/times" | median)
+base=$(awk -v k="${order[0]}" '$1 == k {print $2}' "$out/times" | median)
 for k in "${order[@]}"; do
   m=$(awk -v k="$k" '$1 == k {print $2}' "$out/times" | median)
-  printf "%-11s median %6.2f s  (%+.1f%% against plain)\n" "$k" "$m" "$(echo "($m / $base - 1) * 100" | bc -l)"
+  printf "%-11s median %6.2f s  (%+.1f%% against the first)\n" "$k" "$m" "$(echo "($m / $base - 1) * 100" | bc -l)"
 done
