@@ -301,3 +301,11 @@ $(FUZZ_BUILD)/fuzz_http: tests/fuzz/fuzz_http.c $(FUZZ_BUILD)/coordinator/http.o
 .PHONY: bench-journal
 bench-journal: $(TESSERA) $(LOADGEN)
 	bench/journal.sh 3 100
+
+# ---- issue 17: trust on hostile networks --------------------------------------
+# What sealed links and audited tiles cost: five configurations of the local
+# farm run interleaved (bench/trust.sh; printed, not asserted).
+.PHONY: bench-trust
+TRUST_BENCH_ROUNDS ?= 5
+bench-trust: $(TESSERA) $(WORKER)
+	bench/trust.sh $(BUILD)/bin scenes/cornell-box.json 16 $(TRUST_BENCH_ROUNDS) 32

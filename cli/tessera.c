@@ -47,6 +47,7 @@ typedef struct {
     int interrupted; /* the signal that stopped a farm render, or 0 */
     cli_progress_state ps;
     int workers_defaulted; /* local farm sized by tessera, not by --workers */
+    int insecure;    /* --insecure: listen beyond loopback without a token */
     const char *listen, *token_file;
     const char *camera; /* --camera NAME: a glTF's camera */
     char listen_host[256];
@@ -92,6 +93,10 @@ static void usage_render(FILE *f) {
             "      --worker-timeout S a silent worker's tiles go to others after S s (default 5)\n"
             "      --lease S          longest a worker may hold one tile (default 300)\n"
             "      --token-file F     workers must prove they know this secret (local ones get it)\n"
+            "      --insecure         allow --listen beyond loopback without a token (frames in clear)\n"
+            "      --audit FRACTION   render this fraction of tiles (0 to 1, chosen at random) on\n"
+            "                         two workers and compare the bytes (needs 2 workers, 3 to\n"
+            "                         settle a mismatch); a worker that differs is quarantined\n"
             "      --tile-size N      tile side in pixels (default 32)\n"
             "      --passes N         render each tile's samples in N sequential passes\n"
             "                         (the image is bit-identical for every N)\n"
@@ -204,6 +209,11 @@ static void render_args_check(render_args *a) {
     if (!(a->farm.heartbeat_s < a->farm.timeout_s))
         args_usage_error("tessera render", "--worker-timeout (%g s) must be longer than --heartbeat (%g s)",
                          a->farm.timeout_s, a->farm.heartbeat_s);
+    if (a->listen && !a->token_file && !a->insecure && !address_is_loopback(a->listen_host))
+        args_usage_error("tessera render", "--listen %s without --token-file: links would be in clear beyond "
+                         "this machine; add --token-file F, or --insecure on a network you trust", a->listen);
+    if (a->farm.audit > 0 && !a->listen && a->workers < 2)
+        args_usage_error("tessera render", "--audit needs two workers or more (--workers N or --listen)");
     render_args_check_output(a);
     if (a->farm.drop_s < 6 * a->farm.timeout_s) a->farm.drop_s = 6 * a->farm.timeout_s;
     if (a->tile_size > a->farm.max_tile_side) a->farm.max_tile_side = a->tile_size;
@@ -229,6 +239,8 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         {.name = "insecure", .kind = ARG_FLAG, .dest = &a->web.insecure},
         {.name = "token-file", .kind = ARG_STRING, .dest = &a->token_file},
         {.name = "camera", .kind = ARG_STRING, .dest = &a->camera},
+        {.name = "audit", .kind = ARG_DOUBLE, .dest = &a->farm.audit, .lo = 0, .hi = 1},
+        {.name = "insecure", .kind = ARG_FLAG, .dest = &a->insecure},
         {.name = "heartbeat", .kind = ARG_DOUBLE, .dest = &a->farm.heartbeat_s, .lo = 0.01, .hi = 3600},
         {.name = "worker-timeout", .kind = ARG_DOUBLE, .dest = &a->farm.timeout_s, .lo = 0.05, .hi = 86400},
         {.name = "lease", .kind = ARG_DOUBLE, .dest = &a->farm.lease_s, .lo = 0.1, .hi = 1e7},
@@ -575,7 +587,8 @@ static void usage_coordinator(FILE *f) {
             "      --keep-jobs N        keep at most N finished jobs, oldest deleted first (default 1000)\n"
             "      --client-timeout S   close a client that sends nothing for S s (default 30)\n"
             "      --token-file F       workers and clients must prove they know this secret\n"
-            "      --heartbeat S, --worker-timeout S, --lease S   as for tessera render\n"
+            "      --heartbeat S, --worker-timeout S, --lease S, --audit FRACTION, --insecure\n"
+            "                           as for tessera render\n"
             "      --http ADDR:PORT     serve the web dashboard and /metrics there (loopback unless\n"
             "                           a token is set or --insecure); --http-read-only: no cancel\n"
             "  -v, --verbose            log every worker event\n");
@@ -595,7 +608,7 @@ static int cmd_coordinator(int argc, char **argv) {
     farm_options_default(&o.farm);
     const char *listen = "127.0.0.1:7000", *token = NULL;
     char host[256], err[300];
-    int upload_mib = LIMIT_UPLOAD_DEFAULT_MIB, version = 0;
+    int upload_mib = LIMIT_UPLOAD_DEFAULT_MIB, version = 0, insecure = 0;
     double keep_hours = 24;
     const char *http = NULL; /* --http ADDR:PORT: the dashboard (coordinator/dashboard.h) */
     dashboard_options web = {0};
@@ -616,6 +629,8 @@ static int cmd_coordinator(int argc, char **argv) {
         {.name = "worker-timeout", .kind = ARG_DOUBLE, .dest = &o.farm.timeout_s, .lo = 0.05, .hi = 86400},
         {.name = "lease", .kind = ARG_DOUBLE, .dest = &o.farm.lease_s, .lo = 0.1, .hi = 1e7},
         {.name = "token-file", .kind = ARG_STRING, .dest = &token},
+        {.name = "audit", .kind = ARG_DOUBLE, .dest = &o.farm.audit, .lo = 0, .hi = 1},
+        {.name = "insecure", .kind = ARG_FLAG, .dest = &insecure},
         {.name = "verbose", .short_name = 'v', .kind = ARG_FLAG, .dest = &o.farm.verbose},
         {.name = "version", .kind = ARG_FLAG, .dest = &version},
         {NULL}};
@@ -628,6 +643,9 @@ static int cmd_coordinator(int argc, char **argv) {
     if (address_parse(listen, host, sizeof host, &o.farm.port, err, sizeof err))
         args_usage_error("tessera-coordinator", "--listen %s", err);
     o.farm.host = host;
+    if (!token && !insecure && !address_is_loopback(host))
+        args_usage_error("tessera-coordinator", "--listen %s without --token-file: links would be in clear beyond "
+                         "this machine; add --token-file F, or --insecure on a network you trust", listen);
     if (token && auth_key_load(token, &o.farm.auth, err, sizeof err))
         args_usage_error("tessera-coordinator", "--token-file %s", err);
     if (!(o.farm.heartbeat_s < o.farm.timeout_s))

@@ -44,6 +44,7 @@ typedef struct {
     void (*on_client)(void *ctx, struct conn *c, const cJSON *hello, const char *addr);
     void *client_ctx;
     auth_key auth; /* enabled: every peer must prove it knows the token */
+    double audit;  /* fraction of tiles (0 to 1) rendered by two workers and compared (farm_audit.c) */
 } farm_options;
 
 /* Fill o with the defaults (heartbeat 1 s, timeout 5 s, drop 30 s, lease
@@ -66,6 +67,9 @@ typedef struct {
     uint64_t requeued;      /* tiles put back after a loss, stall or lease */
     uint64_t backups;       /* copies handed out near the end */
     uint64_t bytes_in, bytes_out; /* over every connection, so far */
+    uint64_t audited;          /* tiles two workers agreed on (--audit) */
+    uint64_t audit_mismatches; /* audited tiles on which two workers disagreed */
+    int quarantined;           /* workers quarantined for this job */
     int failed;             /* the job cannot finish (error says why) */
     int cancelled;          /* farm_cancel ended it */
     char error[512];
@@ -128,6 +132,7 @@ typedef struct {
     int stalled;
     uint64_t tiles, samples;
     double connected_s, silent_s; /* since it joined; since it last spoke */
+    int quarantined;              /* jobs it was quarantined in: its tiles failed an audit */
 } farm_worker_info;
 
 /* Fill out with up to max connected workers; returns how many there are.

@@ -48,6 +48,8 @@
 
 typedef struct job job;
 
+typedef struct job_audit job_audit; /* farm_audit.c */
+
 typedef struct peer peer;
 
 typedef struct lease {
@@ -81,6 +83,7 @@ struct job {
     int reported;        /* tiles_done at the last progress callback */
     int finished;
     farm *owner;           /* for farm_emit */
+    job_audit *audit;    /* farm_audit.c; NULL: no tile is audited */
     TAILQ_ENTRY(job) link; /* on the farm's jobs, by priority then age */
 };
 
@@ -93,6 +96,8 @@ typedef struct {
     uint64_t tiles, samples, bytes_in, bytes_out;
     double joined, left;
     char why[128];
+    uint32_t serial; /* this connection's number in the farm (from 1) */
+    int quarantined; /* jobs it was quarantined in (farm_audit.c) */
 } peer_record;
 
 struct peer {
@@ -126,6 +131,8 @@ struct farm {
     int departed_count, departed_cap;
     unsigned long long departed_dropped; /* older ones, counted only */
     uint64_t closed_bytes_in, closed_bytes_out;
+    uint32_t next_serial;
+    uint64_t audited, audit_mismatches, quarantined; /* over all jobs, for the workers table */
     int closing, open_handles;
     void (*closed_cb)(void *);
     void *closed_ctx;
@@ -187,5 +194,37 @@ void peer_schedule(peer *p);
 void farm_schedule_all(farm *f);
 
 int farm_on_tile(peer *p, const uint8_t *body, size_t len);
+
+/* Queue tile t unless it is done, held, pending an audit or queued. */
+void farm_requeue_tile(job *j, uint32_t t);
+
+/* ---- audited tiles (farm_audit.c) -------------------------------------------- */
+
+enum { AUDIT_ACCEPT, AUDIT_HOLD, AUDIT_DROP, AUDIT_FAILED };
+
+/* Choose the job's audited tiles with a fresh secret seed (fraction <= 0:
+ * none, j->audit stays NULL). Returns 0, or -1 when out of memory (what was
+ * made is freed by audit_free). */
+int audit_new(job *j, double fraction);
+
+void audit_free(job *j);
+
+/* The worker with this serial is quarantined for the job. */
+int audit_is_barred(const job *j, uint32_t serial);
+
+/* Tile t has results waiting for an audit copy (it stays out of the queue). */
+int audit_is_pending(const job *j, uint32_t t);
+
+/* The worker may render tile t (not barred, no result of its own pending). */
+int audit_may_take(const job *j, uint32_t serial, uint32_t t);
+
+/* A pending tile nobody holds that p may render: 1 with *out, or 0. */
+int audit_pick(const job *j, const peer *p, uint32_t *out);
+
+/* Tile t was stitched: verified by two workers, or taken from serial alone. */
+void audit_accepted(job *j, uint32_t t, uint32_t serial, int verified);
+
+/* See farm_audit.c. */
+int audit_on_result(farm *f, job *j, peer *p, uint32_t t, float **px, int *verified);
 
 #endif

@@ -1,6 +1,8 @@
 /* farm_peers.c - the farm's side of each worker connection: accept, the
  * authenticated hello, control messages (ready, give back, failed), the
  * heartbeat clock that finds stalled and silent workers, departures. */
+#include <sodium.h>
+
 #include "farm_internal.h"
 
 static void peer_send(peer *p, uint8_t *frame, size_t len) {
@@ -115,6 +117,9 @@ static int on_hello(peer *p, const cJSON *m) {
         farm_log(f, "%s refused: %s", p->label, reason);
         return peer_refuse(p, "refused", reason);
     }
+    const cJSON *peer_nonce = cJSON_GetObjectItemCaseSensitive(m, "nonce");
+    if (f->opt.auth.enabled && !(cJSON_IsString(peer_nonce) && strlen(peer_nonce->valuestring) < 200))
+        return peer_violation(p, "hello: no nonce (with a token the link is encrypted, and its keys need one)");
     p->rec.threads = (int)threads->valuedouble;
     p->state = PEER_ACTIVE;
     size_t max_frame = proto_tile_frame_max(f->opt.max_tile_side);
@@ -127,6 +132,13 @@ static int on_hello(peer *p, const cJSON *m) {
     cJSON_AddNumberToObject(w, "timeout_ms", f->opt.timeout_s * 1e3);
     farm_add_proof(f, m, w);
     peer_send_json(p, w);
+    if (f->opt.auth.enabled) { /* the welcome went in clear; from here on every frame is sealed */
+        unsigned char down[AUTH_KEY_BYTES], up[AUTH_KEY_BYTES];
+        auth_link_keys(&f->opt.auth, p->nonce, peer_nonce->valuestring, down, up);
+        conn_seal(p->c, down, up);
+        sodium_memzero(down, sizeof down);
+        sodium_memzero(up, sizeof up);
+    }
     if (f->opt.verbose) farm_log(f, "%s joined with %d threads", p->label, p->rec.threads);
     farm_emit(f, FARM_EV_JOIN, NULL, 0, p->rec.name, 0, 0, 0);
     return 0;
@@ -283,6 +295,7 @@ void farm_on_connection(uv_stream_t *server, int status) {
     p->c = c;
     p->joined = p->last_heard = p->last_sent = farm_now(f);
     p->rec.joined = p->joined;
+    p->rec.serial = ++f->next_serial;
     if (uv_accept(server, (uv_stream_t *)conn_tcp(c)) != 0 || conn_start(c) != 0) {
         snprintf(p->label, sizeof p->label, "connection");
         LIST_INSERT_HEAD(&f->peers, p, link);
@@ -374,6 +387,7 @@ int farm_list_workers(const farm *f, farm_worker_info *out, int max) {
             w->samples = p->rec.samples;
             w->connected_s = now - p->joined;
             w->silent_s = now - p->last_heard;
+            w->quarantined = p->rec.quarantined;
         }
         n++;
     }
@@ -381,9 +395,12 @@ int farm_list_workers(const farm *f, farm_worker_info *out, int max) {
 }
 
 static void print_record(FILE *out, const peer_record *r, const char *state, uint64_t in, uint64_t out_b) {
-    fprintf(out, "  %-20s %-22s %3d threads %6llu tiles %8.2f Msamples  in %8.1f KiB  out %8.1f KiB  %s\n",
+    char q[48] = "";
+    if (r->quarantined)
+        snprintf(q, sizeof q, "  QUARANTINED in %d job%s", r->quarantined, r->quarantined > 1 ? "s" : "");
+    fprintf(out, "  %-20s %-22s %3d threads %6llu tiles %8.2f Msamples  in %8.1f KiB  out %8.1f KiB  %s%s\n",
             r->name, r->addr, r->threads, (unsigned long long)r->tiles, (double)r->samples / 1e6,
-            (double)in / 1024.0, (double)out_b / 1024.0, state);
+            (double)in / 1024.0, (double)out_b / 1024.0, state, q);
 }
 
 void farm_print_workers(const farm *f, FILE *out) {
@@ -400,4 +417,9 @@ void farm_print_workers(const farm *f, FILE *out) {
         snprintf(state, sizeof state, "left: %s", f->departed[i].why);
         print_record(out, &f->departed[i], state, f->departed[i].bytes_in, f->departed[i].bytes_out);
     }
+    if (f->opt.audit > 0)
+        fprintf(out,
+                "  audit (%g of tiles): %llu tiles checked by two workers, %llu mismatches, %llu workers quarantined\n",
+                f->opt.audit, (unsigned long long)f->audited, (unsigned long long)f->audit_mismatches,
+                (unsigned long long)f->quarantined);
 }

@@ -4,7 +4,7 @@
 #include "farm_internal.h"
 
 static void job_enqueue(job *j, uint32_t t) {
-    if (j->done[t] || j->holders[t] || j->queued[t] || j->finished) return;
+    if (j->done[t] || j->holders[t] || j->queued[t] || j->finished || audit_is_pending(j, t)) return;
     j->queue[(j->q_head + j->q_len) % j->tile_count] = t;
     j->q_len++;
     j->queued[t] = 1;
@@ -23,6 +23,8 @@ static int job_dequeue(job *j, uint32_t *t) {
     }
     return 0;
 }
+
+void farm_requeue_tile(job *j, uint32_t t) { job_enqueue(j, t); }
 
 /* A lease stops counting as a holder; the tile is queued if nobody else
  * holds it. */
@@ -46,6 +48,7 @@ job *farm_find_job(const farm *f, uint32_t id) {
 }
 
 void farm_job_free(job *j) {
+    audit_free(j);
     conn_blob_unref(j->scene);
     free(j->rects);
     free(j->done);
@@ -138,7 +141,7 @@ static int job_pick_backup(const farm *f, job *j, peer *p, uint32_t *out) {
     int found = 0;
     for (int t = 0; t < j->tile_count; t++) {
         if (j->done[t] || j->holders[t] != 1 || now - j->first_start[t] <= best_age) continue;
-        if (peer_find_lease(p, j->desc.id, (uint32_t)t)) continue;
+        if (peer_find_lease(p, j->desc.id, (uint32_t)t) || !audit_may_take(j, p->rec.serial, (uint32_t)t)) continue;
         best_age = now - j->first_start[t];
         *out = (uint32_t)t;
         found = 1;
@@ -190,7 +193,10 @@ void peer_schedule(peer *p) {
     job *j;
     TAILQ_FOREACH(j, &f->jobs, link) {
         if (p->credits <= 0) break;
+        if (audit_is_barred(j, p->rec.serial)) continue;
         uint32_t t;
+        while (!j->finished && p->credits > 0 && audit_pick(j, p, &t)) /* audit copies first */
+            if (peer_assign(p, j, t, 0)) return;
         while (!j->finished && p->credits > 0 && job_dequeue(j, &t))
             if (peer_assign(p, j, t, 0)) return;
         while (!j->finished && p->credits > 0 && j->q_len == 0 && job_pick_backup(f, j, p, &t))
@@ -231,7 +237,7 @@ int farm_submit(farm *f, const proto_job *desc, const uint8_t *bundle, size_t bu
     j->queue = calloc(n, sizeof *j->queue);
     j->scene = bundle_len < UINT32_MAX ? conn_blob_new(WIRE_HEADER_BYTES + bundle_len) : NULL;
     if (!j->rects || !j->done || !j->holders || !j->queued || !j->failures || !j->first_start || !j->queue ||
-        !j->scene) {
+        !j->scene || audit_new(j, f->opt.audit)) {
         farm_job_free(j);
         return -1;
     }

@@ -64,6 +64,12 @@ int farm_on_tile(peer *p, const uint8_t *body, size_t len) {
         if (f->opt.verbose) farm_log(f, "%s: tile %u of job %u was already done; dropped", p->label, h.tile, h.job);
         return 0;
     }
+    int verified = 0, verdict = audit_on_result(f, j, p, h.tile, &px, &verified);
+    if (verdict != AUDIT_ACCEPT) { /* held for comparison, dropped, or the job failed */
+        free(px);
+        if (verdict == AUDIT_HOLD) farm_schedule_all(f); /* someone else renders it again */
+        return 0;
+    }
     if (!was_live && f->opt.verbose)
         farm_log(f, "%s: late result for tile %u of job %u used (nobody had finished it)", p->label, h.tile, h.job);
     film_put_tile(&j->film, r, px);
@@ -75,6 +81,7 @@ int farm_on_tile(peer *p, const uint8_t *body, size_t len) {
     }
     int pending = rc == FARM_TILE_PENDING;
     j->done[h.tile] = pending ? 2 : 1; /* 2: landed, counted once durable (farm_tile_durable) */
+    audit_accepted(j, h.tile, p->rec.serial, verified);
     j->rep.tiles_done += !pending;
     j->tile_seconds += took;
     trace_stats_add(&j->rep.stats, &h.stats);

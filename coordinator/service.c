@@ -270,6 +270,7 @@ static void on_workers(client *cl) {
         cJSON_AddNumberToObject(o, "samples_per_s", wi[i].connected_s > 0 ? (double)wi[i].samples / wi[i].connected_s : 0);
         cJSON_AddNumberToObject(o, "last_seen_s", wi[i].silent_s);
         cJSON_AddBoolToObject(o, "stalled", wi[i].stalled);
+        cJSON_AddNumberToObject(o, "quarantined", wi[i].quarantined); /* jobs whose audit it failed */
         cJSON_AddItemToArray(arr, o);
     }
     free(wi);

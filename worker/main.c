@@ -35,6 +35,7 @@ static void usage(FILE *f) {
             "      --throttle-ms MS     sleep after each tile: simulates a slow machine (tests)\n"
             "      --token-file F       prove this shared secret to the coordinator (default:\n"
             "                           $TESSERA_TOKEN_FILE; none: no authentication)\n"
+            "      --insecure           allow a coordinator beyond loopback without a token\n"
             "  -v, --verbose            log jobs and totals\n"
             "  -q, --quiet              log errors only\n"
             "      --version            print the version and build id\n"
@@ -66,7 +67,7 @@ static long parse_long(const char *opt, const char *s, long lo, long hi) {
     return args_long("tessera-worker", opt, s, lo, hi);
 }
 
-enum { OPT_PREFETCH = 256, OPT_ONCE, OPT_THROTTLE, OPT_RETRY, OPT_VERSION, OPT_TOKEN, OPT_IDLE_EXIT };
+enum { OPT_PREFETCH = 256, OPT_ONCE, OPT_THROTTLE, OPT_RETRY, OPT_VERSION, OPT_TOKEN, OPT_IDLE_EXIT, OPT_INSECURE };
 
 int main(int argc, char **argv) {
     static const struct option opts[] = {
@@ -75,12 +76,12 @@ int main(int argc, char **argv) {
         {"retry-max", required_argument, 0, OPT_RETRY}, {"once", no_argument, 0, OPT_ONCE},
         {"idle-exit", required_argument, 0, OPT_IDLE_EXIT},
         {"throttle-ms", required_argument, 0, OPT_THROTTLE}, {"verbose", no_argument, 0, 'v'},
-        {"quiet", no_argument, 0, 'q'}, {"token-file", required_argument, 0, OPT_TOKEN}, {"version", no_argument, 0, OPT_VERSION}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
+        {"quiet", no_argument, 0, 'q'}, {"token-file", required_argument, 0, OPT_TOKEN}, {"insecure", no_argument, 0, OPT_INSECURE}, {"version", no_argument, 0, OPT_VERSION}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
     signal(SIGPIPE, SIG_IGN); /* a vanished coordinator is an error to handle, not a reason to die */
     worker_config cfg = {.threads = (int)sysconf(_SC_NPROCESSORS_ONLN), .prefetch = 1, .retry_max_s = 5};
     const char *connect = NULL, *token = getenv("TESSERA_TOKEN_FILE");
     char host[256], name[128], err[256] = "";
-    int c;
+    int c, insecure = 0;
     opterr = 0; /* bad_option says it in one line */
     while ((c = getopt_long(argc, argv, ":c:t:n:vqhV", opts, NULL)) != -1) {
         switch (c) {
@@ -99,6 +100,7 @@ int main(int argc, char **argv) {
         case 'V':
             printf("tessera-worker %s (build %s, protocol %d)\n", TESSERA_VERSION, protocol_build_id(), PROTOCOL_VERSION);
             return 0;
+        case OPT_INSECURE: insecure = 1; break;
         case 'h': usage(stdout); return 0;
         default: bad_option(opts, c, argv);
         }
@@ -110,6 +112,11 @@ int main(int argc, char **argv) {
         return 2;
     }
     cfg.host = host;
+    if (!(token && *token) && !insecure && !address_is_loopback(host)) {
+        fprintf(stderr, "tessera-worker: --connect %s without --token-file: scenes and tiles would cross the network "
+                        "in clear; add --token-file F, or --insecure on a network you trust\n", connect);
+        return 2;
+    }
     if (token && *token && auth_key_load(token, &cfg.auth, err, sizeof err)) {
         fprintf(stderr, "tessera-worker: %s\n", err);
         return 2;

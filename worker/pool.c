@@ -6,6 +6,7 @@
  * job's own lock, so a big mesh never stalls the event loop. */
 #include "pool.h"
 
+#include <math.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -40,6 +41,9 @@ struct pool {
     int throttle_ms;
     const char *hold_path; /* test hook, see test_hold(); NULL unless set */
     long hold_after, hold_seen;
+    int fault_kind;       /* test hook, see test_fault(): 0 none, 1 scale, 2 flipbit */
+    double fault_scale;   /* scale: multiply every value by this */
+    long fault_every, fault_seen; /* flipbit: one tile in fault_every, counting from the first */
     void (*wake)(void *);
     void *ctx;
 };
@@ -113,6 +117,51 @@ static void test_hold(pool *p, pool_task *t) {
     }
 }
 
+/* Test hook, inert unless $TESSERA_TEST_FAULT is set (read once, in
+ * pool_new) - a deliberately faulty worker for the audit tests
+ * (tests/test_audit.c, farm_audit.c):
+ *   scale:S    every value of every tile is multiplied by 1 + S (1e-6: a
+ *              wrong answer that looks right);
+ *   flipbit:N  the lowest bit of one value is flipped in this process's 1st,
+ *              (N+1)th, (2N+1)th... tile.
+ * The values stay finite and non-negative, so only a comparison finds them.
+ * Called on a render thread with the tile's n values. */
+static void test_fault(pool *p, const pool_task *t, float *v, size_t n) {
+    if (p->fault_kind == 1) {
+        for (size_t i = 0; i < n; i++) v[i] = (float)((double)v[i] * p->fault_scale);
+        return;
+    }
+    pthread_mutex_lock(&p->lock);
+    int hit = p->fault_seen++ % p->fault_every == 0;
+    pthread_mutex_unlock(&p->lock);
+    if (!hit || n == 0) return;
+    size_t i = (size_t)t->assign.tile % n;
+    uint32_t bits;
+    memcpy(&bits, &v[i], sizeof bits);
+    bits ^= 1u;
+    memcpy(&v[i], &bits, sizeof bits);
+}
+
+/* Parse $TESSERA_TEST_FAULT into p (see test_fault); unset or malformed:
+ * no fault (a malformed value is reported on stderr). */
+static void test_fault_init(pool *p) {
+    const char *s = getenv("TESSERA_TEST_FAULT");
+    if (!s || !*s) return;
+    double x;
+    long every;
+    if (sscanf(s, "scale:%lf", &x) == 1 && isfinite(x) && x > -1) {
+        p->fault_kind = 1;
+        p->fault_scale = 1.0 + x;
+    } else if (sscanf(s, "flipbit:%ld", &every) == 1 && every >= 1) {
+        p->fault_kind = 2;
+        p->fault_every = every;
+    } else {
+        fprintf(stderr, "tessera-worker: TESSERA_TEST_FAULT=%s not understood (scale:S or flipbit:N); ignored\n", s);
+        return;
+    }
+    fprintf(stderr, "tessera-worker: test fault %s: this worker returns wrong tiles on purpose\n", s);
+}
+
 /* Render one task, setting its status and frame or error. */
 static void task_render(pool *p, pool_task *t) {
     pool_job *j = t->job;
@@ -145,6 +194,7 @@ static void task_render(pool *p, pool_task *t) {
                                              &hdr.stats, &t->cancel)
                           : render_tile_means(j->s, &j->desc.integrator, &a->rect, j->desc.spp, 1, accum, rgb,
                                               &hdr.stats, &t->cancel);
+        if (rc == 0 && p->fault_kind) test_fault(p, t, rgb, (size_t)channels * (size_t)w * (size_t)h);
         if (rc != 0) {
             t->status = TASK_CANCELLED;
         } else if ((t->frame = proto_tile_frame(&hdr, rgb, &t->frame_len)) != NULL) {
@@ -197,6 +247,7 @@ pool *pool_new(int threads, int throttle_ms, void (*wake)(void *), void *ctx) {
     p->throttle_ms = throttle_ms;
     p->hold_path = getenv("TESSERA_TEST_HOLD_FILE");
     if (p->hold_path && !*p->hold_path) p->hold_path = NULL;
+    test_fault_init(p);
     if (p->hold_path && getenv("TESSERA_TEST_HOLD_AFTER")) p->hold_after = atol(getenv("TESSERA_TEST_HOLD_AFTER"));
     p->wake = wake;
     p->ctx = ctx;

@@ -10,6 +10,7 @@
 #include "worker.h"
 
 #include <stdarg.h>
+#include <sodium.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -51,6 +52,7 @@ typedef struct {
     double last_welcomed; /* loop time (s) a coordinator was last connected */
     double heartbeat_s, timeout_s;
     char nonce[AUTH_HEX]; /* ours, for the coordinator to prove itself */
+    char challenge[200];  /* the coordinator's nonce: with ours, the link's keys */
     cached_bundle bundles[WORKER_MAX_BUNDLES];
     int stopping, exit_code;
     unsigned long tiles_sent;
@@ -160,6 +162,13 @@ static int on_welcome(worker *w, conn *c, const cJSON *m) {
     if (w->cfg.auth.enabled &&
         !auth_check(&w->cfg.auth, w->nonce, "coordinator", cJSON_IsString(proof) ? proof->valuestring : NULL))
         return protocol_error(w, c, "the coordinator could not prove it knows the token");
+    if (w->cfg.auth.enabled) { /* every frame from here on is sealed (conn_seal) */
+        unsigned char down[AUTH_KEY_BYTES], up[AUTH_KEY_BYTES];
+        auth_link_keys(&w->cfg.auth, w->challenge, w->nonce, down, up);
+        conn_seal(c, up, down);
+        sodium_memzero(down, sizeof down);
+        sodium_memzero(up, sizeof up);
+    }
     const cJSON *hb = cJSON_GetObjectItemCaseSensitive(m, "heartbeat_ms");
     const cJSON *to = cJSON_GetObjectItemCaseSensitive(m, "timeout_ms");
     if (!cJSON_IsNumber(hb) || !cJSON_IsNumber(to) || !(hb->valuedouble >= 10) || !(to->valuedouble > hb->valuedouble))
@@ -329,6 +338,7 @@ static const conn_callbacks worker_conn_cb = {on_frame, on_conn_close};
 /* Answer the coordinator's challenge: hello, with a proof of the token
  * and a nonce of ours when a token is configured. */
 static void send_hello(worker *w, const char *challenge) {
+    snprintf(w->challenge, sizeof w->challenge, "%s", challenge);
     cJSON *m = cJSON_CreateObject();
     cJSON_AddStringToObject(m, "type", "hello");
     cJSON_AddNumberToObject(m, "protocol", PROTOCOL_VERSION);

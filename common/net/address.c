@@ -36,3 +36,7 @@ int address_parse(const char *s, char *host, size_t host_len, int *port, char *e
     *port = (int)p;
     return 0;
 }
+
+int address_is_loopback(const char *host) {
+    return strcmp(host, "localhost") == 0 || strncmp(host, "127.", 4) == 0 || strcmp(host, "::1") == 0;
+}

@@ -9,4 +9,9 @@
  * Returns 0, or -1 with the reason in err. */
 int address_parse(const char *s, char *host, size_t host_len, int *port, char *err, size_t err_len);
 
+/* Whether host (as address_parse gives it) is this machine's loopback:
+ * "localhost", 127.0.0.0/8 or ::1. Links without a token are in clear and
+ * allowed only there unless the user says --insecure. Can't fail. */
+int address_is_loopback(const char *host);
+
 #endif

@@ -64,3 +64,17 @@ int auth_check(const auth_key *k, const char *nonce, const char *who, const char
     proof_bytes(k, nonce, who, want);
     return sodium_memcmp(want, got, sizeof want) == 0;
 }
+
+void auth_link_keys(const auth_key *k, const char *coordinator_nonce, const char *peer_nonce,
+                    unsigned char down[AUTH_KEY_BYTES], unsigned char up[AUTH_KEY_BYTES]) {
+    unsigned char master[crypto_kdf_KEYBYTES];
+    crypto_generichash_state st;
+    crypto_generichash_init(&st, k->key, sizeof k->key, sizeof master);
+    crypto_generichash_update(&st, (const unsigned char *)"tessera link v1\n", 16);
+    crypto_generichash_update(&st, (const unsigned char *)coordinator_nonce, strlen(coordinator_nonce) + 1);
+    crypto_generichash_update(&st, (const unsigned char *)peer_nonce, strlen(peer_nonce) + 1);
+    crypto_generichash_final(&st, master, sizeof master);
+    crypto_kdf_derive_from_key(down, AUTH_KEY_BYTES, 1, "tsr-link", master);
+    crypto_kdf_derive_from_key(up, AUTH_KEY_BYTES, 2, "tsr-link", master);
+    sodium_memzero(master, sizeof master);
+}

@@ -32,4 +32,13 @@ void auth_proof(const auth_key *k, const char *nonce, const char *who, char hex[
 /* Whether proof is right, compared in constant time. */
 int auth_check(const auth_key *k, const char *nonce, const char *who, const char *proof);
 
+/* The two keys that seal a connection's frames after the handshake
+ * (conn_seal): master = BLAKE2b-256 keyed with k over "tessera link v1",
+ * the coordinator's nonce and the peer's; down (coordinator to peer) and up
+ * (peer to coordinator) are crypto_kdf subkeys 1 and 2 of it. Fresh nonces
+ * on both sides make every connection's keys new, so frames recorded from
+ * one connection are worthless in another. Can't fail. */
+void auth_link_keys(const auth_key *k, const char *coordinator_nonce, const char *peer_nonce,
+                    unsigned char down[AUTH_KEY_BYTES], unsigned char up[AUTH_KEY_BYTES]);
+
 #endif

@@ -84,6 +84,18 @@ uint8_t *conn_take_frame(conn *c);
 /* Bytes of a frame received so far but not complete (0 between frames). */
 size_t conn_pending(const conn *c);
 
+/* Seal every frame from now on (common/net/conn.c): each frame sent is
+ * wrapped whole in a WIRE_KIND_SEALED frame, encrypted and authenticated
+ * with XChaCha20-Poly1305 under tx_key, the nonce a counter of frames sent
+ * (so order is part of the seal); each frame received must be such a frame
+ * under rx_key with the next counter. An unsealed, altered, replayed,
+ * reordered or missing frame closes the connection with the reason (and
+ * conn_malformed). Keys: auth_link_keys. Can't fail. */
+void conn_seal(conn *c, const unsigned char tx_key[32], const unsigned char rx_key[32]);
+
+/* Whether conn_seal was called. */
+int conn_sealed(const conn *c);
+
 /* "ADDRESS:PORT" of the peer, or "?" when unknown. Can't fail. */
 void conn_peer_address(const conn *c, char *out, size_t len);
 

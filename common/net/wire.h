@@ -17,6 +17,7 @@
 #define WIRE_KIND_JSON 'J'
 #define WIRE_KIND_TILE 'T'
 #define WIRE_KIND_SCENE 'S'
+#define WIRE_KIND_SEALED 'E' /* an encrypted frame (conn_seal) */
 #define WIRE_HEADER_BYTES 5 /* length + kind */
 #define WIRE_JSON_MAX (64u << 10) /* largest JSON control message */
 

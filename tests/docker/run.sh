@@ -342,7 +342,7 @@ test7() {
         -v "$WORK/wrong:/run/secrets/tessera_token:ro" "$IMAGE" --connect coordinator:7000 --name t7-wrong \
         --token-file /run/secrets/tessera_token > /dev/null
     docker run -d --label "io.tessera.test=$ID" --name "$ID-t7-none" --network "$NET" --read-only \
-        "$IMAGE" --connect coordinator:7000 --name t7-none > /dev/null
+        "$IMAGE" --connect coordinator:7000 --name t7-none --insecure > /dev/null  # tokenless on purpose: the coordinator must refuse it
     s1=$(docker wait "$ID-t7-wrong"); s2=$(docker wait "$ID-t7-none")
     l1=$(docker logs "$ID-t7-wrong" 2>&1); l2=$(docker logs "$ID-t7-none" 2>&1)
     done0=$(tiles_done "$job")

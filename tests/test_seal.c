@@ -1,0 +1,242 @@
+/* test_seal.c - encrypted links (conn_seal, auth_link_keys) end to end: a
+ * real coordinator with a token, an honest worker dialling it directly, and
+ * a second worker whose connection goes through a tampering proxy in this
+ * process. The proxy relays whole frames and, on one chosen frame of its
+ * first connection, flips a byte, replays the previous frame, drops the
+ * frame, or cuts it in half and hangs up. The side that receives the bad
+ * frame must end the connection with a logged reason; the render must
+ * still come out byte-identical to the single-process one. */
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <pthread.h>
+#include <signal.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include "harness.h"
+#include "util.h"
+
+#define SCENE "tests/scenes/cornell-small.json"
+#define LONG 60.0 /* seconds: only hit when something is broken */
+
+enum { T_FLIP, T_REPLAY, T_DROP, T_CUT };
+
+typedef struct {
+    int listen_fd, target_port;
+    int up;     /* tamper worker -> coordinator (1) or coordinator -> worker (0) */
+    int mode;   /* T_* */
+    int at;     /* index of the frame to tamper with, in that direction */
+    int done;   /* the tamper happened */
+} proxy;
+
+typedef struct {
+    uint8_t *buf;
+    size_t len, cap;
+    int frames;
+    uint8_t *last; /* the previous whole frame, for a replay */
+    size_t last_len;
+} stream;
+
+static int send_all(int fd, const uint8_t *p, size_t n) {
+    while (n > 0) {
+        ssize_t k = send(fd, p, n, MSG_NOSIGNAL);
+        if (k <= 0) return -1;
+        p += k;
+        n -= (size_t)k;
+    }
+    return 0;
+}
+
+/* Forward the whole frames in s to fd, tampering when asked. Returns -1
+ * when the connection should end (a cut, or a send failed). */
+static int pump(proxy *px, stream *s, int fd, int tamper_here) {
+    for (;;) {
+        if (s->len < 4) return 0;
+        uint32_t body = (uint32_t)s->buf[3] << 24 | (uint32_t)s->buf[2] << 16 | (uint32_t)s->buf[1] << 8 | s->buf[0];
+        size_t n = 4 + (size_t)body;
+        if (s->len < n) return 0;
+        int rc = 0;
+        if (tamper_here && !px->done && s->frames == px->at) {
+            px->done = 1;
+            if (px->mode == T_FLIP) {
+                s->buf[n / 2 + 2] ^= 0x10;
+                rc = send_all(fd, s->buf, n);
+            } else if (px->mode == T_REPLAY) {
+                rc = send_all(fd, s->last, s->last_len);
+                if (rc == 0) rc = send_all(fd, s->buf, n);
+            } else if (px->mode == T_CUT) {
+                send_all(fd, s->buf, n / 2);
+                rc = -1;
+            } /* T_DROP: nothing */
+        } else {
+            rc = send_all(fd, s->buf, n);
+        }
+        free(s->last);
+        s->last = malloc(n);
+        memcpy(s->last, s->buf, n);
+        s->last_len = n;
+        s->frames++;
+        memmove(s->buf, s->buf + n, s->len - n);
+        s->len -= n;
+        if (rc) return -1;
+    }
+}
+
+static int read_into(int fd, stream *s) {
+    if (s->cap - s->len < 65536) {
+        s->cap = s->cap * 2 + 65536;
+        s->buf = realloc(s->buf, s->cap);
+    }
+    ssize_t k = recv(fd, s->buf + s->len, s->cap - s->len, 0);
+    if (k <= 0) return -1;
+    s->len += (size_t)k;
+    return 0;
+}
+
+/* Relay the first connection (tampering), then stop accepting. */
+static void *proxy_main(void *arg) {
+    proxy *px = arg;
+    int a = accept(px->listen_fd, NULL, NULL);
+    if (a < 0) return NULL;
+    int b = socket(AF_INET, SOCK_STREAM, 0);
+    struct sockaddr_in sa = {.sin_family = AF_INET, .sin_port = htons((uint16_t)px->target_port)};
+    sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (connect(b, (struct sockaddr *)&sa, sizeof sa) != 0) {
+        close(a);
+        close(b);
+        return NULL;
+    }
+    stream up = {0}, down = {0};
+    struct pollfd fds[2] = {{a, POLLIN, 0}, {b, POLLIN, 0}};
+    for (;;) {
+        if (poll(fds, 2, 60000) <= 0) break;
+        if (fds[0].revents) {
+            if (read_into(a, &up) || pump(px, &up, b, px->up)) break;
+        }
+        if (fds[1].revents) {
+            if (read_into(b, &down) || pump(px, &down, a, !px->up)) break;
+        }
+    }
+    close(a);
+    close(b);
+    free(up.buf);
+    free(up.last);
+    free(down.buf);
+    free(down.last);
+    return NULL;
+}
+
+static const char *seal_reference(void) {
+    static char path[256];
+    if (path[0]) return path;
+    char cmd[1024], out[4096];
+    snprintf(path, sizeof path, "%s", util_temp_path("seal-reference.pfm"));
+    snprintf(cmd, sizeof cmd, "%s render " SCENE " --workers 0 --threads 2 -o %s", harness_tessera(), path);
+    if (util_run(cmd, out, sizeof out) != 0) fprintf(stderr, "reference render failed: %s\n", out);
+    return path;
+}
+
+static pid_t start_worker(const char *log, int port, const char *name, const char *token) {
+    char connect[64];
+    snprintf(connect, sizeof connect, "127.0.0.1:%d", port);
+    const char *argv[] = {util_bin("tessera-worker"), "--connect", connect, "--threads", "1", "--name", name,
+                          "--retry-max", "1", "--token-file", token, NULL};
+    return util_spawn(argv, log);
+}
+
+/* One render with a tampered link; expect `reason` in the log of the side
+ * that received the bad frame. */
+static void run_tampered(const char *tag, int up, int mode, int at, const char *reason) {
+    char clog[256], hlog[256], tlog[256], img[256], token[256], laddr[64], name[96];
+#define TP(var, suffix)                                                  \
+    snprintf(name, sizeof name, "seal-%s-%s", tag, suffix);              \
+    snprintf(var, sizeof var, "%s", util_temp_path(name));               \
+    unlink(var)
+    TP(clog, "coord.log");
+    TP(hlog, "honest.log");
+    TP(tlog, "tampered.log");
+    TP(img, "out.pfm");
+    TP(token, "token");
+#undef TP
+    FILE *tf = fopen(token, "w");
+    fprintf(tf, "seal test token %s\n", tag);
+    fclose(tf);
+    int port = util_free_port();
+    snprintf(laddr, sizeof laddr, "127.0.0.1:%d", port);
+    int lfd = socket(AF_INET, SOCK_STREAM, 0), one = 1;
+    setsockopt(lfd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+    struct sockaddr_in sa = {.sin_family = AF_INET, .sin_port = 0};
+    sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    socklen_t sl = sizeof sa;
+    CHECK(bind(lfd, (struct sockaddr *)&sa, sizeof sa) == 0 && listen(lfd, 4) == 0 &&
+              getsockname(lfd, (struct sockaddr *)&sa, &sl) == 0,
+          "proxy cannot listen");
+    proxy px = {.listen_fd = lfd, .target_port = port, .up = up, .mode = mode, .at = at};
+    const char *argv[] = {harness_tessera(), "render", SCENE, "--tile-size", "8", "--no-progress", "-v", "-o", img,
+                          "--listen", laddr, "--token-file", token, NULL};
+    pid_t coord = util_spawn(argv, clog);
+    CHECK(util_wait_for_text(clog, "coordinator listening on", LONG) == 0, "coordinator did not start; log %s", clog);
+    pthread_t th;
+    pthread_create(&th, NULL, proxy_main, &px);
+    pid_t t = start_worker(tlog, ntohs(sa.sin_port), "T", token); /* through the proxy */
+    const char *where = up ? clog : tlog;
+    CHECK(util_wait_for_text(where, reason, LONG) == 0, "%s: no \"%s\" in %s", tag, reason, where);
+    pid_t h = start_worker(hlog, port, "H", token); /* finishes the render */
+    int st = util_wait(coord, LONG, NULL);
+    CHECK(st == 0, "%s: coordinator exited with %d; log %s", tag, st, clog);
+    CHECK(px.done, "%s: the proxy never tampered", tag);
+    CHECK(util_same_file(img, seal_reference()), "%s: image differs from the single-process one; log %s", tag, clog);
+    CHECK(!util_file_count(clog, "Sanitizer") && !util_file_count(clog, "runtime error"), "sanitizer report in %s",
+          clog);
+    kill(t, SIGTERM);
+    kill(h, SIGTERM);
+    util_wait(t, LONG, NULL);
+    util_wait(h, LONG, NULL);
+    shutdown(lfd, SHUT_RDWR);
+    close(lfd);
+    pthread_join(th, NULL);
+}
+
+/* Frames worker -> coordinator: 0 hello (clear), then sealed 1 ready, 2, 3...
+ * coordinator -> worker: 0 challenge, 1 welcome (clear), then sealed. */
+TEST(seal_flipped_byte_ends_the_link) {
+    run_tampered("flip-up", 1, T_FLIP, 2, "sealed frame 1 failed authentication");
+    run_tampered("flip-down", 0, T_FLIP, 3, "sealed frame 1 failed authentication");
+}
+
+TEST(seal_replayed_frame_ends_the_link) {
+    run_tampered("replay-up", 1, T_REPLAY, 2, "sealed frame 1 failed authentication");
+}
+
+TEST(seal_dropped_frame_ends_the_link) {
+    run_tampered("drop-up", 1, T_DROP, 1, "sealed frame 0 failed authentication");
+}
+
+TEST(seal_cut_frame_ends_the_link) {
+    run_tampered("cut-up", 1, T_CUT, 2, "in the middle of a frame");
+}
+
+/* No token: links in clear, so beyond loopback only with --insecure. */
+TEST(seal_no_token_only_on_loopback_unless_insecure) {
+    char cmd[1024], out[8192];
+    const char *img = util_temp_path("seal-insecure.pfm");
+    snprintf(cmd, sizeof cmd, "%s render " SCENE " --listen 0.0.0.0:0 -o %s", harness_tessera(), img);
+    int st = util_run(cmd, out, sizeof out);
+    CHECK(st == 2 && strstr(out, "without --token-file"), "expected a usage error, got %d: %s", st, out);
+    snprintf(cmd, sizeof cmd, "%s --connect 10.255.255.1:7000", util_bin("tessera-worker"));
+    st = util_run(cmd, out, sizeof out);
+    CHECK(st == 2 && strstr(out, "without --token-file"), "worker: expected a usage error, got %d: %s", st, out);
+    snprintf(cmd, sizeof cmd, "%s render " SCENE " --listen 0.0.0.0:0 --insecure --workers 2 --spp 4 -o %s",
+             harness_tessera(), img);
+    st = util_run(cmd, out, sizeof out);
+    CHECK(st == 0, "--insecure refused (%d): %s", st, out);
+    snprintf(cmd, sizeof cmd, "%s render " SCENE " --listen 127.0.0.1:0 --workers 2 --spp 4 -o %s",
+             harness_tessera(), img);
+    st = util_run(cmd, out, sizeof out);
+    CHECK(st == 0, "loopback without a token refused (%d): %s", st, out);
+}
