@@ -236,7 +236,6 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         {.name = "workers", .kind = ARG_INT, .dest = &a->workers, .lo = 0, .hi = 4096},
         {.name = "listen", .kind = ARG_STRING, .dest = &a->listen},
         {.name = "http", .kind = ARG_STRING, .dest = &a->http},
-        {.name = "insecure", .kind = ARG_FLAG, .dest = &a->web.insecure},
         {.name = "token-file", .kind = ARG_STRING, .dest = &a->token_file},
         {.name = "camera", .kind = ARG_STRING, .dest = &a->camera},
         {.name = "audit", .kind = ARG_DOUBLE, .dest = &a->farm.audit, .lo = 0, .hi = 1},
@@ -269,6 +268,7 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         args_usage_error("tessera render", "expected exactly one scene file");
     a->scene_path = scene[0];
     a->progress = !no_progress && !a->quiet;
+    a->web.insecure = a->insecure; /* one --insecure for the farm and the dashboard */
     if (a->quiet) a->verbose = 0;
     cli_progress_init(&a->ps);
     render_args_check(a);
@@ -617,7 +617,6 @@ static int cmd_coordinator(int argc, char **argv) {
         {.name = "listen", .kind = ARG_STRING, .dest = &listen},
         {.name = "http", .kind = ARG_STRING, .dest = &http},
         {.name = "http-read-only", .kind = ARG_FLAG, .dest = &web.read_only},
-        {.name = "insecure", .kind = ARG_FLAG, .dest = &web.insecure},
         {.name = "data-dir", .kind = ARG_STRING, .dest = &o.data_dir},
         {.name = "tile-size", .kind = ARG_INT, .dest = &o.tile_size, .lo = 1, .hi = 4096},
         {.name = "max-upload", .kind = ARG_INT, .dest = &upload_mib, .lo = 1, .hi = LIMIT_UPLOAD_MAX_MIB},
@@ -636,6 +635,7 @@ static int cmd_coordinator(int argc, char **argv) {
         {NULL}};
     const char *none[1];
     args_parse("tessera-coordinator", argc, argv, opts, usage_coordinator, none, 0);
+    web.insecure = insecure; /* one --insecure for the farm and the dashboard */
     if (version) return print_version();
     if (!o.data_dir) args_usage_error("tessera-coordinator", "--data-dir DIR is required");
     o.max_upload = (size_t)upload_mib << 20;

@@ -130,6 +130,12 @@ done:
 int args_parse(const char *prog, int argc, char **argv, const arg_spec *specs, void (*help)(FILE *out),
                const char **positional, int max_positional) {
     int n = 0, options = 1;
+    for (const arg_spec *s = specs; s->name; s++) /* a table naming an option twice is a bug */
+        for (const arg_spec *t = s + 1; t->name; t++)
+            if (strcmp(s->name, t->name) == 0 || (s->short_name && s->short_name == t->short_name)) {
+                fprintf(stderr, "%s: internal error: option --%s is in the table twice\n", prog, s->name);
+                abort();
+            }
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *value = NULL;
         const arg_spec *s;
