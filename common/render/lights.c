@@ -96,22 +96,10 @@ int lights_sample(const scene *s, vec3 ref, float u1, float u2, light_sample *ou
     int ok;
     out->is_delta = 0;
     switch (l->kind) {
+    case LIGHT_POINT:
     case LIGHT_SPOT:
     case LIGHT_DIRECTIONAL:
         return punctual_sample(l, ref, out);
-    case LIGHT_POINT: {
-        vec3 d = vec3_sub(l->position, ref);
-        out->dist = vec3_length(d);
-        if (!(out->dist > 0.0f)) return 0;
-        out->wi = vec3_scale(d, 1.0f / out->dist);
-        out->p = l->position;
-        out->n = vec3_neg(out->wi);
-        out->radiance = vec3_scale(l->intensity, 1.0f / (out->dist * out->dist));
-        out->pdf = l->select_pdf;
-        out->is_delta = 1;
-        out->prim = PRIM_NONE;
-        return 1;
-    }
     case LIGHT_TRIANGLE:
         ok = sample_triangle(s, l, ref, u1, u2, out);
         out->prim = l->prim;

@@ -1,4 +1,4 @@
-/* punctual.c - spot and directional lights (see punctual.h). */
+/* punctual.c - point, spot and directional lights (see punctual.h). */
 #include "punctual.h"
 
 #include "intersect.h"
@@ -21,6 +21,10 @@ int punctual_sample(const light *l, vec3 ref, light_sample *out) {
     out->wi = vec3_scale(d, 1.0f / out->dist);
     out->p = l->position;
     out->n = vec3_neg(out->wi);
+    if (l->kind == LIGHT_POINT) { /* I / d^2 in every direction */
+        out->radiance = vec3_scale(l->intensity, 1.0f / (out->dist * out->dist));
+        return 1;
+    }
     float cd = -vec3_dot(out->wi, l->direction); /* cosine from the spot's axis */
     float span = max_f(l->cos_inner - l->cos_outer, 1e-4f);
     float a = min_f(max_f((cd - l->cos_outer) / span, 0.0f), 1.0f);

@@ -1,6 +1,8 @@
-/* punctual.h - KHR_lights_punctual spot and directional lights (delta
- * lights, like the point light; lights.c calls these).
+/* punctual.h - the delta lights: point, KHR_lights_punctual spot and
+ * directional (lights.c calls these).
  *
+ * Point: intensity I in every direction, radiance-like term I / d^2,
+ *   pdf = the selection probability.
  * Spot: intensity I at the apex, attenuated by the glTF spec's smooth cone
  *   a = clamp((cos - cos_outer) / (cos_inner - cos_outer), 0, 1)^2,
  * radiance-like term I a / d^2, pdf = the selection probability.
