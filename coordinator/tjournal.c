@@ -144,8 +144,8 @@ static void tjournal_free(tjournal *jr) {
 static int requeue(tjournal *jr) {
     batch *w = &jr->writing, *q = &jr->queued;
     if (batch_reserve(w, q->len, q->n)) return -1;
-    memcpy(w->data + w->len, q->data, q->len);
-    memcpy(w->tiles + w->n, q->tiles, (size_t)q->n * sizeof *q->tiles);
+    if (q->len) memcpy(w->data + w->len, q->data, q->len); /* an empty queue may have no buffers yet */
+    if (q->n) memcpy(w->tiles + w->n, q->tiles, (size_t)q->n * sizeof *q->tiles);
     w->len += q->len;
     w->n += q->n;
     batch t = *q;
