@@ -138,6 +138,24 @@ TEST(bsdf_reciprocity) {
         }
 }
 
+/* The albedo E[f cos / pdf] of m seen from wo, from 20000 samples of the
+ * streams (seed, stream, k); its standard error into *se. */
+static double albedo_estimate(const material *m, vec3 wo, uint64_t seed, uint64_t stream, double *se) {
+    double sum = 0, sum2 = 0;
+    const int n = 20000;
+    for (int k = 0; k < n; k++) {
+        rng_stream r = rng_stream_start(seed, stream, (uint64_t)k);
+        float u1 = rng_next(&r), u2 = rng_next(&r), u3 = rng_next(&r);
+        bsdf_sample bs;
+        double v = bsdf_sample_wi(m, wo, u1, u2, u3, &bs) ? vec3_max_comp(bs.weight) : 0;
+        sum += v;
+        sum2 += v * v;
+    }
+    double mean = sum / n;
+    *se = sqrt(fmax(0, sum2 / n - mean * mean) / n);
+    return mean;
+}
+
 /* Albedo = E[f cos / pdf] over the sampled directions, for many wo including
  * grazing ones: never above 1 (within the estimate's noise). */
 TEST(bsdf_albedo_at_most_one) {
@@ -146,17 +164,7 @@ TEST(bsdf_albedo_at_most_one) {
     for (size_t i = 0; i < sizeof ms / sizeof ms[0]; i++)
         for (int w = 0; w <= 10; w++) {
             vec3 wo = dir_from(w == 0 ? 0.01 : w / 10.0, 0.3);
-            double sum = 0, sum2 = 0;
-            const int n = 20000;
-            for (int k = 0; k < n; k++) {
-                rng_stream r = rng_stream_start(17, (uint64_t)w, (uint64_t)k);
-                float u1 = rng_next(&r), u2 = rng_next(&r), u3 = rng_next(&r);
-                bsdf_sample bs;
-                double v = bsdf_sample_wi(&ms[i], wo, u1, u2, u3, &bs) ? vec3_max_comp(bs.weight) : 0;
-                sum += v;
-                sum2 += v * v;
-            }
-            double mean = sum / n, se = sqrt(fmax(0, sum2 / n - mean * mean) / n);
+            double se, mean = albedo_estimate(&ms[i], wo, 17, (uint64_t)w, &se);
             CHECK(mean <= 1.0 + 4 * se + 1e-6, "material %zu, cos(wo)=%.2f: albedo %.4f", i, wo.z, mean);
         }
 }
@@ -214,17 +222,7 @@ TEST(bsdf_pbr_reciprocity_and_albedo) {
         }
         for (int w = 0; w <= 10; w++) {
             vec3 wo = dir_from(w == 0 ? 0.02 : w / 10.0, 0.3);
-            double sum = 0, sum2 = 0;
-            const int n = 20000;
-            for (int k = 0; k < n; k++) {
-                rng_stream r = rng_stream_start(19, (uint64_t)w, (uint64_t)k);
-                float u1 = rng_next(&r), u2 = rng_next(&r), u3 = rng_next(&r);
-                bsdf_sample bs;
-                double v = bsdf_sample_wi(&ms[i], wo, u1, u2, u3, &bs) ? vec3_max_comp(bs.weight) : 0;
-                sum += v;
-                sum2 += v * v;
-            }
-            double mean = sum / n, se = sqrt(fmax(0, sum2 / n - mean * mean) / n);
+            double se, mean = albedo_estimate(&ms[i], wo, 19, (uint64_t)w, &se);
             CHECK(mean <= 1.0 + 4 * se + 1e-6, "pbr %zu, cos(wo)=%.2f: albedo %.4f", i, wo.z, mean);
         }
     }
