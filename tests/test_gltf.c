@@ -188,6 +188,12 @@ TEST(gltf_texture_decode_limits_srgb_and_wrap) {
     CHECK(jpg && texture_decode(jpg, jl, "big.jpg", &t, err, sizeof err) == -1 && strstr(err, "50000x50000"),
           "big JPEG: %s", err);
     free(jpg);
+    /* A JPEG cut after its headers: libjpeg's fatal error comes back as a
+     * message (jpeg_guard), not an exit of the process. */
+    jpg = codec_jpeg_encode(rgb, 8, 8, 90, &jl, err, sizeof err);
+    CHECK(jpg && texture_decode(jpg, 20, "cut.jpg", &t, err, sizeof err) == -1 && strstr(err, "cut.jpg: bad JPEG: "),
+          "truncated JPEG: %s", err);
+    free(jpg);
     CHECK(texture_decode((const uint8_t *)"GIF89a", 6, "x.gif", &t, err, sizeof err) == -1 && strstr(err, "not a PNG"),
           "GIF: %s", err);
 }

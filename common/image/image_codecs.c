@@ -8,7 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include <jpeglib.h>
+#include "jpeg_guard.h"
 #include <openexr.h> /* the OpenEXRCore C API */
 #include <png.h>
 
@@ -109,28 +109,13 @@ uint8_t *codec_png16_encode(const uint16_t *rgb16, int width, int height, size_t
     return m.data;
 }
 
-/* libjpeg reports errors by calling error_exit, which must not return: jump
- * back to the encoder with the message instead of exiting the process. */
-typedef struct {
-    struct jpeg_error_mgr mgr;
-    jmp_buf escape;
-    char message[JMSG_LENGTH_MAX];
-} jpeg_errors;
-
-static void jpeg_error_exit(j_common_ptr cinfo) {
-    jpeg_errors *e = (jpeg_errors *)cinfo->err;
-    (*cinfo->err->format_message)(cinfo, e->message);
-    longjmp(e->escape, 1);
-}
-
 uint8_t *codec_jpeg_encode(const uint8_t *rgb, int width, int height, int quality, size_t *len, char *err,
                            size_t err_len) {
     struct jpeg_compress_struct cinfo;
-    jpeg_errors jerr;
+    jpeg_guard jerr;
     unsigned char *volatile out = NULL;
     unsigned long out_len = 0;
-    cinfo.err = jpeg_std_error(&jerr.mgr);
-    jerr.mgr.error_exit = jpeg_error_exit;
+    cinfo.err = jpeg_guard_init(&jerr);
     if (setjmp(jerr.escape)) {
         snprintf(err, err_len, "JPEG encoder: %s", jerr.message);
         jpeg_destroy_compress(&cinfo);

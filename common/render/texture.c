@@ -9,7 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include <jpeglib.h>
+#include "jpeg_guard.h"
 
 static int size_ok(long w, long h, const char *name, char *err, size_t err_len) {
     if (w < 1 || h < 1 || w > TEXTURE_MAX_SIDE || h > TEXTURE_MAX_SIDE ||
@@ -53,33 +53,14 @@ static int decode_png(const uint8_t *data, size_t len, const char *name, texture
     return 0;
 }
 
-typedef struct {
-    struct jpeg_error_mgr mgr;
-    jmp_buf jump;
-    char msg[JMSG_LENGTH_MAX];
-} jpeg_err;
-
-static void jpeg_fail(j_common_ptr cinfo) {
-    jpeg_err *e = (jpeg_err *)cinfo->err;
-    cinfo->err->format_message(cinfo, e->msg);
-    longjmp(e->jump, 1);
-}
-
-static void jpeg_quiet(j_common_ptr cinfo, int level) {
-    (void)cinfo;
-    (void)level;
-}
-
 static int decode_jpeg(const uint8_t *data, size_t len, const char *name, texture *out, char *err, size_t err_len) {
     struct jpeg_decompress_struct ci;
-    jpeg_err je;
+    jpeg_guard je;
     uint8_t *volatile row = NULL;
     memset(&ci, 0, sizeof ci);
-    ci.err = jpeg_std_error(&je.mgr);
-    je.mgr.error_exit = jpeg_fail;
-    je.mgr.emit_message = jpeg_quiet;
-    if (setjmp(je.jump)) {
-        snprintf(err, err_len, "%s: bad JPEG: %s", name, je.msg);
+    ci.err = jpeg_guard_init(&je);
+    if (setjmp(je.escape)) {
+        snprintf(err, err_len, "%s: bad JPEG: %s", name, je.message);
         jpeg_destroy_decompress(&ci);
         free(row);
         free(out->rgba);
@@ -100,8 +81,8 @@ static int decode_jpeg(const uint8_t *data, size_t len, const char *name, textur
     out->rgba = malloc((size_t)out->width * (size_t)out->height * 4);
     row = malloc((size_t)out->width * 3);
     if (!out->rgba || !row) {
-        snprintf(je.msg, sizeof je.msg, "out of memory");
-        longjmp(je.jump, 1);
+        snprintf(je.message, sizeof je.message, "out of memory");
+        longjmp(je.escape, 1);
     }
     while (ci.output_scanline < ci.output_height) {
         JSAMPROW r = row;
