@@ -1,9 +1,9 @@
 /* accel_flat.h - the flat intersector's kernel, written once for any vector
- * width: accel.c includes it for 4 lanes (SSE, any x86-64) and 8 (AVX2,
- * chosen at run time where the CPU has it). Every lane performs exactly the
+ * width: accel.c includes it for 4 lanes (SSE, any x86-64), 8 (AVX2) and 16
+ * (AVX-512F), the widest chosen at run time among those the CPU has. Every lane performs exactly the
  * IEEE operations of the scalar triangle_intersect() (intersect.h) in the
  * same order, and the lanes a group finds are taken in index order with the
- * scalar acceptance test, so both widths return the hit of the scalar loop
+ * scalar acceptance test, so every width returns the hit of the scalar loop
  * over the triangles: the same bytes on any machine.
  *
  * Before including, define FLAT_LANES, FLAT(name) (the name with a width
@@ -99,7 +99,9 @@ FLAT_TARGET static int FLAT(traverse)(const flat_triangles *f, const scene *s, c
     ray_prepare(ray_in, &r);
     h->t = tmax;
     int found = 0;
-    for (uint32_t base = 0; base < f->padded; base += FLAT_LANES) {
+    /* Groups up to the last triangle: the arrays are padded to the widest
+     * kernel's lanes, so a narrow kernel need not walk the whole padding. */
+    for (uint32_t base = 0; base < f->count; base += FLAT_LANES) {
         FLAT(group) g;
         FLAT(test_group)(f, &r, base, h->t, &g);
         if (!FLAT(vany)(g.ok | g.edge)) continue;
