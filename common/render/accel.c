@@ -125,9 +125,9 @@ int accel_get_bvh_stats(const accel *a, bvh_stats *out) {
 #define FLAT_SPLAT(x) {x, x, x, x}
 #define FLAT_LANE_IDS {0, 1, 2, 3}
 #ifdef __SSE2__
-#define FLAT_ANY(m) (_mm_movemask_ps((__m128)(m)) != 0)
+#define FLAT_BITS(m) _mm_movemask_ps((__m128)(m))
 #else
-#define FLAT_ANY(m) (((m)[0] | (m)[1] | (m)[2] | (m)[3]) != 0)
+#define FLAT_BITS(m) (((m)[0] & 1) | ((m)[1] & 2) | ((m)[2] & 4) | ((m)[3] & 8))
 #endif
 #include "accel_flat.h"
 
@@ -139,7 +139,7 @@ int accel_get_bvh_stats(const accel *a, bvh_stats *out) {
 #define FLAT_TARGET __attribute__((target("avx2")))
 #define FLAT_SPLAT(x) {x, x, x, x, x, x, x, x}
 #define FLAT_LANE_IDS {0, 1, 2, 3, 4, 5, 6, 7}
-#define FLAT_ANY(m) (_mm256_movemask_ps((__m256)(m)) != 0)
+#define FLAT_BITS(m) _mm256_movemask_ps((__m256)(m))
 #include "accel_flat.h"
 
 /* 16 lanes with AVX-512F (again no FMA). Vector compares yield mask
@@ -150,7 +150,7 @@ int accel_get_bvh_stats(const accel *a, bvh_stats *out) {
 #define FLAT_TARGET __attribute__((target("avx512f")))
 #define FLAT_SPLAT(x) {x, x, x, x, x, x, x, x, x, x, x, x, x, x, x, x}
 #define FLAT_LANE_IDS {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15}
-#define FLAT_ANY(m) (_mm512_test_epi32_mask((__m512i)(m), (__m512i)(m)) != 0)
+#define FLAT_BITS(m) _mm512_test_epi32_mask((__m512i)(m), (__m512i)(m))
 #include "accel_flat.h"
 #endif
 
