@@ -51,7 +51,8 @@ FLAT_TARGET static inline void FLAT(ray_splat)(const ray_prep *r, uint32_t count
  * sign flip that makes det positive. */
 typedef struct {
     vfloat T, det, V, W;
-    vint ok;   /* inside, det != 0, 0 < T < tmax * det (tmax at the group's start) */
+    vint ok;   /* inside, 0 < T < tmax * det (tmax at the group's start); may
+                * be set on edge lanes too, which take_lane decides first */
     vint edge; /* some edge function was exactly 0: the scalar test decides */
 } FLAT(group);
 
@@ -87,7 +88,9 @@ FLAT_TARGET static inline void FLAT(test_group)(const flat_triangles *f, const r
     g->det = (vfloat)((vint)det ^ flip);
     g->V = (vfloat)((vint)V ^ flip);
     g->W = (vfloat)((vint)W ^ flip);
-    g->ok = real & ~g->edge & ~outside & (det != zero) & (g->T > zero) & (g->T < FLAT(vsplat)(tmax) * g->det);
+    /* No det != 0 test: where U, V, W are nonzero with one sign, their sum
+     * is nonzero; where one is zero the lane is an edge lane. */
+    g->ok = real & ~outside & (g->T > zero) & (g->T < FLAT(vsplat)(tmax) * g->det);
 }
 
 /* The scalar tail for lane k of a group, with the current closest distance
