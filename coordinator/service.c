@@ -310,6 +310,9 @@ static void on_cancel(client *cl, const cJSON *m) {
 static void fetch_partial(client *cl, sjob *j) {
     char path[4096], err[600], missing[1024];
     image img;
+    if (j->noise_threshold > 0)
+        return client_error(cl, "job %u samples adaptively: its rounds cover the whole image, which exists only "
+                                "once the last round has ended (no partial image)", j->desc.id);
     uint8_t *done = malloc((size_t)j->tile_count);
     store_job_path(cl->svc, j->desc.id, "tiles", path, sizeof path);
     int n = done ? journal_read_partial(path, j->desc.width, j->desc.height, j->tile_size, j->tile_count, &img, done,

@@ -268,6 +268,8 @@ TEST(service_adaptive_submit_same_bytes_as_render) {
         if (done < 10) util_sleep(0.05);
     }
     CHECK(done >= 10 && strstr(out, "running"), "job 2 never got going: %s", out);
+    st = cli(&s, out, sizeof out, "fetch 2 --partial -o %s", img);
+    CHECK(st == 1 && strstr(out, "job 2 samples adaptively"), "fetch --partial of an adaptive job (%d): %s", st, out);
     kill(s.pid, SIGKILL);
     util_wait(s.pid, LONG, NULL);
     service_start(&s, "svc-adaptive");
