@@ -1,10 +1,10 @@
 /* accel_flat.h - the flat intersector's kernel, written once for any vector
  * width: accel.c includes it for 4 lanes (SSE, any x86-64), 8 (AVX2) and 16
- * (AVX-512F), the widest chosen at run time among those the CPU has. Every lane performs exactly the
- * IEEE operations of the scalar triangle_intersect() (intersect.h) in the
- * same order, and the lanes a group finds are taken in index order with the
- * scalar acceptance test, so every width returns the hit of the scalar loop
- * over the triangles: the same bytes on any machine.
+ * (AVX-512F), the widest the CPU has chosen at run time. Every lane performs
+ * exactly the IEEE operations of the scalar triangle_intersect()
+ * (intersect.h) in the same order, and the lanes a group finds are taken in
+ * index order with the scalar acceptance test, so every width returns the
+ * hit of the scalar loop over the triangles: the same bytes on any machine.
  *
  * Before including, define FLAT_LANES, FLAT(name) (the name with a width
  * suffix), FLAT_TARGET (a function attribute or nothing), FLAT_SPLAT(x),
@@ -29,7 +29,7 @@ FLAT_TARGET static inline unsigned FLAT(vbits)(vint m) { return (unsigned)(FLAT_
 
 /* A prepared ray's numbers splatted across the lanes once per ray rather
  * than once per group: the origin's coordinates in the order kx, ky, kz,
- * the shear, and the primitive to skip. */
+ * the shear, the primitive to skip and the triangle count. */
 typedef struct {
     vfloat ox, oy, oz, sx, sy, sz;
     vint skip, count;
