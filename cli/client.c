@@ -59,6 +59,8 @@ typedef struct {
     const char *out;
     scene_overrides ov;
     int priority, tile_size;
+    double noise_threshold; /* submit: adaptive sampling when > 0 */
+    int min_spp;            /* and its first round's samples (0: the coordinator's default) */
     image_write_options wo;
     const char *camera; /* --camera NAME: a glTF's camera */
 } cli_args;
@@ -451,6 +453,8 @@ static int do_submit(const cli_args *a, const char *scene_path) {
     }
     cJSON_AddNumberToObject(m, "priority", a->priority);
     if (a->tile_size > 0) cJSON_AddNumberToObject(m, "tile_size", a->tile_size);
+    if (a->noise_threshold > 0) cJSON_AddNumberToObject(m, "noise_threshold", a->noise_threshold);
+    if (a->min_spp > 0) cJSON_AddNumberToObject(m, "min_spp", a->min_spp);
     cJSON *r = rc == 0 && send_json(&c, m) == 0 ? read_answer(&c, "submitted") : NULL;
     if (rc) cJSON_Delete(m);
     if (!r) {
@@ -606,6 +610,8 @@ static void usage_submit(FILE *f) {
                "      --width W, --height H  image size; given one, the other keeps the aspect ratio\n"
                "      --tile-size N        tile side in pixels (default: the coordinator's)\n"
                "      --priority P         higher runs first (default 0)\n"
+               "      --noise-threshold E  adaptive sampling, as tessera render's (the same image)\n"
+               "      --min-spp N          adaptive: samples every pixel takes first (default 16)\n"
                "      --camera NAME        glTF: render from this camera (default: the first)\n"
                "      --wait               wait for the job and write its image\n"
                "  -q, --quiet              errors and the final line only (no progress, no notes)\n"
@@ -668,7 +674,7 @@ typedef struct {
 
 static const char *const common_opts[] = {"coordinator", "token-file", "json", NULL};
 static const char *const submit_opts[] = {"spp", "width", "height", "max-depth", "seed", "priority", "tile-size",
-                                          "wait", "quiet", "verbose", "output", "tonemap", "exposure", "quality",
+                                          "noise-threshold", "min-spp", "wait", "quiet", "verbose", "output", "tonemap", "exposure", "quality",
                                           "png16", "camera", NULL};
 static const char *const fetch_opts[] = {"partial", "output", "tonemap", "exposure", "quality", "png16", NULL};
 static const char *const no_opts[] = {NULL};
@@ -713,6 +719,8 @@ int client_main(int argc, char **argv) {
         {.name = "seed", .kind = ARG_U64, .dest = &a.ov.seed, .given = &a.ov.has_seed},
         {.name = "priority", .kind = ARG_INT, .dest = &a.priority, .lo = -1000000, .hi = 1000000},
         {.name = "tile-size", .kind = ARG_INT, .dest = &a.tile_size, .lo = 1, .hi = 4096},
+        {.name = "noise-threshold", .kind = ARG_DOUBLE, .dest = &a.noise_threshold, .lo = 1e-6, .hi = 1e6},
+        {.name = "min-spp", .kind = ARG_INT, .dest = &a.min_spp, .lo = 2, .hi = LIMIT_SPP},
         {.name = "output", .short_name = 'o', .kind = ARG_STRING, .dest = &a.out},
         {.name = "tonemap", .kind = ARG_CUSTOM, .dest = &a.wo.tonemap.kind, .parse = parse_tonemap_opt},
         {.name = "exposure", .kind = ARG_FLOAT, .dest = &a.wo.tonemap.exposure_stops, .lo = -64, .hi = 64},

@@ -4,6 +4,7 @@
  * it all back. */
 #define _GNU_SOURCE
 #include "service_internal.h"
+#include "render/adaptive.h"
 
 void store_job_path(const service *s, uint32_t id, const char *ext, char *out, size_t n) {
     snprintf(out, n, "%s/jobs/%u.%s", s->o.data_dir, id, ext);
@@ -26,6 +27,10 @@ int store_save_job(sjob *j, char *err, size_t err_len) {
     cJSON_AddStringToObject(m, "sampler", sampler_name(j->desc.integrator.sampler));
     cJSON_AddNumberToObject(m, "priority", j->priority);
     cJSON_AddNumberToObject(m, "tile_size", j->tile_size);
+    if (j->noise_threshold > 0) {
+        cJSON_AddNumberToObject(m, "noise_threshold", j->noise_threshold);
+        cJSON_AddNumberToObject(m, "min_spp", j->min_spp);
+    }
     cJSON_AddStringToObject(m, "state", state_names[j->state]);
     cJSON_AddStringToObject(m, "error", j->error);
     cJSON_AddNumberToObject(m, "submitted", j->submitted);
@@ -45,6 +50,16 @@ static void on_save_timer_closed(uv_handle_t *h);
 static void store_job_release(sjob *j) {
     if (j->save_timer) uv_close((uv_handle_t *)j->save_timer, on_save_timer_closed);
     j->save_timer = NULL;
+    if (j->round_timer) uv_close((uv_handle_t *)j->round_timer, on_save_timer_closed);
+    j->round_timer = NULL;
+    adaptive_free(j->ad);
+    free(j->sums);
+    free(j->mask);
+    free(j->skip);
+    free(j->bundle);
+    j->ad = NULL;
+    j->sums = NULL;
+    j->mask = j->skip = j->bundle = NULL;
     free(j->rgb);
     free(j->journaled);
     j->rgb = NULL;
@@ -189,14 +204,14 @@ void store_on_job_event(void *ctx, const farm_report *r, int done) {
             uv_unref((uv_handle_t *)j->save_timer); /* a stopping service does not wait for space */
             j->save_timer->data = j;
             uv_timer_start(j->save_timer, on_save_retry, TJOURNAL_RETRY_MS, TJOURNAL_RETRY_MS);
-            farm_forget(s->f, j->desc.id);
+            farm_forget(s->f, j->farm_id);
             return; /* still "running": a restart replays the journal */
         }
         if (rc == 1) snprintf(j->error, sizeof j->error, "no space left to save the image");
         j->state = rc == 0 ? SJOB_DONE : SJOB_FAILED;
     }
     store_job_conclude(j);
-    farm_forget(s->f, j->desc.id);
+    farm_forget(s->f, j->farm_id);
 }
 
 /* The journal of j ran out of space or got it back (tjournal_pause_cb):
@@ -213,9 +228,110 @@ static void store_on_journal_pause(void *ctx, int error) {
     }
 }
 
-/* Hand a job (new or resumed) to the farm, opening its tile journal. */
+static void store_on_round_event(void *ctx, const farm_report *r, int done);
+
+/* Hand the farm an adaptive job's next round, or (none left) finish the job
+ * as the farm would: the image saved and the state recorded. Returns 0, or
+ * -1 when out of memory. */
+static int store_submit_round(sjob *j) {
+    service *s = j->svc;
+    uint32_t first, count;
+    if (adaptive_next_round(j->ad, &first, &count, j->mask) == 0) {
+        adaptive_result(j->ad, j->rgb, NULL);
+        farm_report rep = {.stats = j->round_stats, .tiles_total = j->tile_count, .tiles_done = j->tile_count};
+        store_on_job_event(j, &rep, 1);
+        return 0;
+    }
+    tile_rect *tiles = malloc((size_t)j->tile_count * sizeof *tiles);
+    if (!tiles) return -1;
+    render_split_tiles(j->desc.width, j->desc.height, j->tile_size, tiles, j->tile_count);
+    for (int t = 0; t < j->tile_count; t++) j->skip[t] = !render_tile_has_active(&tiles[t], j->desc.width, j->mask);
+    free(tiles);
+    proto_job round = j->desc;
+    round.id = j->farm_id = SVC_ROUND_IDS + (s->next_round++ & (SVC_ROUND_IDS - 1));
+    round.adaptive = 1;
+    farm_job_options fo = {.tile_size = j->tile_size, .priority = j->priority, .done = j->skip, .mask = j->mask,
+                           .first = first, .count = count, .on_first_assign = j->first_tile > 0 ? NULL : store_on_first_assign};
+    return farm_submit(s->f, &round, j->bundle, j->bundle_len, &fo, j->sums, store_on_round_event, j);
+}
+
+/* The round timer: the last round is over and the farm done with it. */
+static void on_round_timer(uv_timer_t *t) {
+    sjob *j = t->data;
+    if (j->state != SJOB_RUNNING || !j->ad || j->svc->stopping) return; /* stopping: the next start redoes it */
+    farm_forget(j->svc->f, j->farm_id);
+    if (store_submit_round(j) == 0) return;
+    farm_report rep = {.failed = 1, .stats = j->round_stats};
+    snprintf(rep.error, sizeof rep.error, "out of memory for an adaptive round");
+    store_on_job_event(j, &rep, 1);
+}
+
+/* farm_job_cb of an adaptive round: progress (the whole job's samples);
+ * at the round's end its sums go to the adaptive state and the next round
+ * is submitted from the timer; a failed or cancelled round ends the job. */
+static void store_on_round_event(void *ctx, const farm_report *r, int done) {
+    sjob *j = ctx;
+    farm_report rep = *r;
+    trace_stats_add(&rep.stats, &j->round_stats);
+    j->tiles_done = r->tiles_done;
+    if (!done || r->failed || r->cancelled) {
+        store_on_job_event(j, &rep, done);
+        return;
+    }
+    j->stats = rep.stats;
+    j->round_stats = rep.stats;
+    adaptive_add_round(j->ad, j->sums);
+    uv_timer_start(j->round_timer, on_round_timer, 0, 0);
+}
+
+/* Set up an adaptive job's state and hand the farm its first round.
+ * Returns 0, or -1 with err set. */
+static int store_adaptive_start(service *s, sjob *j, const uint8_t *bundle, size_t len, char *err, size_t err_len) {
+    size_t px = (size_t)j->desc.width * (size_t)j->desc.height;
+    j->desc.adaptive = 1;
+    j->ad = adaptive_new(j->desc.width, j->desc.height, j->desc.spp, j->min_spp, j->noise_threshold);
+    j->sums = calloc(px * ADAPTIVE_CHANNELS, sizeof(float));
+    j->mask = malloc(px);
+    j->skip = malloc((size_t)j->tile_count);
+    j->bundle = malloc(len ? len : 1);
+    j->round_timer = malloc(sizeof *j->round_timer);
+    if (!j->ad || !j->sums || !j->mask || !j->skip || !j->bundle || !j->round_timer) {
+        free(j->round_timer);
+        j->round_timer = NULL;
+        snprintf(err, err_len, "out of memory for adaptive sampling of job %u", j->desc.id);
+        return -1;
+    }
+    memcpy(j->bundle, bundle, len);
+    j->bundle_len = len;
+    uv_timer_init(&s->loop, j->round_timer);
+    j->round_timer->data = j;
+    j->round_stats = (trace_stats){0};
+    j->tiles_done = j->tiles_resumed = 0;
+    j->started = svc_wall_now();
+    j->first_tile = 0;
+    if (store_submit_round(j)) {
+        snprintf(err, err_len, "out of memory for job %u", j->desc.id);
+        return -1;
+    }
+    return 0;
+}
+
+int store_job_cancel(service *s, sjob *j) {
+    if (farm_cancel(s->f, j->farm_id) == 0) return 0;
+    if (!j->ad || j->state != SJOB_RUNNING) return -1;
+    /* Between two adaptive rounds: no farm job to cancel, end it here. */
+    farm_report rep = {.cancelled = 1, .stats = j->round_stats};
+    snprintf(rep.error, sizeof rep.error, "cancelled");
+    store_on_job_event(j, &rep, 1);
+    return 0;
+}
+
+/* Hand a job (new or resumed) to the farm, opening its tile journal (or,
+ * with a noise threshold, its first adaptive round). */
 int store_job_start(service *s, sjob *j, const uint8_t *bundle, size_t len, char *err, size_t err_len) {
     char path[4096];
+    j->farm_id = j->desc.id;
+    if (j->noise_threshold > 0) return store_adaptive_start(s, j, bundle, len, err, err_len);
     store_job_path(s, j->desc.id, "tiles", path, sizeof path);
     j->journal = tjournal_open(&s->loop, path, store_on_batch, store_on_journal_pause, j, err, err_len);
     if (!j->journal) return -1;
@@ -286,7 +402,7 @@ static void load_job(service *s, const char *file) {
         if (strcmp(state->valuestring, state_names[i]) == 0) st = i;
     cJSON *jobmsg = cJSON_Duplicate(m, 1); /* the job fields, as a job message */
     static const char *const extra[] = {"name", "state", "priority", "tile_size", "error", "submitted", "finished",
-                                        "rendering_since"};
+                                        "rendering_since", "noise_threshold", "min_spp"};
     for (size_t i = 0; jobmsg && i < sizeof extra / sizeof extra[0]; i++) cJSON_DeleteItemFromObject(jobmsg, extra[i]);
     if (!m || st < 0 || !cJSON_IsString(name) || !cJSON_IsNumber(pri) || !cJSON_IsNumber(ts) || !jobmsg ||
         proto_job_parse(jobmsg, path, &d, err, sizeof err) || !(j = store_job_new(s))) {
@@ -300,6 +416,13 @@ static void load_job(service *s, const char *file) {
     j->priority = (int)pri->valuedouble;
     j->tile_size = (int)ts->valuedouble;
     j->state = (sjob_state)st;
+    const cJSON *nt = cJSON_GetObjectItemCaseSensitive(m, "noise_threshold");
+    const cJSON *ms = cJSON_GetObjectItemCaseSensitive(m, "min_spp");
+    if (cJSON_IsNumber(nt) && nt->valuedouble > 0 && cJSON_IsNumber(ms) && ms->valuedouble >= 1) {
+        j->noise_threshold = nt->valuedouble;
+        j->min_spp = (int)ms->valuedouble;
+        j->desc.adaptive = 1;
+    }
     if (cJSON_IsString(error)) snprintf(j->error, sizeof j->error, "%s", error->valuestring);
     const cJSON *sub = cJSON_GetObjectItemCaseSensitive(m, "submitted"), *fin = cJSON_GetObjectItemCaseSensitive(m, "finished");
     j->submitted = cJSON_IsNumber(sub) ? sub->valuedouble : svc_wall_now();

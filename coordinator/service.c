@@ -119,6 +119,8 @@ static void submit_checked(upload *u) {
     j->desc.integrator.no_nee = q->no_nee;
     j->desc.integrator.no_mis = q->no_mis;
     j->desc.integrator.sampler = q->sampler;
+    j->noise_threshold = q->noise_threshold;
+    j->min_spp = (int)q->min_spp;
     memcpy(j->desc.scene_hash, u->hash, sizeof u->hash);
     snprintf(j->name, sizeof j->name, "%s", q->name);
     j->priority = (int)q->priority;
@@ -160,16 +162,19 @@ static void on_submit(client *cl, const cJSON *m) {
     if (!cJSON_IsString(h) || strlen(h->valuestring) != SCENE_BUNDLE_HASH_HEX - 1)
         return client_error(cl, "submit: \"scene\" must be the uploaded scene's hash (%d hex digits)",
                             SCENE_BUNDLE_HASH_HEX - 1);
-    long w = -1, ht = -1, spp = -1, depth = -1, pri = 0, tile = s->o.tile_size;
+    long w = -1, ht = -1, spp = -1, depth = -1, pri = 0, tile = s->o.tile_size, min_spp = 16;
     const struct { const char *key; long lo, hi; long *out; } ints[] = {
         {"width", 1, LIMIT_SIDE, &w}, {"height", 1, LIMIT_SIDE, &ht}, {"spp", 1, LIMIT_SPP, &spp},
         {"max_depth", 1, LIMIT_DEPTH, &depth}, {"priority", -1000000, 1000000, &pri},
-        {"tile_size", 1, s->o.farm.max_tile_side, &tile}};
+        {"tile_size", 1, s->o.farm.max_tile_side, &tile}, {"min_spp", 2, LIMIT_SPP, &min_spp}};
     for (size_t i = 0; i < sizeof ints / sizeof ints[0]; i++)
         if (opt_int(m, ints[i].key, ints[i].lo, ints[i].hi, ints[i].out))
             return client_error(cl, "submit: %s must be an integer from %ld to %ld", ints[i].key, ints[i].lo, ints[i].hi);
     const char *bad = request_bad_field(m);
     if (bad) return client_error(cl, "submit: %s", bad);
+    const cJSON *nt = cJSON_GetObjectItemCaseSensitive(m, "noise_threshold");
+    if (nt && (!cJSON_IsNumber(nt) || !(nt->valuedouble >= 1e-6 && nt->valuedouble <= 1e6)))
+        return client_error(cl, "submit: noise_threshold must be a number from 1e-06 to 1e+06");
     const cJSON *sname = cJSON_GetObjectItemCaseSensitive(m, "sampler");
     sampler_kind sampler = SAMPLER_SOBOL;
     if (sname && (!cJSON_IsString(sname) || sampler_parse(sname->valuestring, &sampler) != 0))
@@ -195,7 +200,8 @@ static void on_submit(client *cl, const cJSON *m) {
     snprintf(u->store_path_dir, sizeof u->store_path_dir, "%s/scenes", s->o.data_dir);
     u->done = submit_checked;
     u->ctx = cl;
-    cl->req = (submit_req){.priority = pri, .tile_size = tile, .sampler = sampler,
+    cl->req = (submit_req){.priority = pri, .tile_size = tile, .sampler = sampler, .min_spp = min_spp,
+                           .noise_threshold = nt ? nt->valuedouble : 0,
                            .no_nee = cJSON_IsFalse(cJSON_GetObjectItemCaseSensitive(m, "nee")),
                            .no_mis = cJSON_IsFalse(cJSON_GetObjectItemCaseSensitive(m, "mis"))};
     snprintf(cl->req.name, sizeof cl->req.name, "%s", cJSON_IsString(name) ? name->valuestring : "scene");
@@ -291,7 +297,7 @@ static void on_cancel(client *cl, const cJSON *m) {
     sjob *j = request_job(cl, m, "cancel");
     if (!j) return;
     if (j->state != SJOB_RUNNING) return client_error(cl, "job %u is already %s", j->desc.id, state_names[j->state]);
-    farm_cancel(cl->svc->f, j->desc.id); /* store_on_job_event records the state */
+    store_job_cancel(cl->svc, j); /* store_on_job_event records the state */
     cJSON *r = cJSON_CreateObject();
     cJSON_AddStringToObject(r, "type", "cancelled");
     cJSON_AddNumberToObject(r, "job", j->desc.id);
@@ -304,6 +310,9 @@ static void on_cancel(client *cl, const cJSON *m) {
 static void fetch_partial(client *cl, sjob *j) {
     char path[4096], err[600], missing[1024];
     image img;
+    if (j->noise_threshold > 0)
+        return client_error(cl, "job %u samples adaptively: its rounds cover the whole image, which exists only "
+                                "once the last round has ended (no partial image)", j->desc.id);
     uint8_t *done = malloc((size_t)j->tile_count);
     store_job_path(cl->svc, j->desc.id, "tiles", path, sizeof path);
     int n = done ? journal_read_partial(path, j->desc.width, j->desc.height, j->tile_size, j->tile_count, &img, done,

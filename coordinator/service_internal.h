@@ -71,6 +71,21 @@ typedef struct sjob {
     double submitted, started, finished; /* wall clock, seconds */
     struct tjournal *journal; /* while running: tiles synced off the loop (tjournal.h) */
     uv_timer_t *save_timer;   /* rendered, waiting for space to save the image */
+    /* Adaptive sampling (noise_threshold > 0): one farm job per round, with
+     * its own farm id (farm_id; desc.id otherwise), the next submitted from
+     * round_timer once the farm has finished calling back about the last.
+     * Rounds are not journaled: a restart renders the job again from round
+     * 0, which gives the same bytes. */
+    double noise_threshold;
+    int min_spp;
+    uint32_t farm_id;
+    struct adaptive *ad;
+    float *sums;             /* the round's sums (ADAPTIVE_CHANNELS per pixel) */
+    uint8_t *mask, *skip;    /* the round's pixels, and its tiles without any */
+    uint8_t *bundle;         /* the scene, for every round */
+    size_t bundle_len;
+    trace_stats round_stats; /* of the rounds before the current one */
+    uv_timer_t *round_timer;
     TAILQ_ENTRY(sjob) link; /* on the service's jobs, oldest first */
 } sjob;
 
@@ -87,13 +102,19 @@ typedef struct service {
     TAILQ_HEAD(client_list, client) clients;
     TAILQ_HEAD(sjob_list, sjob) jobs;
     uint32_t next_id;
+    uint32_t next_round; /* farm ids of adaptive rounds: SVC_ROUND_IDS + n */
     int stopping;
     struct dashboard *web; /* --http, or NULL (service_web.c) */
 } service;
 
+/* Farm ids of adaptive rounds start here, above any job number the service
+ * hands out, so that a round's id never names a job. */
+#define SVC_ROUND_IDS 0x80000000u
+
 /* What a submit asks besides its scene, kept while the scene is checked. */
 typedef struct {
-    long priority, tile_size;
+    long priority, tile_size, min_spp;
+    double noise_threshold; /* 0: every pixel takes spp samples */
     sampler_kind sampler;
     int no_nee, no_mis;
     char name[256];
@@ -133,6 +154,10 @@ void store_on_job_event(void *ctx, const farm_report *r, int done);
 
 /* Hand a job (new or resumed) to the farm, opening its tile journal. */
 int store_job_start(service *s, sjob *j, const uint8_t *bundle, size_t len, char *err, size_t err_len);
+
+/* Cancel a running job on the farm (its current round, if adaptive).
+ * Returns 0, or -1 when the farm has no such running job. */
+int store_job_cancel(service *s, sjob *j);
 
 /* A new job with the next id, linked into s->jobs, or NULL when out of
  * memory. */

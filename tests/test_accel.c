@@ -4,6 +4,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "render/accel.h"
 #include "render/rng.h"
@@ -128,41 +129,101 @@ TEST(accel_flat_and_bvh_render_the_same_image) {
     if (!s) return;
     s->settings.width = s->settings.height = 48;
     trace_stats st;
-    float *flat = util_render(s, 4, 16, 1, &st);
     accel_free(s->accel);
     s->accel = accel_build(s, ACCEL_BVH);
     float *tree = util_render(s, 4, 16, 1, &st);
-    CHECK(flat && tree && memcmp(flat, tree, 48 * 48 * 3 * sizeof(float)) == 0, "images differ");
-    free(flat);
+    /* Every flat kernel width this CPU runs (16, 8, 4 lanes), forced down
+     * by the environment, against the tree. */
+    const char *caps[3] = {NULL, "TESSERA_NO_AVX512", "TESSERA_NO_AVX2"};
+    for (int w = 0; w < 3; w++) {
+        if (caps[w]) setenv(caps[w], "1", 1);
+        accel_free(s->accel);
+        s->accel = accel_build(s, ACCEL_FLAT);
+        if (caps[w]) unsetenv(caps[w]);
+        float *flat = util_render(s, 4, 16, 1, &st);
+        CHECK(flat && tree && memcmp(flat, tree, 48 * 48 * 3 * sizeof(float)) == 0,
+              "images differ (flat kernel of %d lanes against the BVH)", accel_flat_lanes(s->accel));
+        free(flat);
+    }
     free(tree);
     scene_free(s);
 }
 
-/* The 4-lane (SSE) and 8-lane (AVX2, where the CPU has it) kernels return
- * the same hit, bit for bit, on every ray: both equal the scalar loop over
- * the triangles in index order, so machines with and without AVX2 make the
- * same image. */
-TEST(accel_flat_kernel_widths_agree) {
+/* The 4-lane (SSE), 8-lane (AVX2) and 16-lane (AVX-512F) kernels, each
+ * where the CPU has it, return the same hit, bit for bit, on every ray, for
+ * closest and any hit: all equal the scalar loop over the triangles in index
+ * order, so machines with and without AVX2 or AVX-512 make the same image. */
+static void widths_agree_on(const char *path) {
     char err[512];
-    scene *s = scene_load("scenes/features.json", NULL, err, sizeof err);
+    scene *s = scene_load(path, NULL, err, sizeof err);
     CHECK(s != NULL, "%s", err);
     if (!s) return;
-    accel *wide = accel_build(s, ACCEL_FLAT);
+    accel *k16 = accel_build(s, ACCEL_FLAT);
+    setenv("TESSERA_NO_AVX512", "1", 1);
+    accel *k8 = accel_build(s, ACCEL_FLAT);
+    unsetenv("TESSERA_NO_AVX512");
     setenv("TESSERA_NO_AVX2", "1", 1);
-    accel *narrow = accel_build(s, ACCEL_FLAT);
+    accel *k4 = accel_build(s, ACCEL_FLAT);
     unsetenv("TESSERA_NO_AVX2");
+    CHECK(k16 && k8 && k4 && accel_flat_lanes(k4) == 4 && accel_flat_lanes(k8) <= 8, "widths not forced");
+    fprintf(stderr, "  (%s: kernel widths compared: %d, %d, %d lanes)\n", path, accel_flat_lanes(k16),
+            accel_flat_lanes(k8), accel_flat_lanes(k4));
     int differ = 0;
-    for (uint64_t i = 0; i < 100000 && wide && narrow; i++) {
+    for (uint64_t i = 0; i < 100000 && k16 && k8 && k4; i++) {
         rng_stream rng = rng_stream_start(5, i, 1);
         ray r = {vec3_scale(random_direction(&rng), 1.2f * uniform(&rng)), random_direction(&rng), PRIM_NONE};
-        hit a, b;
-        int ha = accel_intersect(wide, s, &r, INFINITY, &a), hb = accel_intersect(narrow, s, &r, INFINITY, &b);
-        if (ha != hb || (ha && (a.prim != b.prim || memcmp(&a.t, &b.t, sizeof a.t) || memcmp(&a.b1, &b.b1, 4) ||
-                                memcmp(&a.b2, &b.b2, 4))))
-            differ++;
+        float tmax = i % 2 ? INFINITY : 2.0f * uniform(&rng);
+        hit h[3];
+        accel *k[3] = {k16, k8, k4};
+        int got[3], any[3];
+        for (int w = 0; w < 3; w++) {
+            got[w] = accel_intersect(k[w], s, &r, tmax, &h[w]);
+            any[w] = accel_occluded(k[w], s, &r, tmax);
+        }
+        for (int w = 1; w < 3; w++)
+            if (got[w] != got[0] || any[w] != any[0] ||
+                (got[0] && (h[w].prim != h[0].prim || memcmp(&h[w].t, &h[0].t, 4) || memcmp(&h[w].b1, &h[0].b1, 4) ||
+                            memcmp(&h[w].b2, &h[0].b2, 4))))
+                differ++;
     }
-    CHECK(differ == 0, "%d of 100000 rays differ between the kernel widths", differ);
-    accel_free(wide);
-    accel_free(narrow);
+    CHECK(differ == 0, "%s: %d of 2 x 100000 ray comparisons differ between the kernel widths", path, differ);
+    accel_free(k16);
+    accel_free(k8);
+    accel_free(k4);
     scene_free(s);
+}
+
+/* On 9 triangles with spheres (one group of 16, half padding) and on the
+ * Cornell box's 32 (two full groups). */
+TEST(accel_flat_kernel_widths_agree) {
+    widths_agree_on("scenes/features.json");
+    widths_agree_on("scenes/cornell-box.json");
+}
+
+/* The whole program under qemu emulating a Nehalem (SSE4.2, no AVX): the
+ * flat intersector takes its 4-lane kernel there and the widest this CPU
+ * has (16 lanes with AVX-512) natively, and the Cornell box is the same
+ * bytes. Skipped without qemu-x86_64 and under the sanitizers (their
+ * runtimes do not run under qemu-user). */
+TEST(accel_flat_same_image_under_qemu_nehalem) {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+    return;
+#else
+    struct stat sb;
+    if (stat("/usr/bin/qemu-x86_64", &sb) != 0) {
+        fprintf(stderr, "  (skipped: no /usr/bin/qemu-x86_64)\n");
+        return;
+    }
+    char ref[512], img[512], cmd[2048], out[8192];
+    snprintf(ref, sizeof ref, "%s", util_temp_path("box-native.pfm"));
+    snprintf(img, sizeof img, "%s", util_temp_path("box-nehalem.pfm"));
+    const char *args = "render scenes/cornell-box.json --workers 0 --threads 2 --width 64 --spp 4 --no-progress -v";
+    snprintf(cmd, sizeof cmd, "%s %s -o %s", harness_tessera(), args, ref);
+    CHECK(util_run(cmd, out, sizeof out) == 0, "%s: %s", cmd, out);
+    fprintf(stderr, "  (native: %s)\n", strstr(out, "intersector") ? strtok(strstr(out, "intersector"), "\n") : "?");
+    snprintf(cmd, sizeof cmd, "/usr/bin/qemu-x86_64 -cpu Nehalem-v1 %s %s -o %s", harness_tessera(), args, img);
+    int rc = util_run(cmd, out, sizeof out);
+    CHECK(rc == 0 && strstr(out, "4 at a time"), "%s (%d): %s", cmd, rc, out);
+    CHECK(util_same_file(img, ref), "the box under qemu (Nehalem, 4 lanes) differs from the native one");
+#endif
 }

@@ -229,6 +229,60 @@ TEST(service_restart_resumes_without_rerendering) {
     service_stop(&s);
 }
 
+/* `tessera submit --noise-threshold` is adaptive sampling on the service:
+ * the image is the bytes of `tessera render --noise-threshold` in one
+ * process (rounds decided on the whole image, whatever the tiles and
+ * workers), not the uniform one; and an adaptive job the coordinator lost
+ * to kill -9 mid-render is rendered again after the restart, to the same
+ * bytes. */
+TEST(service_adaptive_submit_same_bytes_as_render) {
+    char out[8192], ref[256], uniform[256], img[256], cmd[1024];
+    snprintf(ref, sizeof ref, "%s", util_temp_path("svc-adaptive-ref.pfm"));
+    snprintf(uniform, sizeof uniform, "%s", util_temp_path("svc-adaptive-uniform.pfm"));
+    snprintf(img, sizeof img, "%s", util_temp_path("svc-adaptive.pfm"));
+    snprintf(cmd, sizeof cmd, "%s render " SCENE " --workers 0 --noise-threshold 0.05 -o %s", harness_tessera(), ref);
+    double mean = 0;
+    CHECK(util_run(cmd, out, sizeof out) == 0 && strstr(out, "adaptive: "), "%s: %s", cmd, out);
+    sscanf(strstr(out, "adaptive: ") ? strstr(out, "adaptive: ") : "", "adaptive: %lf", &mean);
+    CHECK(mean > 16 && mean < 64, "the threshold should stop some pixels early: %g samples per pixel", mean);
+    snprintf(cmd, sizeof cmd, "%s render " SCENE " --workers 0 -o %s", harness_tessera(), uniform);
+    CHECK(util_run(cmd, out, sizeof out) == 0, "%s: %s", cmd, out);
+    service s = {0};
+    service_start(&s, "svc-adaptive");
+    pid_t w1 = worker_start(&s, "wa1", "0"), w2 = worker_start(&s, "wa2", "0");
+    int st = cli(&s, out, sizeof out, "submit " SCENE " --noise-threshold 0.05 --tile-size 7 --wait -o %s", img);
+    CHECK(st == 0 && strstr(out, "job 1 done"), "submit --noise-threshold --wait (%d): %s", st, out);
+    CHECK(util_same_file(img, ref), "the service's adaptive image differs from tessera render's");
+    CHECK(!util_same_file(img, uniform), "the service ignored --noise-threshold (uniform image)");
+    worker_stop(w1);
+    worker_stop(w2);
+    /* Job 2 on a slow worker; the coordinator dies during its rounds. */
+    w1 = worker_start(&s, "wa3", "15");
+    st = cli(&s, out, sizeof out, "submit " SCENE " --noise-threshold 0.05 --tile-size 8");
+    CHECK(st == 0 && job_id(out) == 2, "submit (%d): %s", st, out);
+    int done = 0;
+    for (int i = 0; i < (int)(LONG * 20) && done < 10; i++) {
+        cli(&s, out, sizeof out, "status 2 --json");
+        const char *p = strstr(out, "\"tiles_done\":");
+        if (p) sscanf(p, "\"tiles_done\":\t%d", &done);
+        if (done < 10) util_sleep(0.05);
+    }
+    CHECK(done >= 10 && strstr(out, "running"), "job 2 never got going: %s", out);
+    st = cli(&s, out, sizeof out, "fetch 2 --partial -o %s", img);
+    CHECK(st == 1 && strstr(out, "job 2 samples adaptively"), "fetch --partial of an adaptive job (%d): %s", st, out);
+    kill(s.pid, SIGKILL);
+    util_wait(s.pid, LONG, NULL);
+    service_start(&s, "svc-adaptive");
+    CHECK(util_wait_for_text(s.log, "job 2 done (", LONG) == 0, "the adaptive job never finished after a restart; log %s",
+          s.log);
+    st = cli(&s, out, sizeof out, "fetch 2 -o %s", img);
+    CHECK(st == 0 && util_same_file(img, ref), "the adaptive image after a restart differs (%d): %s", st, out);
+    st = cli(&s, out, sizeof out, "status 2 --json");
+    CHECK(st == 0 && strstr(out, "\"state\":\t\"done\""), "status of job 2: %s", out);
+    worker_stop(w1);
+    service_stop(&s);
+}
+
 TEST(service_survives_bad_clients_and_reports_errors) {
     service s = {0};
     service_start(&s, "svc-bad");

@@ -1,6 +1,6 @@
 /* accel.c - the two intersectors behind accel.h, and the choice between them.
  *
- * The flat intersector runs the watertight test of intersect.h on eight
+ * The flat intersector runs the watertight test of intersect.h on 4, 8 or 16
  * triangles at once with GCC/Clang vector extensions, which compile to SSE
  * on any x86-64 (or NEON on ARM) without machine-specific flags. Each lane
  * performs exactly the IEEE operations of the scalar triangle_intersect(),
@@ -20,7 +20,7 @@
 #endif
 
 /* Triangle arrays are padded to this many lanes, the widest kernel's. */
-#define LANES 8
+#define LANES 16
 
 /* Triangle vertices as structure of arrays: v[vertex][axis][i], padded with
  * lanes that are masked off to a multiple of LANES. */
@@ -125,9 +125,9 @@ int accel_get_bvh_stats(const accel *a, bvh_stats *out) {
 #define FLAT_SPLAT(x) {x, x, x, x}
 #define FLAT_LANE_IDS {0, 1, 2, 3}
 #ifdef __SSE2__
-#define FLAT_ANY(m) (_mm_movemask_ps((__m128)(m)) != 0)
+#define FLAT_BITS(m) _mm_movemask_ps((__m128)(m))
 #else
-#define FLAT_ANY(m) (((m)[0] | (m)[1] | (m)[2] | (m)[3]) != 0)
+#define FLAT_BITS(m) (((m)[0] & 1) | ((m)[1] & 2) | ((m)[2] & 4) | ((m)[3] & 8))
 #endif
 #include "accel_flat.h"
 
@@ -139,20 +139,35 @@ int accel_get_bvh_stats(const accel *a, bvh_stats *out) {
 #define FLAT_TARGET __attribute__((target("avx2")))
 #define FLAT_SPLAT(x) {x, x, x, x, x, x, x, x}
 #define FLAT_LANE_IDS {0, 1, 2, 3, 4, 5, 6, 7}
-#define FLAT_ANY(m) (_mm256_movemask_ps((__m256)(m)) != 0)
+#define FLAT_BITS(m) _mm256_movemask_ps((__m256)(m))
+#include "accel_flat.h"
+
+/* 16 lanes with AVX-512F (again no FMA). Vector compares yield mask
+ * registers, which the compiler turns back into the all-ones lanes the
+ * kernel expects; the arithmetic per lane is unchanged. */
+#define FLAT_LANES 16
+#define FLAT(name) flat16_##name
+#define FLAT_TARGET __attribute__((target("avx512f")))
+#define FLAT_SPLAT(x) {x, x, x, x, x, x, x, x, x, x, x, x, x, x, x, x}
+#define FLAT_LANE_IDS {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15}
+#define FLAT_BITS(m) _mm512_test_epi32_mask((__m512i)(m), (__m512i)(m))
 #include "accel_flat.h"
 #endif
 
-/* The widest kernel this CPU can run. */
+/* The widest kernel this CPU can run. TESSERA_NO_AVX512 (any value) stops at
+ * AVX2, TESSERA_NO_AVX2 at SSE (for tests: every width on one machine). */
 static flat_traverse_fn flat_choose(void) {
 #ifdef HAVE_FLAT8
-    if (getenv("TESSERA_NO_AVX2") == NULL && __builtin_cpu_supports("avx2")) return flat8_traverse;
+    if (getenv("TESSERA_NO_AVX2") != NULL) return flat4_traverse;
+    if (getenv("TESSERA_NO_AVX512") == NULL && __builtin_cpu_supports("avx512f")) return flat16_traverse;
+    if (__builtin_cpu_supports("avx2")) return flat8_traverse;
 #endif
     return flat4_traverse;
 }
 
 int accel_flat_lanes(const accel *a) {
 #ifdef HAVE_FLAT8
+    if (a->flat_fn == flat16_traverse) return 16;
     if (a->flat_fn == flat8_traverse) return 8;
 #endif
     return 4;

@@ -3,7 +3,7 @@
  * Two structures answer the same two questions (closest hit, any hit):
  *  - ACCEL_BVH: a bounding volume hierarchy (bvh.h), for scenes with many
  *    primitives;
- *  - ACCEL_FLAT: every triangle tested, 8 (AVX2) or 4 (SSE) at a time, from
+ *  - ACCEL_FLAT: every triangle tested, 16 (AVX-512), 8 (AVX2) or 4 (SSE) at a time, from
  *    arrays laid out for SIMD, then every sphere; no tree to walk. On a scene as small as
  *    the Cornell box this is faster than any tree (see docs/performance.md).
  * ACCEL_AUTO picks FLAT for small scenes and BVH otherwise. The choice is a
@@ -47,8 +47,8 @@ void accel_free(accel *a);
 /* The kind that was built: ACCEL_BVH, ACCEL_FLAT or ACCEL_EMBREE, never ACCEL_AUTO. */
 accel_kind accel_get_kind(const accel *a);
 
-/* How many triangles the flat kernel this CPU runs tests at once: 8 with
- * AVX2, else 4. Can't fail. */
+/* How many triangles the flat kernel this CPU runs tests at once: 16 with
+ * AVX-512F, 8 with AVX2, else 4. Can't fail. */
 int accel_flat_lanes(const accel *a);
 
 /* The BVH's statistics; returns 0, or -1 (leaving *out alone) for FLAT. */

@@ -1,15 +1,15 @@
 /* accel_flat.h - the flat intersector's kernel, written once for any vector
- * width: accel.c includes it for 4 lanes (SSE, any x86-64) and 8 (AVX2,
- * chosen at run time where the CPU has it). Every lane performs exactly the
- * IEEE operations of the scalar triangle_intersect() (intersect.h) in the
- * same order, and the lanes a group finds are taken in index order with the
- * scalar acceptance test, so both widths return the hit of the scalar loop
- * over the triangles: the same bytes on any machine.
+ * width: accel.c includes it for 4 lanes (SSE, any x86-64), 8 (AVX2) and 16
+ * (AVX-512F), the widest the CPU has chosen at run time. Every lane performs
+ * exactly the IEEE operations of the scalar triangle_intersect()
+ * (intersect.h) in the same order, and the lanes a group finds are taken in
+ * index order with the scalar acceptance test, so every width returns the
+ * hit of the scalar loop over the triangles: the same bytes on any machine.
  *
  * Before including, define FLAT_LANES, FLAT(name) (the name with a width
  * suffix), FLAT_TARGET (a function attribute or nothing), FLAT_SPLAT(x),
- * FLAT_LANE_IDS and FLAT_ANY(mask); this file undefines them again at its
- * end. Not a public header. */
+ * FLAT_LANE_IDS and FLAT_BITS(mask) (bit k set where lane k of the mask is);
+ * this file undefines them again at its end. Not a public header. */
 
 typedef float FLAT(vfloat) __attribute__((vector_size(FLAT_LANES * sizeof(float))));
 typedef int32_t FLAT(vint) __attribute__((vector_size(FLAT_LANES * sizeof(int32_t))));
@@ -24,37 +24,57 @@ FLAT_TARGET static inline vfloat FLAT(vload)(const float *p) {
 
 FLAT_TARGET static inline vfloat FLAT(vsplat)(float x) { return (vfloat)FLAT_SPLAT(x); }
 
-/* Whether any lane of a mask is set. */
-FLAT_TARGET static inline int FLAT(vany)(vint m) { return FLAT_ANY(m); }
+/* The lanes of a mask that are set, as bits (lane k: bit k). */
+FLAT_TARGET static inline unsigned FLAT(vbits)(vint m) { return (unsigned)(FLAT_BITS(m)); }
+
+/* A prepared ray's numbers splatted across the lanes once per ray rather
+ * than once per group: the origin's coordinates in the order kx, ky, kz,
+ * the shear, the primitive to skip and the triangle count. */
+typedef struct {
+    vfloat ox, oy, oz, sx, sy, sz;
+    vint skip, count;
+} FLAT(ray);
+
+FLAT_TARGET static inline void FLAT(ray_splat)(const ray_prep *r, uint32_t count, FLAT(ray) *v) {
+    const float o[3] = {r->o.x, r->o.y, r->o.z};
+    v->ox = FLAT(vsplat)(o[r->kx]);
+    v->oy = FLAT(vsplat)(o[r->ky]);
+    v->oz = FLAT(vsplat)(o[r->kz]);
+    v->sx = FLAT(vsplat)(r->sx);
+    v->sy = FLAT(vsplat)(r->sy);
+    v->sz = FLAT(vsplat)(r->sz);
+    v->skip = (vint)FLAT(vsplat)(0.0f) + (int32_t)r->skip;
+    v->count = (vint)FLAT(vsplat)(0.0f) + (int32_t)count;
+}
 
 /* Lane results of the watertight test for one group of triangles, after the
  * sign flip that makes det positive. */
 typedef struct {
     vfloat T, det, V, W;
-    vint ok;   /* inside, det != 0, 0 < T < tmax * det (tmax at the group's start) */
+    vint ok;   /* inside, 0 < T < tmax * det (tmax at the group's start); may
+                * be set on edge lanes too, which take_lane decides first */
     vint edge; /* some edge function was exactly 0: the scalar test decides */
 } FLAT(group);
 
 /* The vector half of triangle_intersect() (intersect.h) for triangles
  * [base, base + FLAT_LANES), term for term. */
-FLAT_TARGET static inline void FLAT(test_group)(const flat_triangles *f, const ray_prep *r, uint32_t base,
-                                                  float tmax, FLAT(group) *g) {
+FLAT_TARGET static inline void FLAT(test_group)(const flat_triangles *f, const ray_prep *r, const FLAT(ray) *v,
+                                                  uint32_t base, float tmax, FLAT(group) *g) {
     const int kx = r->kx, ky = r->ky, kz = r->kz;
-    const float o[3] = {r->o.x, r->o.y, r->o.z};
-    vfloat sx = FLAT(vsplat)(r->sx), sy = FLAT(vsplat)(r->sy), sz = FLAT(vsplat)(r->sz);
-    vfloat Az = FLAT(vload)(f->v[0][kz] + base) - FLAT(vsplat)(o[kz]);
-    vfloat Bz = FLAT(vload)(f->v[1][kz] + base) - FLAT(vsplat)(o[kz]);
-    vfloat Cz = FLAT(vload)(f->v[2][kz] + base) - FLAT(vsplat)(o[kz]);
-    vfloat Ax = (FLAT(vload)(f->v[0][kx] + base) - FLAT(vsplat)(o[kx])) - sx * Az;
-    vfloat Ay = (FLAT(vload)(f->v[0][ky] + base) - FLAT(vsplat)(o[ky])) - sy * Az;
-    vfloat Bx = (FLAT(vload)(f->v[1][kx] + base) - FLAT(vsplat)(o[kx])) - sx * Bz;
-    vfloat By = (FLAT(vload)(f->v[1][ky] + base) - FLAT(vsplat)(o[ky])) - sy * Bz;
-    vfloat Cx = (FLAT(vload)(f->v[2][kx] + base) - FLAT(vsplat)(o[kx])) - sx * Cz;
-    vfloat Cy = (FLAT(vload)(f->v[2][ky] + base) - FLAT(vsplat)(o[ky])) - sy * Cz;
+    vfloat sx = v->sx, sy = v->sy, sz = v->sz;
+    vfloat Az = FLAT(vload)(f->v[0][kz] + base) - v->oz;
+    vfloat Bz = FLAT(vload)(f->v[1][kz] + base) - v->oz;
+    vfloat Cz = FLAT(vload)(f->v[2][kz] + base) - v->oz;
+    vfloat Ax = (FLAT(vload)(f->v[0][kx] + base) - v->ox) - sx * Az;
+    vfloat Ay = (FLAT(vload)(f->v[0][ky] + base) - v->oy) - sy * Az;
+    vfloat Bx = (FLAT(vload)(f->v[1][kx] + base) - v->ox) - sx * Bz;
+    vfloat By = (FLAT(vload)(f->v[1][ky] + base) - v->oy) - sy * Bz;
+    vfloat Cx = (FLAT(vload)(f->v[2][kx] + base) - v->ox) - sx * Cz;
+    vfloat Cy = (FLAT(vload)(f->v[2][ky] + base) - v->oy) - sy * Cz;
     vfloat U = Cx * By - Cy * Bx, V = Ax * Cy - Ay * Cx, W = Bx * Ay - By * Ax;
     vfloat zero = FLAT(vsplat)(0.0f);
     vint lane_ids = (vint)FLAT_LANE_IDS + (int32_t)base;
-    vint real = (lane_ids < (int32_t)f->count) & (lane_ids != (int32_t)r->skip);
+    vint real = (lane_ids < v->count) & (lane_ids != v->skip);
     g->edge = real & ((U == zero) | (V == zero) | (W == zero));
     /* Outside unless U, V, W share a sign. With no zero among them (zeros
      * are edge lanes, decided by the scalar test), a float's sign bit is
@@ -68,7 +88,9 @@ FLAT_TARGET static inline void FLAT(test_group)(const flat_triangles *f, const r
     g->det = (vfloat)((vint)det ^ flip);
     g->V = (vfloat)((vint)V ^ flip);
     g->W = (vfloat)((vint)W ^ flip);
-    g->ok = real & ~g->edge & ~outside & (det != zero) & (g->T > zero) & (g->T < FLAT(vsplat)(tmax) * g->det);
+    /* No det != 0 test: where U, V, W are nonzero with one sign, their sum
+     * is nonzero; where one is zero the lane is an edge lane. */
+    g->ok = real & ~outside & (g->T > zero) & (g->T < FLAT(vsplat)(tmax) * g->det);
 }
 
 /* The scalar tail for lane k of a group, with the current closest distance
@@ -95,19 +117,25 @@ FLAT_TARGET static inline int FLAT(take_lane)(const FLAT(group) *g, const scene 
 /* Every triangle, then every sphere; with any_hit, stop at the first hit. */
 FLAT_TARGET static int FLAT(traverse)(const flat_triangles *f, const scene *s, const ray *ray_in, float tmax, hit *h,
                                       int any_hit) {
-    ray_prep r;
-    ray_prepare(ray_in, &r);
+    ray_prep r; /* inv_d unset: no slab test here */
+    ray_prepare_shear(ray_in, &r);
+    FLAT(ray) v;
+    FLAT(ray_splat)(&r, f->count, &v);
     h->t = tmax;
     int found = 0;
-    for (uint32_t base = 0; base < f->padded; base += FLAT_LANES) {
+    /* Groups up to the last triangle: the arrays are padded to the widest
+     * kernel's lanes, so a narrow kernel need not walk the whole padding. */
+    for (uint32_t base = 0; base < f->count; base += FLAT_LANES) {
         FLAT(group) g;
-        FLAT(test_group)(f, &r, base, h->t, &g);
-        if (!FLAT(vany)(g.ok | g.edge)) continue;
-        for (int k = 0; k < FLAT_LANES; k++)
-            if ((g.ok[k] | g.edge[k]) && FLAT(take_lane)(&g, s, &r, base + (uint32_t)k, k, h)) {
+        FLAT(test_group)(f, &r, &v, base, h->t, &g);
+        /* The candidate lanes in index order, lowest bit first. */
+        for (unsigned bits = FLAT(vbits)(g.ok | g.edge); bits; bits &= bits - 1) {
+            int k = __builtin_ctz(bits);
+            if (FLAT(take_lane)(&g, s, &r, base + (uint32_t)k, k, h)) {
                 found = 1;
                 if (any_hit) return 1;
             }
+        }
     }
     for (uint32_t i = 0; i < s->sphere_count; i++) {
         uint32_t id = scene_sphere_base(s) + i;
@@ -130,4 +158,4 @@ FLAT_TARGET static int FLAT(traverse)(const flat_triangles *f, const scene *s, c
 #undef FLAT_TARGET
 #undef FLAT_SPLAT
 #undef FLAT_LANE_IDS
-#undef FLAT_ANY
+#undef FLAT_BITS

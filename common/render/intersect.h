@@ -42,11 +42,12 @@ typedef struct {
  * 0 * huge = 0 rather than 0 * inf = NaN for a ray in a box's plane. */
 static inline float safe_inverse(float d) { return d != 0.0f ? 1.0f / d : copysignf(3.0e38f, d); }
 
-static inline void ray_prepare(const ray *r, ray_prep *p) {
+/* The constants of the watertight test only (all but inv_d, which only the
+ * BVH's slab test reads): what the flat intersector needs. */
+static inline void ray_prepare_shear(const ray *r, ray_prep *p) {
     p->o = r->o;
     p->d = r->d;
     p->skip = r->skip;
-    p->inv_d = vec3_make(safe_inverse(r->d.x), safe_inverse(r->d.y), safe_inverse(r->d.z));
     float ax = fabsf(r->d.x), ay = fabsf(r->d.y), az = fabsf(r->d.z);
     p->kz = (ax > ay) ? (ax > az ? 0 : 2) : (ay > az ? 1 : 2);
     p->kx = p->kz == 2 ? 0 : p->kz + 1;
@@ -60,6 +61,11 @@ static inline void ray_prepare(const ray *r, ray_prep *p) {
     p->sx = vec3_comp(r->d, p->kx) / dz;
     p->sy = vec3_comp(r->d, p->ky) / dz;
     p->sz = 1.0f / dz;
+}
+
+static inline void ray_prepare(const ray *r, ray_prep *p) {
+    ray_prepare_shear(r, p);
+    p->inv_d = vec3_make(safe_inverse(r->d.x), safe_inverse(r->d.y), safe_inverse(r->d.z));
 }
 
 /* Watertight ray/triangle test. Returns 1 and sets *t, *b1, *b2 for a hit
