@@ -349,10 +349,13 @@ static void route_download(dashboard *d, http_conn *c, uint32_t id, const char *
     free(rgb);
 }
 
-/* GET /api/jobs/N/log: the source's log of the job. */
-static void route_log(dashboard *d, http_conn *c, uint32_t id) {
+/* GET /api/jobs/N/log[?last=N]: the source's log of the job (the newest N
+ * lines). */
+static void route_log(dashboard *d, http_conn *c, uint32_t id, const char *query) {
+    const char *q = strstr(query, "last=");
+    long last = q ? strtol(q + 5, NULL, 10) : 0;
     cJSON *o = cJSON_CreateObject();
-    if (!d->src.log || d->src.log(d->src.ctx, id, o)) {
+    if (!d->src.log || d->src.log(d->src.ctx, id, (int)(last > 0 && last < INT32_MAX ? last : 0), o)) {
         cJSON_Delete(o);
         return send_text(c, 404, "no log for this job\n");
     }
@@ -453,7 +456,7 @@ static void on_request(void *ctx, http_conn *c, const http_request *rq) {
         if (strcmp(rest, "preview.png") == 0) return route_preview(d, c, id, rq->query);
         if (strcmp(rest, "image.png") == 0 || strcmp(rest, "image.exr") == 0)
             return route_download(d, c, id, rq->query, rest[6] == 'e');
-        if (strcmp(rest, "log") == 0) return route_log(d, c, id);
+        if (strcmp(rest, "log") == 0) return route_log(d, c, id, rq->query);
     }
     if (strcmp(rq->path, "/") == 0 || strcmp(rq->path, "/workers") == 0 || strncmp(rq->path, "/job/", 5) == 0)
         return http_respond(c, 200, "text/html; charset=utf-8", web_index_html, strlen(web_index_html),

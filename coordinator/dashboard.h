@@ -11,7 +11,7 @@
  *   GET  /api/jobs/N/preview.png  the job's frame tone mapped (?exposure=S)
  *   GET  /api/csrf                the token POSTs must carry (X-CSRF-Token)
  *   GET  /api/jobs/N/image.exr, image.png  a finished job's image (download)
- *   GET  /api/jobs/N/log          the job's event log (joblog.h) as JSON
+ *   GET  /api/jobs/N/log?last=N   the job's event log (joblog.h) as JSON
  *   POST /api/jobs/N/cancel       (not with read_only)
  *   POST /api/jobs/N/priority     priority=P (not with read_only)
  *   POST /login                   token=... -> HttpOnly SameSite=Strict cookie
@@ -47,9 +47,10 @@ typedef struct {
     /* Change a job's priority. 0, or -1 with the reason in err. NULL: not
      * offered. */
     int (*priority)(void *ctx, uint32_t id, int priority, char *err, size_t err_len);
-    /* Add the job's event log to out (joblog_to_json), or -1 when there is
-     * no such job. NULL: the page shows only the events it sees live. */
-    int (*log)(void *ctx, uint32_t id, cJSON *out);
+    /* Add the job's event log to out (joblog_to_json; the newest last
+     * lines, 0: all), or -1 when there is no such job. NULL: the page
+     * shows only the events it sees live. */
+    int (*log)(void *ctx, uint32_t id, int last, cJSON *out);
     /* 0: the dashboard takes the farm's event callback; 1: the source
      * keeps it and hands each event on with dashboard_farm_event. */
     int forwards_events;

@@ -330,10 +330,13 @@ void http_respond(http_conn *c, int status, const char *content_type, const void
     c->answered |= 1;
     uv_read_stop((uv_stream_t *)&c->tcp);
     char head[2048];
+    /* Referrer-Policy same-origin, not no-referrer: under no-referrer a
+     * browser sends "Origin: null" on the page's own POSTs, which the
+     * dashboard's origin check must refuse. */
     int n = snprintf(head, sizeof head,
                      "HTTP/1.1 %d %s\r\nContent-Type: %s\r\nContent-Length: %zu\r\nConnection: close\r\n"
                      "Cache-Control: no-store\r\nX-Content-Type-Options: nosniff\r\nX-Frame-Options: DENY\r\n"
-                     "Referrer-Policy: no-referrer\r\n%s\r\n",
+                     "Referrer-Policy: same-origin\r\n%s\r\n",
                      status, http_status_text(status), content_type, len, extra_headers ? extra_headers : "");
     if (n < 0 || (size_t)n >= sizeof head) n = 0;
     char *all = malloc((size_t)n + len + 1);

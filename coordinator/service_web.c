@@ -83,9 +83,9 @@ static int web_priority(void *ctx, uint32_t id, int priority, char *err, size_t 
     return store_set_priority(ctx, id, priority, "the dashboard", err, err_len);
 }
 
-static int web_log(void *ctx, uint32_t id, cJSON *out) {
+static int web_log(void *ctx, uint32_t id, int last, cJSON *out) {
     sjob *j = store_find_job(ctx, id);
-    return j ? joblog_to_json(j->log, out, 0) : -1;
+    return j ? joblog_to_json(j->log, out, last) : -1;
 }
 
 void service_on_farm_event(void *ctx, const farm_event *e) {
