@@ -8,7 +8,8 @@ by tests/test_http.c, which also checks the screenshot's pixels).
   jobs:     a submitted job appears in the table and its progress rises
   job:      while it renders, tiles are outlined on the live preview and the
             event log shows tiles handed to the worker; when done, EXR and
-            PNG downloads work; a screenshot of the page is written
+            PNG downloads work; a screenshot of the page is written (and
+            SHOT-live.png while it rendered, SHOT-jobs.png of the table)
   cancel:   the Cancel button of a running job cancels it
   priority: the priority field and Set change a queued job's priority
 
@@ -146,11 +147,14 @@ try:
         if row and (not seen or row[1] != seen[-1]):
             seen.append(row[1])
         if job_page.js("document.querySelector('#state') && / running$/.test(document.querySelector('#state').textContent)"):
+            before = outlined
             outlined = max(outlined, job_page.js(
                 "(() => { const c = document.querySelector('#ov'); if (!c || !c.width) return 0;"
                 " const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data; let n = 0;"
                 " for (let i = 0; i < d.length; i += 4) n += d[i] < 60 && d[i + 1] > 150 && d[i + 2] > 200;"
                 " return n; })()") or 0)
+            if outlined and not before:  # the live preview with its outlined tiles, for the docs
+                job_page.screenshot(shot.replace(".png", "-live.png"))
         if row and row[0].startswith("done"):
             break
         time.sleep(0.2)
@@ -198,6 +202,9 @@ try:
             fail(f"job {job}'s priority is {status(job)['priority']} after Set 7")
         time.sleep(0.2)
     print(f"ok: the priority field set job {job}'s priority to 7", flush=True)
+    jobs.wait(f"document.querySelector('#pri-{job}') && document.querySelector('#pri-{job}').value === '7'",
+              "the jobs table shows the new priority")
+    jobs.screenshot(shot.replace(".png", "-jobs.png"))
     subprocess.run([tessera, "cancel", str(job)], env=env, capture_output=True, timeout=60)
 finally:
     chromium.close()
