@@ -2,7 +2,7 @@
 """dashboard_clients.py - does watching the farm slow it down? (issue 16)
 
 Starts tessera-coordinator --http with two 1-thread workers on loopback and
-renders the same job repeatedly, alternating: no HTTP clients, then N
+renders the same job repeatedly, alternating (ABBA): no HTTP clients, and N
 event-stream clients that read everything plus one that reads nothing.
 Prints each run's wall time, tile throughput, the CPU time the coordinator
 and the workers spent on it (from /proc, so that other load on the machine
@@ -57,8 +57,8 @@ times = {"none": [], "clients": []}
 rss = []
 print(f"load average at the start: {os.getloadavg()}", flush=True)
 received = [0]
-for r in range(runs):
-    times["none"].append(render())
+def with_clients():
+    """One render with nclients reading streams and one stalled stream open."""
     # the readers run in a child at nice 19, so that their own CPU time is
     # not what is measured; the stalled client never reads at all
     rd, wr = os.pipe()
@@ -69,14 +69,11 @@ for r in range(runs):
         os.write(wr, b"r")
         sel = selectors.DefaultSelector()
         for s in readers: s.setblocking(False); sel.register(s, selectors.EVENT_READ)
-        got = 0
         deadline = time.monotonic() + 600
         while time.monotonic() < deadline:
             for k, _ in sel.select(0.1):
                 try:
-                    n = len(k.fileobj.recv(65536))
-                    if n == 0: os._exit(0)
-                    got += n
+                    if not k.fileobj.recv(65536): os._exit(0)
                 except (BlockingIOError, ConnectionError): pass
         os._exit(0)
     os.read(rd, 1)
@@ -85,6 +82,16 @@ for r in range(runs):
     rss.append(rss_kib(coord.pid))
     os.kill(child, 15); os.waitpid(child, 0)
     stalled.close()
+
+for r in range(runs):
+    # ABBA: the order alternates, so that load rising or falling on a shared
+    # machine does not favour one side
+    if r % 2 == 0:
+        times["none"].append(render())
+        with_clients()
+    else:
+        with_clients()
+        times["none"].append(render())
     for k in ("none", "clients"):
         wall, ccpu, wcpu = times[k][-1]
         print(f"run {r} {k:7s}: {wall:6.2f} s wall, {TILES / wall:5.1f} tiles/s, coordinator CPU {ccpu:5.2f} s, "

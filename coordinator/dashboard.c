@@ -19,7 +19,7 @@
 #define DASH_SESSIONS 64
 #define DASH_MAX_REQUEST (64 << 10)
 #define DASH_MAX_HEADERS 64
-#define DASH_FLUSH_MS 100 /* events are batched: one write per stream per tick, not per tile */
+#define DASH_FLUSH_MS 250 /* events are batched: one write per stream per tick, not per tile */
 
 /* Tile latency histogram bounds, seconds (Prometheus le=). */
 static const double latency_bounds[] = {0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 10, 30, 60};

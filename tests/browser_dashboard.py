@@ -12,6 +12,7 @@ by tests/test_http.c, which also checks the screenshot's pixels).
             SHOT-live.png while it rendered, SHOT-jobs.png of the table)
   cancel:   the Cancel button of a running job cancels it
   priority: the priority field and Set change a queued job's priority
+  workers:  the worker is listed and the throughput plot is drawn
 
 Every wait is bounded. Prints "ok: ..." per check; exits 1 with "FAIL: ..."
 on the first failure. Usage: browser_dashboard.py HTTP_PORT TOKEN TESSERA
@@ -206,6 +207,14 @@ try:
               "the jobs table shows the new priority")
     jobs.screenshot(shot.replace(".png", "-jobs.png"))
     subprocess.run([tessera, "cancel", str(job)], env=env, capture_output=True, timeout=60)
+
+    workers = chromium.page(base + "/workers")
+    workers.wait("/webworker/.test(document.querySelector('#ws').textContent)", "the workers page lists webworker")
+    plotted = workers.wait("(() => { const d = document.querySelector('#plot').getContext('2d')"
+                           ".getImageData(0, 0, 600, 120).data; let n = 0;"
+                           " for (let i = 0; i < d.length; i += 4) n += d[i + 1] > 120 && d[i] < 120; return n; })()",
+                           "the workers page plots the throughput", 30)
+    print(f"ok: the workers page lists the worker and plots its throughput ({plotted} plot pixels)", flush=True)
 finally:
     chromium.close()
 print("all browser checks passed", flush=True)

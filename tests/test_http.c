@@ -604,14 +604,15 @@ TEST(http_dashboard_stalled_stream_dropped) {
     int n = snprintf(req, sizeof req, "GET /api/events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
     CHECK(connect(fd, (struct sockaddr *)&a, sizeof a) == 0 && send(fd, req, (size_t)n, 0) == n, "stream");
     char sub[4096];
-    /* 4096 tiles: two events each, about 1.1 MB of events */
-    int st = submit(&w, "scenes/cornell-box.json --width 256 --height 256 --spp 1 --tile-size 4 --wait", sub,
+    /* 8192 tiles: two events each, about 2.3 MB of events, sent in batches
+     * every 250 ms over the render's few seconds */
+    int st = submit(&w, "scenes/cornell-box.json --width 512 --height 256 --spp 1 --tile-size 4 --wait", sub,
                     sizeof sub);
     CHECK(st == 0, "render beside a stalled stream failed (%d): %s", st, sub);
     static char out[1 << 16];
     web_get(w.http, "/metrics", "", out, sizeof out);
     CHECK(metric(web_body(out), "tessera_http_streams_dropped_total") == 1 &&
-              metric(web_body(out), "tessera_tiles_rendered_total") == 4096,
+              metric(web_body(out), "tessera_tiles_rendered_total") == 8192,
           "dropped %g, tiles %g", metric(web_body(out), "tessera_http_streams_dropped_total"),
           metric(web_body(out), "tessera_tiles_rendered_total"));
     close(fd);
