@@ -448,6 +448,7 @@ static void on_request(void *ctx, http_conn *c, const http_request *rq) {
         cJSON_AddStringToObject(o, "csrf", d->csrf);
         cJSON_AddBoolToObject(o, "read_only", d->o.read_only);
         cJSON_AddBoolToObject(o, "priority", d->src.priority != NULL);
+        cJSON_AddBoolToObject(o, "cancel", d->src.cancel != NULL);
         return send_json(c, o);
     }
     uint32_t id;

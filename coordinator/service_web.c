@@ -14,7 +14,8 @@ static void web_jobs(void *ctx, cJSON *arr) {
         cJSON *o = cJSON_CreateObject();
         cJSON_AddNumberToObject(o, "id", j->desc.id);
         cJSON_AddStringToObject(o, "name", j->name);
-        cJSON_AddStringToObject(o, "state", state_names[j->state]);
+        int queued = j->state == SJOB_RUNNING && j->first_tile == 0; /* as `tessera status` says */
+        cJSON_AddStringToObject(o, "state", queued ? "queued" : state_names[j->state]);
         cJSON_AddNumberToObject(o, "tiles_done", j->state == SJOB_DONE ? j->tile_count : j->tiles_done);
         cJSON_AddNumberToObject(o, "tiles_total", j->tile_count);
         cJSON_AddNumberToObject(o, "samples", (double)j->stats.samples);

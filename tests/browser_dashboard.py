@@ -71,10 +71,10 @@ class Chromium:
                 fail("chromium exited")
             self.buf += data
 
-    def page(self, url):
+    def page(self, url, width=900):
         tid = self.call("Target.createTarget", {"url": "about:blank"})["targetId"]
         sid = self.call("Target.attachToTarget", {"targetId": tid, "flatten": True})["sessionId"]
-        self.call("Emulation.setDeviceMetricsOverride", {"width": 900, "height": 700, "deviceScaleFactor": 1,
+        self.call("Emulation.setDeviceMetricsOverride", {"width": width, "height": 700, "deviceScaleFactor": 1,
                                                           "mobile": False}, sid)
         self.call("Page.navigate", {"url": url}, sid)
         return Page(self, sid)
@@ -128,7 +128,7 @@ ROW = "((id) => { const a = document.querySelector(\"#jobs a[href='/job/\" + id 
 
 chromium = Chromium()
 try:
-    jobs = chromium.page(base + "/")
+    jobs = chromium.page(base + "/", 1280)
     jobs.wait("location.pathname === '/login' && !!document.querySelector('input[name=token]')",
               "the jobs page sends a browser without the token to the login form")
     print("ok: / without the token shows the login form", flush=True)
@@ -155,6 +155,10 @@ try:
                 " for (let i = 0; i < d.length; i += 4) n += d[i] < 60 && d[i + 1] > 150 && d[i + 2] > 200;"
                 " return n; })()") or 0)
             if outlined and not before:  # the live preview with its outlined tiles, for the docs
+                for _ in range(20):  # not while the newest preview is being decoded
+                    if job_page.js("document.querySelector('#img').complete"):
+                        break
+                    time.sleep(0.05)
                 job_page.screenshot(shot.replace(".png", "-live.png"))
         if row and row[0].startswith("done"):
             break
