@@ -382,6 +382,22 @@ TEST(http_dashboard_token_and_binding) {
     snprintf(hdr, sizeof hdr, "Cookie: other=1; %s\r\n", cookie);
     CHECK(web_get(w.http, "/api/jobs", hdr, out, sizeof out) == 200, "cookie session: %.100s", out);
     web_stop(&w);
+    /* --http-read-only: every POST but /login is refused, CSRF token or not */
+    const char *ro[] = {"--http-read-only", NULL};
+    if (web_start(&w, "http-ro", 0, ro)) {
+        CHECK(0, "read-only coordinator did not start; log %s", w.log);
+        return;
+    }
+    web_get(w.http, "/api/csrf", "", out, sizeof out);
+    const char *c = strstr(out, "\"csrf\":\"");
+    CHECK(c && strstr(out, "\"read_only\":true"), "csrf of a read-only dashboard: %.200s", out);
+    snprintf(hdr, sizeof hdr, "X-CSRF-Token: %.64s\r\n", c ? c + 8 : "");
+    CHECK(web_post(w.http, "/api/jobs/1/cancel", hdr, "", out, sizeof out) == 403 && strstr(out, "read-only"),
+          "cancel on a read-only dashboard: %.200s", out);
+    CHECK(web_post(w.http, "/api/jobs/1/priority", hdr, "priority=1", out, sizeof out) == 403 &&
+              strstr(out, "read-only"),
+          "priority on a read-only dashboard: %.200s", out);
+    web_stop(&w);
     /* a non-loopback address without a token refuses to start */
     char cmd[4096], cout[4096], dir[300];
     snprintf(dir, sizeof dir, "%s", util_temp_path("http-open"));
