@@ -2,10 +2,13 @@
 """dashboard_clients.py - does watching the farm slow it down? (issue 16)
 
 Starts tessera-coordinator --http with two 1-thread workers on loopback and
-renders the same job repeatedly, alternating: no HTTP clients, then N
+renders the same job repeatedly, alternating (ABBA): no HTTP clients, and N
 event-stream clients that read everything plus one that reads nothing.
-Prints each run's wall time and the medians; the coordinator's RSS at the
-end. Usage: bench/dashboard_clients.py BUILD/bin [N] [RUNS]"""
+Prints each run's wall time, tile throughput, the CPU time the coordinator
+and the workers spent on it (from /proc, so that other load on the machine
+does not count) and the coordinator's resident memory; then the medians,
+the peak RSS and the load average. Usage: bench/dashboard_clients.py
+BUILD/bin [N] [RUNS]"""
 import os, socket, statistics, subprocess, sys, tempfile, threading, time, selectors
 
 bindir = sys.argv[1]
@@ -26,10 +29,22 @@ time.sleep(0.5)
 env = dict(os.environ, TESSERA_COORDINATOR=f"127.0.0.1:{port}")
 job = ["scenes/cornell-box.json", "--width", "256", "--height", "256", "--spp", "64", "--tile-size", "16", "--wait"]
 
+TILES = 256  # 256x256 in 16 px tiles
+HZ = os.sysconf("SC_CLK_TCK")
+
+def cpu(pid):
+    f = open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()
+    return (int(f[11]) + int(f[12])) / HZ  # utime + stime
+
+def rss_kib(pid):
+    return int([l for l in open(f"/proc/{pid}/status") if l.startswith("VmRSS")][0].split()[1])
+
 def render():
-    t = time.monotonic()
-    subprocess.run([f"{bindir}/tessera", "submit"] + job, env=env, check=True, stdout=subprocess.DEVNULL)
-    return time.monotonic() - t
+    """Wall seconds, coordinator CPU seconds, workers' CPU seconds of one job."""
+    c0, w0, t = cpu(coord.pid), sum(cpu(w.pid) for w in workers), time.monotonic()
+    subprocess.run([f"{bindir}/tessera", "submit"] + job, env=env, check=True, stdout=subprocess.DEVNULL,
+                   stderr=subprocess.DEVNULL)
+    return time.monotonic() - t, cpu(coord.pid) - c0, sum(cpu(w.pid) for w in workers) - w0
 
 def open_stream(rcvbuf=None):
     s = socket.socket()
@@ -39,9 +54,11 @@ def open_stream(rcvbuf=None):
     return s
 
 times = {"none": [], "clients": []}
+rss = []
+print(f"load average at the start: {os.getloadavg()}", flush=True)
 received = [0]
-for r in range(runs):
-    times["none"].append(render())
+def with_clients():
+    """One render with nclients reading streams and one stalled stream open."""
     # the readers run in a child at nice 19, so that their own CPU time is
     # not what is measured; the stalled client never reads at all
     rd, wr = os.pipe()
@@ -52,25 +69,43 @@ for r in range(runs):
         os.write(wr, b"r")
         sel = selectors.DefaultSelector()
         for s in readers: s.setblocking(False); sel.register(s, selectors.EVENT_READ)
-        got = 0
         deadline = time.monotonic() + 600
         while time.monotonic() < deadline:
             for k, _ in sel.select(0.1):
                 try:
-                    n = len(k.fileobj.recv(65536))
-                    if n == 0: os._exit(0)
-                    got += n
+                    if not k.fileobj.recv(65536): os._exit(0)
                 except (BlockingIOError, ConnectionError): pass
         os._exit(0)
     os.read(rd, 1)
     stalled = open_stream(rcvbuf=4096)
     times["clients"].append(render())
+    rss.append(rss_kib(coord.pid))
     os.kill(child, 15); os.waitpid(child, 0)
     stalled.close()
-    print(f"run {r}: no clients {times['none'][-1]:.2f} s, {nclients}+1 clients {times['clients'][-1]:.2f} s", flush=True)
-rss = int([l for l in open(f"/proc/{coord.pid}/status") if l.startswith("VmHWM")][0].split()[1])
+
+for r in range(runs):
+    # ABBA: the order alternates, so that load rising or falling on a shared
+    # machine does not favour one side
+    if r % 2 == 0:
+        times["none"].append(render())
+        with_clients()
+    else:
+        with_clients()
+        times["none"].append(render())
+    for k in ("none", "clients"):
+        wall, ccpu, wcpu = times[k][-1]
+        print(f"run {r} {k:7s}: {wall:6.2f} s wall, {TILES / wall:5.1f} tiles/s, coordinator CPU {ccpu:5.2f} s, "
+              f"workers CPU {wcpu:6.2f} s", flush=True)
+    print(f"run {r}: coordinator RSS {rss[-1]} KiB with {nclients}+1 clients open; load {os.getloadavg()[0]:.1f}",
+          flush=True)
+hwm = int([l for l in open(f"/proc/{coord.pid}/status") if l.startswith("VmHWM")][0].split()[1])
 for w in workers: w.terminate()
 coord.terminate(); coord.wait()
-m0, m1 = statistics.median(times["none"]), statistics.median(times["clients"])
-print(f"median: no clients {m0:.2f} s, with clients {m1:.2f} s ({100 * (m1 / m0 - 1):+.1f}%); "
-      f"coordinator peak RSS {rss} KiB")
+med = {k: [statistics.median(x[i] for x in v) for i in range(3)] for k, v in times.items()}
+m0, m1 = med["none"][0], med["clients"][0]
+print(f"median wall: no clients {m0:.2f} s, with clients {m1:.2f} s ({100 * (m1 / m0 - 1):+.1f}%); "
+      f"tiles/s {TILES / m0:.1f} vs {TILES / m1:.1f}")
+print(f"median CPU: coordinator {med['none'][1]:.2f} s vs {med['clients'][1]:.2f} s; "
+      f"workers {med['none'][2]:.2f} s vs {med['clients'][2]:.2f} s")
+print(f"coordinator RSS with clients open: {min(rss)}-{max(rss)} KiB over the runs; peak {hwm} KiB; "
+      f"load average at the end: {os.getloadavg()}")

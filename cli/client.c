@@ -1,4 +1,5 @@
-/* client.c - `tessera submit | status | workers | cancel | fetch`: the
+/* client.c - `tessera submit | status | workers | cancel | fetch | priority
+ * | logs`: the
  * command-line client of a running tessera-coordinator (service.c).
  *
  * Plain blocking sockets: one request, one answer, with timeouts, so that a
@@ -63,6 +64,7 @@ typedef struct {
     int min_spp;            /* and its first round's samples (0: the coordinator's default) */
     image_write_options wo;
     const char *camera; /* --camera NAME: a glTF's camera */
+    int last;           /* logs --last N */
 } cli_args;
 
 static int cli_fail(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
@@ -263,13 +265,28 @@ static cJSON *read_pages(cli *c, cJSON *first, const char *want, const char *key
     return first;
 }
 
-static cJSON *request(cli *c, const char *type, long job, const char *want) {
+/* A request message: type, and job when job >= 0 (the caller may add
+ * fields before sending it). */
+static cJSON *request_new(const char *type, long job) {
     cJSON *m = cJSON_CreateObject();
     cJSON_AddStringToObject(m, "type", type);
     if (job >= 0) cJSON_AddNumberToObject(m, "job", (double)job);
+    return m;
+}
+
+/* Send m (taken) and read the answer of type want, every page of it.
+ * Returns it, or NULL (printed). */
+static cJSON *request_send(cli *c, cJSON *m, const char *want) {
     cJSON *r = send_json(c, m) ? NULL : read_answer(c, want);
-    const char *key = strcmp(want, "status") == 0 ? "jobs" : strcmp(want, "workers") == 0 ? "workers" : NULL;
+    const char *key = strcmp(want, "status") == 0    ? "jobs"
+                      : strcmp(want, "workers") == 0 ? "workers"
+                      : strcmp(want, "logs") == 0    ? "lines"
+                                                     : NULL;
     return r && key ? read_pages(c, r, want, key) : r;
+}
+
+static cJSON *request(cli *c, const char *type, long job, const char *want) {
+    return request_send(c, request_new(type, job), want);
 }
 
 
@@ -452,6 +469,9 @@ static int do_submit(const cli_args *a, const char *scene_path) {
         cJSON_AddStringToObject(m, "seed", seed);
     }
     cJSON_AddNumberToObject(m, "priority", a->priority);
+    const char *user = getenv("USER"); /* who submits, shown by status and the dashboard */
+    if (!user || !*user) user = getenv("LOGNAME");
+    if (user && *user && strlen(user) < 64) cJSON_AddStringToObject(m, "user", user);
     if (a->tile_size > 0) cJSON_AddNumberToObject(m, "tile_size", a->tile_size);
     if (a->noise_threshold > 0) cJSON_AddNumberToObject(m, "noise_threshold", a->noise_threshold);
     if (a->min_spp > 0) cJSON_AddNumberToObject(m, "min_spp", a->min_spp);
@@ -503,12 +523,20 @@ static int do_submit(const cli_args *a, const char *scene_path) {
 
 /* One request on a connection of its own: the answer of type want, or
  * NULL (printed). */
-static cJSON *ask(const cli_args *a, const char *type, long job, const char *want) {
+/* Connect, send m (taken), read the answer want, close. */
+static cJSON *ask_msg(const cli_args *a, cJSON *m, const char *want) {
     cli c;
-    if (cli_open(&c, a)) return NULL;
-    cJSON *r = request(&c, type, job, want);
+    if (cli_open(&c, a)) {
+        cJSON_Delete(m);
+        return NULL;
+    }
+    cJSON *r = request_send(&c, m, want);
     cli_close(&c);
     return r;
+}
+
+static cJSON *ask(const cli_args *a, const char *type, long job, const char *want) {
+    return ask_msg(a, request_new(type, job), want);
 }
 
 static int do_status(const cli_args *a, long job) {
@@ -566,6 +594,44 @@ static int do_cancel(const cli_args *a, long job) {
     if (!r) return 1;
     if (a->json) printf("{\"job\": %ld, \"state\": \"cancelled\"}\n", job);
     else printf("job %ld cancelled\n", job);
+    cJSON_Delete(r);
+    return 0;
+}
+
+static int do_priority(const cli_args *a, long job, long priority) {
+    cJSON *m = request_new("priority", job);
+    cJSON_AddNumberToObject(m, "priority", (double)priority);
+    cJSON *r = ask_msg(a, m, "priority");
+    if (!r) return 1;
+    if (a->json) printf("{\"job\": %ld, \"priority\": %d}\n", job, (int)num(r, "priority"));
+    else printf("job %ld: priority %d\n", job, (int)num(r, "priority"));
+    cJSON_Delete(r);
+    return 0;
+}
+
+/* tessera logs JOB: one line per event, "HH:MM:SS.mmm text", local time. */
+static int do_logs(const cli_args *a, long job) {
+    cJSON *m = request_new("logs", job);
+    if (a->last > 0) cJSON_AddNumberToObject(m, "last", a->last);
+    cJSON *r = ask_msg(a, m, "logs");
+    if (!r) return 1;
+    if (a->json) {
+        print_json(r);
+        cJSON_Delete(r);
+        return 0;
+    }
+    if (num(r, "dropped") > 0) printf("(%.0f earlier lines not shown)\n", num(r, "dropped"));
+    const cJSON *l;
+    cJSON_ArrayForEach(l, cJSON_GetObjectItemCaseSensitive(r, "lines")) {
+        double t = num(l, "t");
+        time_t secs = (time_t)t;
+        struct tm tm;
+        char when[32], text[600]; /* the coordinator's text (worker names): escaped (log.h) */
+        strftime(when, sizeof when, "%H:%M:%S", localtime_r(&secs, &tm));
+        log_escape(str(l, "text"), text, sizeof text);
+        printf("%s.%03d %s\n", when, (int)((t - (double)secs) * 1000), text);
+    }
+    printf("job %ld is %s\n", job, str(r, "state"));
     cJSON_Delete(r);
     return 0;
 }
@@ -644,6 +710,30 @@ static void usage_cancel(FILE *f) {
                "options:\n" COMMON_OPTIONS_HELP);
 }
 
+static void usage_priority(FILE *f) {
+    fprintf(f, "usage: tessera priority JOB P [options]\n"
+               "\n"
+               "Change a queued or running job's priority (an integer from -1000000 to 1000000;\n"
+               "higher runs first). Its tiles not yet handed out go before those of lower\n"
+               "priorities from now on; the change is saved with the job. A negative P\n"
+               "follows \"--\": tessera priority 7 -- -5\n"
+               "\n"
+               "options:\n" COMMON_OPTIONS_HELP);
+}
+
+static void usage_logs(FILE *f) {
+    fprintf(f, "usage: tessera logs JOB [options]\n"
+               "\n"
+               "The job's event log: submitted, tiles handed out (and backup copies), done,\n"
+               "requeued after a failure, workers joining and leaving, priority changes, the\n"
+               "end. The coordinator keeps the last 2000 lines of each job while it runs;\n"
+               "the dashboard's job page shows the same lines.\n"
+               "\n"
+               "options:\n"
+               "      --last N             only the newest N lines\n"
+               COMMON_OPTIONS_HELP);
+}
+
 static void usage_fetch(FILE *f) {
     fprintf(f, "usage: tessera fetch JOB -o OUT [options]\n"
                "\n"
@@ -678,6 +768,7 @@ static const char *const submit_opts[] = {"spp", "width", "height", "max-depth",
                                           "png16", "camera", NULL};
 static const char *const fetch_opts[] = {"partial", "output", "tonemap", "exposure", "quality", "png16", NULL};
 static const char *const no_opts[] = {NULL};
+static const char *const logs_opts[] = {"last", NULL};
 
 static const client_command commands[] = {
     {"submit", usage_submit, submit_opts, 1, 1, "expected exactly one scene file"},
@@ -685,6 +776,8 @@ static const client_command commands[] = {
     {"workers", usage_workers, no_opts, 0, 0, "takes no arguments"},
     {"cancel", usage_cancel, no_opts, 1, 1, "expected one job number"},
     {"fetch", usage_fetch, fetch_opts, 1, 1, "expected one job number"},
+    {"priority", usage_priority, no_opts, 2, 2, "expected a job number and a priority"},
+    {"logs", usage_logs, logs_opts, 1, 1, "expected one job number"},
 };
 
 static int listed(const char *name, const char *const *names) {
@@ -717,7 +810,7 @@ int client_main(int argc, char **argv) {
         {.name = "height", .kind = ARG_INT, .dest = &a.ov.height, .lo = 1, .hi = LIMIT_SIDE},
         {.name = "max-depth", .kind = ARG_INT, .dest = &a.ov.max_depth, .lo = 1, .hi = LIMIT_DEPTH},
         {.name = "seed", .kind = ARG_U64, .dest = &a.ov.seed, .given = &a.ov.has_seed},
-        {.name = "priority", .kind = ARG_INT, .dest = &a.priority, .lo = -1000000, .hi = 1000000},
+        {.name = "priority", .kind = ARG_INT, .dest = &a.priority, .lo = -LIMIT_PRIORITY, .hi = LIMIT_PRIORITY},
         {.name = "tile-size", .kind = ARG_INT, .dest = &a.tile_size, .lo = 1, .hi = 4096},
         {.name = "noise-threshold", .kind = ARG_DOUBLE, .dest = &a.noise_threshold, .lo = 1e-6, .hi = 1e6},
         {.name = "min-spp", .kind = ARG_INT, .dest = &a.min_spp, .lo = 2, .hi = LIMIT_SPP},
@@ -728,6 +821,7 @@ int client_main(int argc, char **argv) {
         {.name = "png16", .kind = ARG_FLAG, .dest = &a.wo.png16},
         {.name = "partial", .kind = ARG_FLAG, .dest = &a.partial},
         {.name = "camera", .kind = ARG_STRING, .dest = &a.camera},
+        {.name = "last", .kind = ARG_INT, .dest = &a.last, .lo = 1, .hi = 2000},
         {NULL}};
     const client_command *cmd = NULL;
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
@@ -740,8 +834,8 @@ int client_main(int argc, char **argv) {
     specs[n] = (arg_spec){NULL};
     char prog[32];
     snprintf(prog, sizeof prog, "tessera %s", cmd->name);
-    const char *pos[1];
-    int nargs = args_parse(prog, argc, argv, specs, cmd->help, pos, 1);
+    const char *pos[2];
+    int nargs = args_parse(prog, argc, argv, specs, cmd->help, pos, 2);
     if (nargs < cmd->min_args || nargs > cmd->max_args) args_usage_error(prog, "%s", cmd->args_error);
     check_image_options(prog, &a);
     const char *arg = nargs > 0 ? pos[0] : NULL;
@@ -750,6 +844,9 @@ int client_main(int argc, char **argv) {
     if (strcmp(cmd->name, "status") == 0) return do_status(&a, job);
     if (strcmp(cmd->name, "workers") == 0) return do_workers(&a);
     if (strcmp(cmd->name, "cancel") == 0) return do_cancel(&a, job);
+    if (strcmp(cmd->name, "priority") == 0)
+        return do_priority(&a, job, args_long(prog, "P", pos[1], -LIMIT_PRIORITY, LIMIT_PRIORITY));
+    if (strcmp(cmd->name, "logs") == 0) return do_logs(&a, job);
     if (!a.out) args_usage_error(prog, "-o OUT is required");
     return do_fetch(&a, job);
 }

@@ -668,7 +668,8 @@ static void usage(FILE *f) {
             "  compare IMAGE REFERENCE    rmse and relative MSE of an HDR image against another\n"
             "  coordinator --data-dir D   run the render service (also installed as tessera-coordinator)\n"
             "  submit SCENE.json [--wait] send a job to the service; status, workers, cancel JOB,\n"
-            "                             fetch JOB -o OUT talk to it too (see tessera submit --help)\n"
+            "                             fetch JOB -o OUT, priority JOB P, logs JOB talk to it too\n"
+            "                             (see tessera submit --help)\n"
             "  version                    print the version\n");
 }
 
@@ -684,8 +685,8 @@ int main(int argc, char **argv) {
     if (strcmp(argv[1], "tonemap") == 0) return cmd_tonemap(argc - 1, argv + 1);
     if (strcmp(argv[1], "coordinator") == 0) return cmd_coordinator(argc - 1, argv + 1);
     if (strcmp(argv[1], "compare") == 0) return cmd_compare(argc - 1, argv + 1);
-    static const char *const client_cmds[] = {"submit", "status", "workers", "cancel", "fetch"};
-    for (int i = 0; i < 5; i++)
+    static const char *const client_cmds[] = {"submit", "status", "workers", "cancel", "fetch", "priority", "logs"};
+    for (int i = 0; i < 7; i++)
         if (strcmp(argv[1], client_cmds[i]) == 0) return client_main(argc - 1, argv + 1);
     if (strcmp(argv[1], "version") == 0 || strcmp(argv[1], "--version") == 0 || strcmp(argv[1], "-V") == 0)
         return print_version();
@@ -694,7 +695,7 @@ int main(int argc, char **argv) {
         return 0;
     }
     static const char *const commands[] = {"render", "tonemap", "coordinator", "compare", "submit", "status",
-                                           "workers", "cancel", "fetch", "version", "help", NULL};
+                                           "workers", "cancel", "fetch", "priority", "logs", "version", "help", NULL};
     const char *near = args_closest(argv[1], commands);
     if (near) args_usage_error("tessera", "unknown command \"%s\" (did you mean \"%s\"?)", argv[1], near);
     args_usage_error("tessera", "unknown command \"%s\"", argv[1]);

@@ -7,6 +7,7 @@
 #define LIMIT_SIDE 32768        /* image width or height, pixels */
 #define LIMIT_SPP (1 << 24)     /* samples per pixel */
 #define LIMIT_DEPTH 1024        /* path vertices (max_depth) */
+#define LIMIT_PRIORITY 1000000  /* a job's priority: -LIMIT_PRIORITY to LIMIT_PRIORITY */
 #define LIMIT_BUNDLE_BYTES (512u << 20)    /* a scene and every file it names */
 #define LIMIT_BUNDLE_FILES 4096            /* files in one bundle */
 #define LIMIT_UPLOAD_DEFAULT_MIB 64        /* tessera-coordinator --max-upload default: taken in (one copy on the loop) without a stall over 100 ms */

@@ -13,12 +13,13 @@
 
 #include "http.h"
 #include "image/image_codecs.h"
+#include "limit.h"
 #include "net/address.h"
 
 #define DASH_SESSIONS 64
 #define DASH_MAX_REQUEST (64 << 10)
 #define DASH_MAX_HEADERS 64
-#define DASH_FLUSH_MS 100 /* events are batched: one write per stream per tick, not per tile */
+#define DASH_FLUSH_MS 250 /* events are batched: one write per stream per tick, not per tile */
 
 /* Tile latency histogram bounds, seconds (Prometheus le=). */
 static const double latency_bounds[] = {0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 10, 30, 60};
@@ -132,6 +133,8 @@ static void on_farm_event(void *ctx, const farm_event *e) {
     free(json);
 }
 
+void dashboard_farm_event(dashboard *d, const farm_event *e) { on_farm_event(d, e); }
+
 static void on_flush(uv_timer_t *t) {
     dashboard *d = t->data;
     if (!d->pending.len) return;
@@ -217,6 +220,7 @@ static void route_workers(dashboard *d, http_conn *c) {
         cJSON_AddNumberToObject(o, "samples", (double)w[i].samples);
         cJSON_AddNumberToObject(o, "connected_s", w[i].connected_s);
         cJSON_AddNumberToObject(o, "silent_s", w[i].silent_s);
+        cJSON_AddNumberToObject(o, "failures", w[i].failures);
         cJSON_AddNumberToObject(o, "msamples_per_s",
                                 w[i].connected_s > 0 ? (double)w[i].samples / w[i].connected_s / 1e6 : 0);
         cJSON_AddItemToArray(arr, o);
@@ -289,36 +293,85 @@ static void route_metrics(dashboard *d, http_conn *c) {
     free(b.s);
 }
 
-static void route_preview(dashboard *d, http_conn *c, uint32_t id, const char *query) {
-    float *rgb;
-    int w, h, owned = 0;
-    if (!d->src.frame || d->src.frame(d->src.ctx, id, &rgb, &w, &h, &owned)) {
-        send_text(c, 404, "no image for this job\n");
-        return;
-    }
-    tonemap_options t = {TONEMAP_REINHARD, 0, 0};
+/* The exposure=S of a query (-20 to 20 stops), or 0. */
+static float query_exposure(const char *query) {
     const char *e = strstr(query, "exposure=");
-    if (e) {
-        double x = strtod(e + 9, NULL);
-        if (x >= -20 && x <= 20) t.exposure_stops = (float)x;
-    }
-    size_t n = (size_t)w * (size_t)h;
-    uint8_t *px = malloc(n * 3);
+    double x = e ? strtod(e + 9, NULL) : 0;
+    return x >= -20 && x <= 20 ? (float)x : 0;
+}
+
+/* Tone map w * h pixels (the job's way: Reinhard, with exposure) and send
+ * them as a PNG with extra headers; or a 503. */
+static void send_png(http_conn *c, const float *rgb, int w, int h, float exposure, const char *extra) {
+    tonemap_options t = {TONEMAP_REINHARD, exposure, 0};
+    size_t n = (size_t)w * (size_t)h, len = 0;
+    uint8_t *px = malloc(n * 3), *png = NULL;
     char err[200];
-    size_t len = 0;
-    uint8_t *png = NULL;
     if (px) {
         tonemap_to_8bit(rgb, n, &t, px);
         png = codec_png_encode(px, w, h, &len, err, sizeof err);
     }
     free(px);
-    if (owned) free(rgb);
-    if (!png) {
-        send_text(c, 503, "cannot encode the preview\n");
-        return;
-    }
-    http_respond(c, 200, "image/png", png, len, NULL);
+    if (!png) return send_text(c, 503, "cannot encode the image\n");
+    http_respond(c, 200, "image/png", png, len, extra);
     free(png);
+}
+
+static void route_preview(dashboard *d, http_conn *c, uint32_t id, const char *query) {
+    float *rgb;
+    int w, h, owned = 0;
+    if (!d->src.frame || d->src.frame(d->src.ctx, id, &rgb, &w, &h, &owned))
+        return send_text(c, 404, "no image for this job\n");
+    send_png(c, rgb, w, h, query_exposure(query), NULL);
+    if (owned) free(rgb);
+}
+
+/* A finished job's image as a download: exr (linear float, ZIP) or png
+ * (tone mapped as the preview, with the query's exposure). */
+static void route_download(dashboard *d, http_conn *c, uint32_t id, const char *query, int exr) {
+    float *rgb;
+    int w, h;
+    if (!d->src.image || d->src.image(d->src.ctx, id, &rgb, &w, &h))
+        return send_text(c, 404, "no finished image for this job\n");
+    char hdr[200];
+    snprintf(hdr, sizeof hdr, "Content-Disposition: attachment; filename=\"job-%u.%s\"\r\n", id, exr ? "exr" : "png");
+    if (!exr) {
+        send_png(c, rgb, w, h, query_exposure(query), hdr);
+    } else {
+        codec_exr_options eo = {.compression = CODEC_EXR_ZIP};
+        size_t len = 0;
+        char err[300];
+        uint8_t *f = codec_exr_encode(rgb, w, h, &eo, &len, err, sizeof err);
+        if (f) http_respond(c, 200, "image/x-exr", f, len, hdr);
+        else send_text(c, 503, "cannot encode the image\n");
+        free(f);
+    }
+    free(rgb);
+}
+
+/* GET /api/jobs/N/log[?last=N]: the source's log of the job (the newest N
+ * lines). */
+static void route_log(dashboard *d, http_conn *c, uint32_t id, const char *query) {
+    const char *q = strstr(query, "last=");
+    long last = q ? strtol(q + 5, NULL, 10) : 0;
+    cJSON *o = cJSON_CreateObject();
+    if (!d->src.log || d->src.log(d->src.ctx, id, (int)(last > 0 && last < INT32_MAX ? last : 0), o)) {
+        cJSON_Delete(o);
+        return send_text(c, 404, "no log for this job\n");
+    }
+    send_json(c, o);
+}
+
+/* POST /api/jobs/N/priority with priority=P in the form body. */
+static void route_priority(dashboard *d, http_conn *c, uint32_t id, const http_request *rq) {
+    char v[32], *end, err[300] = "changing the priority is not offered here";
+    long p = http_form_get(rq->body, "priority", v, sizeof v) ? 0 : strtol(v, &end, 10);
+    if (!v[0] || *end || p < -LIMIT_PRIORITY || p > LIMIT_PRIORITY) {
+        snprintf(err, sizeof err, "priority must be an integer from %d to %d\n", -LIMIT_PRIORITY, LIMIT_PRIORITY);
+        return send_text(c, 400, err);
+    }
+    if (!d->src.priority || d->src.priority(d->src.ctx, id, (int)p, err, sizeof err)) return send_text(c, 409, err);
+    send_text(c, 200, "priority changed\n");
 }
 
 static void route_login(dashboard *d, http_conn *c, const http_request *rq) {
@@ -374,13 +427,13 @@ static void on_request(void *ctx, http_conn *c, const http_request *rq) {
             return send_text(c, 403, "missing or wrong CSRF token\n");
         uint32_t id;
         const char *rest;
-        if (strncmp(rq->path, "/api/jobs/", 10) == 0 && !parse_job_path(rq->path, &id, &rest) &&
-            strcmp(rest, "cancel") == 0) {
-            char err[300] = "cancel is not offered here";
-            if (!d->src.cancel || d->src.cancel(d->src.ctx, id, err, sizeof err)) return send_text(c, 409, err);
-            return send_text(c, 200, "cancelled\n");
-        }
-        return send_text(c, 404, "not found\n");
+        if (strncmp(rq->path, "/api/jobs/", 10) != 0 || parse_job_path(rq->path, &id, &rest))
+            return send_text(c, 404, "not found\n");
+        if (strcmp(rest, "priority") == 0) return route_priority(d, c, id, rq);
+        if (strcmp(rest, "cancel") != 0) return send_text(c, 404, "not found\n");
+        char err[300] = "cancel is not offered here";
+        if (!d->src.cancel || d->src.cancel(d->src.ctx, id, err, sizeof err)) return send_text(c, 409, err);
+        return send_text(c, 200, "cancelled\n");
     }
     if (!get) return http_respond(c, 405, "text/plain", "405\n", 4, "Allow: GET, POST\r\n");
     if (strcmp(rq->path, "/metrics") == 0) return route_metrics(d, c);
@@ -394,13 +447,18 @@ static void on_request(void *ctx, http_conn *c, const http_request *rq) {
         cJSON *o = cJSON_CreateObject();
         cJSON_AddStringToObject(o, "csrf", d->csrf);
         cJSON_AddBoolToObject(o, "read_only", d->o.read_only);
+        cJSON_AddBoolToObject(o, "priority", d->src.priority != NULL);
+        cJSON_AddBoolToObject(o, "cancel", d->src.cancel != NULL);
         return send_json(c, o);
     }
     uint32_t id;
     const char *rest;
-    if (strncmp(rq->path, "/api/jobs/", 10) == 0 && !parse_job_path(rq->path, &id, &rest) &&
-        strcmp(rest, "preview.png") == 0)
-        return route_preview(d, c, id, rq->query);
+    if (strncmp(rq->path, "/api/jobs/", 10) == 0 && !parse_job_path(rq->path, &id, &rest)) {
+        if (strcmp(rest, "preview.png") == 0) return route_preview(d, c, id, rq->query);
+        if (strcmp(rest, "image.png") == 0 || strcmp(rest, "image.exr") == 0)
+            return route_download(d, c, id, rq->query, rest[6] == 'e');
+        if (strcmp(rest, "log") == 0) return route_log(d, c, id, rq->query);
+    }
     if (strcmp(rq->path, "/") == 0 || strcmp(rq->path, "/workers") == 0 || strncmp(rq->path, "/job/", 5) == 0)
         return http_respond(c, 200, "text/html; charset=utf-8", web_index_html, strlen(web_index_html),
                             "Content-Security-Policy: default-src 'self'; script-src 'unsafe-inline'; "
@@ -450,7 +508,7 @@ dashboard *dashboard_new(uv_loop_t *loop, farm *f, const dashboard_options *o, c
     d->flush.data = d;
     uv_timer_start(&d->flush, on_flush, DASH_FLUSH_MS, DASH_FLUSH_MS);
     d->open_parts = 2;
-    farm_set_event_cb(f, on_farm_event, d);
+    if (!src->forwards_events) farm_set_event_cb(f, on_farm_event, d);
     return d;
 }
 
@@ -471,7 +529,7 @@ static void on_http_closed(void *ctx) { on_part_closed(ctx); }
 static void on_timer_closed(uv_handle_t *h) { on_part_closed(h->data); }
 
 void dashboard_close(dashboard *d, void (*cb)(void *ctx), void *ctx) {
-    farm_set_event_cb(d->f, NULL, NULL);
+    if (!d->src.forwards_events) farm_set_event_cb(d->f, NULL, NULL);
     d->closed_cb = cb;
     d->closed_ctx = ctx;
     uv_close((uv_handle_t *)&d->flush, on_timer_closed);

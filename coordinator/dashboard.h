@@ -10,7 +10,10 @@
  *                                 requeued, workers joining and leaving
  *   GET  /api/jobs/N/preview.png  the job's frame tone mapped (?exposure=S)
  *   GET  /api/csrf                the token POSTs must carry (X-CSRF-Token)
+ *   GET  /api/jobs/N/image.exr, image.png  a finished job's image (download)
+ *   GET  /api/jobs/N/log?last=N   the job's event log (joblog.h) as JSON
  *   POST /api/jobs/N/cancel       (not with read_only)
+ *   POST /api/jobs/N/priority     priority=P (not with read_only)
  *   POST /login                   token=... -> HttpOnly SameSite=Strict cookie
  *
  * With a token every route but /healthz and /login needs the session
@@ -30,7 +33,7 @@
 typedef struct {
     /* Append one object per job to arr: id, name, state, tiles_done,
      * tiles_total, samples, priority, width, height, spp, submitted,
-     * started, finished (epoch seconds, 0 when not yet). */
+     * started, finished (epoch seconds, 0 when not yet), submitter. */
     void (*jobs)(void *ctx, cJSON *arr);
     /* The job's frame, width * height * 3 floats (valid until the next
      * callback), or -1 when there is none. *owned: the caller frees it. */
@@ -38,6 +41,19 @@ typedef struct {
     /* Cancel a job. 0, or -1 with the reason in err. NULL: not offered. */
     int (*cancel)(void *ctx, uint32_t id, char *err, size_t err_len);
     void *ctx;
+    /* A finished job's image (the caller frees *rgb), or -1 when the job
+     * is not done. NULL: downloads are not offered. */
+    int (*image)(void *ctx, uint32_t id, float **rgb, int *w, int *h);
+    /* Change a job's priority. 0, or -1 with the reason in err. NULL: not
+     * offered. */
+    int (*priority)(void *ctx, uint32_t id, int priority, char *err, size_t err_len);
+    /* Add the job's event log to out (joblog_to_json; the newest last
+     * lines, 0: all), or -1 when there is no such job. NULL: the page
+     * shows only the events it sees live. */
+    int (*log)(void *ctx, uint32_t id, int last, cJSON *out);
+    /* 0: the dashboard takes the farm's event callback; 1: the source
+     * keeps it and hands each event on with dashboard_farm_event. */
+    int forwards_events;
 } dashboard_source;
 
 typedef struct {
@@ -62,6 +78,9 @@ dashboard *dashboard_new(uv_loop_t *loop, farm *f, const dashboard_options *o, c
                          char *err, size_t err_len);
 
 int dashboard_port(const dashboard *d);
+
+/* A farm event, for a source with forwards_events (d: the dashboard). */
+void dashboard_farm_event(dashboard *d, const farm_event *e);
 
 /* Stop serving; cb(ctx) once every connection is closed and d freed. */
 void dashboard_close(dashboard *d, void (*cb)(void *ctx), void *ctx);

@@ -120,6 +120,12 @@ void farm_tile_durable(farm *f, uint32_t job, uint32_t tile, const char *error);
  * cancelled set. Returns 0, or -1 if no such job is running. */
 int farm_cancel(farm *f, uint32_t job);
 
+/* Change a running job's priority: its tiles not yet handed out are
+ * scheduled before those of lower-priority jobs (and after equal ones
+ * submitted earlier); tiles out with workers stay there. Returns 0, or -1
+ * if no such job is running. */
+int farm_set_priority(farm *f, uint32_t job, int priority);
+
 /* Free a job that has finished (complete, failed or cancelled). Late
  * results for it are then dropped quietly. Returns 0 or -1 (unknown or
  * still running). */
@@ -133,6 +139,7 @@ typedef struct {
     uint64_t tiles, samples;
     double connected_s, silent_s; /* since it joined; since it last spoke */
     int quarantined;              /* jobs it was quarantined in: its tiles failed an audit */
+    int failures;                 /* tiles it reported as failed */
 } farm_worker_info;
 
 /* Fill out with up to max connected workers; returns how many there are.

@@ -78,6 +78,7 @@ struct job {
     void (*on_first_assign)(void *ctx); /* cleared once called */
     void *ctx;
     int priority;
+    uint64_t seq;        /* submission order among equal priorities */
     farm_report rep;
     double tile_seconds; /* sum of assign-to-result times, for the mean */
     int reported;        /* tiles_done at the last progress callback */
@@ -132,6 +133,7 @@ struct farm {
     unsigned long long departed_dropped; /* older ones, counted only */
     uint64_t closed_bytes_in, closed_bytes_out;
     uint32_t next_serial;
+    uint64_t next_job_seq; /* job.seq of the last submission */
     uint64_t audited, audit_mismatches, quarantined; /* over all jobs, for the workers table */
     int closing, open_handles;
     void (*closed_cb)(void *);

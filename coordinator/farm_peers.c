@@ -388,6 +388,7 @@ int farm_list_workers(const farm *f, farm_worker_info *out, int max) {
             w->connected_s = now - p->joined;
             w->silent_s = now - p->last_heard;
             w->quarantined = p->rec.quarantined;
+            w->failures = p->failures;
         }
         n++;
     }

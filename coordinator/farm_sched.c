@@ -210,6 +210,17 @@ void farm_schedule_all(farm *f) {
         if (p->credits > 0) peer_schedule(p);
 }
 
+/* Link j into f->jobs by priority (higher first), then submission order. */
+static void job_link_ordered(farm *f, job *j) {
+    job *after = NULL, *k;
+    TAILQ_FOREACH(k, &f->jobs, link) {
+        if (k->priority < j->priority || (k->priority == j->priority && k->seq > j->seq)) break;
+        after = k;
+    }
+    if (after) TAILQ_INSERT_AFTER(&f->jobs, after, j, link);
+    else TAILQ_INSERT_HEAD(&f->jobs, j, link);
+}
+
 int farm_submit(farm *f, const proto_job *desc, const uint8_t *bundle, size_t bundle_len,
                 const farm_job_options *o, float *rgb, farm_job_cb cb, void *ctx) {
     job *j = calloc(1, sizeof *j);
@@ -253,13 +264,8 @@ int farm_submit(farm *f, const proto_job *desc, const uint8_t *bundle, size_t bu
         job_enqueue(j, (uint32_t)t);
     }
     j->reported = j->rep.tiles_done;
-    job *after = NULL, *k; /* by priority, then submission order */
-    TAILQ_FOREACH(k, &f->jobs, link) {
-        if (k->priority < j->priority) break;
-        after = k;
-    }
-    if (after) TAILQ_INSERT_AFTER(&f->jobs, after, j, link);
-    else TAILQ_INSERT_HEAD(&f->jobs, j, link);
+    j->seq = ++f->next_job_seq;
+    job_link_ordered(f, j);
     if (j->rep.tiles_done == j->tile_count)
         farm_job_finish(f, j);
     else
@@ -274,6 +280,16 @@ int farm_cancel(farm *f, uint32_t id) {
     snprintf(j->rep.error, sizeof j->rep.error, "cancelled");
     farm_job_finish(f, j);
     farm_schedule_all(f); /* the freed workers take other jobs */
+    return 0;
+}
+
+int farm_set_priority(farm *f, uint32_t id, int priority) {
+    job *j = farm_find_job(f, id);
+    if (!j || j->finished) return -1;
+    TAILQ_REMOVE(&f->jobs, j, link);
+    j->priority = priority;
+    job_link_ordered(f, j);
+    farm_schedule_all(f); /* idle slots may now take the job's tiles */
     return 0;
 }
 

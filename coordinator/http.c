@@ -229,10 +229,31 @@ struct http_server {
     void *closed_ctx;
 };
 
+/* Bytes written to one or more connections: freed when the last write
+ * that holds them ends (a broadcast shares one copy among its streams). */
+typedef struct {
+    int refs;
+    size_t len;
+    char data[];
+} http_blob;
+
 typedef struct {
     uv_write_t req;
-    char *buf;
+    http_blob *blob;
 } http_write;
+
+static http_blob *blob_new(const char *data, size_t len) {
+    http_blob *b = malloc(sizeof *b + (len ? len : 1));
+    if (!b) return NULL;
+    b->refs = 1;
+    b->len = len;
+    memcpy(b->data, data, len);
+    return b;
+}
+
+static void blob_unref(http_blob *b) {
+    if (b && --b->refs == 0) free(b);
+}
 
 static void server_maybe_done(http_server *s) {
     if (s->closing && s->open_handles == 0 && s->conns == 0) {
@@ -270,14 +291,15 @@ static void conn_close(http_conn *c) {
 static void on_written(uv_write_t *req, int status) {
     http_write *w = (http_write *)req;
     http_conn *c = req->data;
-    free(w->buf);
+    blob_unref(w->blob);
     free(w);
     if (status < 0 || (!c->streaming && uv_stream_get_write_queue_size((uv_stream_t *)&c->tcp) == 0))
         conn_close(c);
 }
 
-/* Queue len bytes (copied). Returns 0, or -1 (the connection is closed). */
-static int conn_write(http_conn *c, const char *data, size_t len) {
+/* Queue the blob's bytes (a reference is taken). Returns 0, or -1 (the
+ * connection is closed). */
+static int conn_write_blob(http_conn *c, http_blob *b) {
     if (c->closing) return -1;
     if (c->streaming && uv_stream_get_write_queue_size((uv_stream_t *)&c->tcp) > c->s->o.max_queue) {
         c->s->dropped++;
@@ -285,24 +307,33 @@ static int conn_write(http_conn *c, const char *data, size_t len) {
         return -1;
     }
     http_write *w = malloc(sizeof *w);
-    char *buf = malloc(len ? len : 1);
-    if (!w || !buf) {
-        free(w);
-        free(buf);
+    if (!w) {
         conn_close(c);
         return -1;
     }
-    memcpy(buf, data, len);
-    w->buf = buf;
+    b->refs++;
+    w->blob = b;
     w->req.data = c;
-    uv_buf_t b = uv_buf_init(buf, (unsigned)len);
-    if (uv_write(&w->req, (uv_stream_t *)&c->tcp, &b, 1, on_written)) {
-        free(buf);
+    uv_buf_t buf = uv_buf_init(b->data, (unsigned)b->len);
+    if (uv_write(&w->req, (uv_stream_t *)&c->tcp, &buf, 1, on_written)) {
+        blob_unref(b);
         free(w);
         conn_close(c);
         return -1;
     }
     return 0;
+}
+
+/* Queue len bytes (copied). Returns 0, or -1 (the connection is closed). */
+static int conn_write(http_conn *c, const char *data, size_t len) {
+    http_blob *b = c->closing ? NULL : blob_new(data, len);
+    if (!b) {
+        conn_close(c);
+        return -1;
+    }
+    int rc = conn_write_blob(c, b);
+    blob_unref(b);
+    return rc;
 }
 
 const char *http_status_text(int status) {
@@ -330,10 +361,13 @@ void http_respond(http_conn *c, int status, const char *content_type, const void
     c->answered |= 1;
     uv_read_stop((uv_stream_t *)&c->tcp);
     char head[2048];
+    /* Referrer-Policy same-origin, not no-referrer: under no-referrer a
+     * browser sends "Origin: null" on the page's own POSTs, which the
+     * dashboard's origin check must refuse. */
     int n = snprintf(head, sizeof head,
                      "HTTP/1.1 %d %s\r\nContent-Type: %s\r\nContent-Length: %zu\r\nConnection: close\r\n"
                      "Cache-Control: no-store\r\nX-Content-Type-Options: nosniff\r\nX-Frame-Options: DENY\r\n"
-                     "Referrer-Policy: no-referrer\r\n%s\r\n",
+                     "Referrer-Policy: same-origin\r\n%s\r\n",
                      status, http_status_text(status), content_type, len, extra_headers ? extra_headers : "");
     if (n < 0 || (size_t)n >= sizeof head) n = 0;
     char *all = malloc((size_t)n + len + 1);
@@ -361,11 +395,14 @@ int http_stream_start(http_conn *c) {
 
 int http_server_broadcast(http_server *s, const char *data, size_t len) {
     int n = 0;
+    http_blob *b = NULL; /* one copy for every stream */
     http_conn *c, *next;
     LIST_FOREACH_SAFE(c, &s->all, link, next) {
-        if (!c->streaming) continue;
-        if (conn_write(c, data, len) == 0) n++;
+        if (!c->streaming || c->closing) continue;
+        if (!b && !(b = blob_new(data, len))) return n;
+        if (conn_write_blob(c, b) == 0) n++;
     }
+    blob_unref(b);
     return n;
 }
 

@@ -34,6 +34,7 @@ int store_save_job(sjob *j, char *err, size_t err_len) {
     cJSON_AddStringToObject(m, "state", state_names[j->state]);
     cJSON_AddStringToObject(m, "error", j->error);
     cJSON_AddNumberToObject(m, "submitted", j->submitted);
+    cJSON_AddStringToObject(m, "submitter", j->submitter);
     cJSON_AddNumberToObject(m, "finished", j->finished);
     if (j->first_tile > 0) cJSON_AddNumberToObject(m, "rendering_since", j->first_tile);
     char *text = cJSON_Print(m);
@@ -72,6 +73,13 @@ sjob *store_find_job(service *s, uint32_t id) {
     sjob *j;
     TAILQ_FOREACH(j, &s->jobs, link)
         if (j->desc.id == id) return j;
+    return NULL;
+}
+
+sjob *store_find_farm_job(service *s, uint32_t farm_id) {
+    sjob *j;
+    TAILQ_FOREACH(j, &s->jobs, link)
+        if (j->farm_id == farm_id) return j;
     return NULL;
 }
 
@@ -137,6 +145,9 @@ static void store_job_conclude(sjob *j) {
     if (!saved) svc_log("job %u: %s", j->desc.id, err);
     svc_log("job %u %s (%d tiles from the journal, %d rendered in this run)%s%s", j->desc.id, state_names[j->state],
             j->tiles_resumed, j->tiles_done - j->tiles_resumed, j->error[0] ? ": " : "", j->error);
+    joblog_add(j->log, svc_wall_now(), "job %s (%d tiles from the journal, %d rendered in this run)%s%.60s",
+               state_names[j->state], j->tiles_resumed, j->tiles_done - j->tiles_resumed, j->error[0] ? ": " : "",
+               j->error);
     if (j->journal) {
         uint64_t batches;
         int largest;
@@ -350,6 +361,7 @@ sjob *store_job_new(service *s) {
     sjob *j = calloc(1, sizeof *j);
     if (!j) return NULL;
     j->svc = s;
+    j->log = joblog_new(); /* NULL (out of memory): the job runs without a log */
     TAILQ_INSERT_TAIL(&s->jobs, j, link);
     return j;
 }
@@ -357,7 +369,26 @@ sjob *store_job_new(service *s) {
 void store_job_unlink_free(service *s, sjob *j) {
     TAILQ_REMOVE(&s->jobs, j, link);
     store_job_release(j);
+    joblog_free(j->log);
     free(j);
+}
+
+int store_set_priority(service *s, uint32_t id, long priority, const char *who, char *err, size_t err_len) {
+    sjob *j = store_find_job(s, id);
+    if (!j) return snprintf(err, err_len, "job %u: unknown job", id), -1;
+    if (priority < -LIMIT_PRIORITY || priority > LIMIT_PRIORITY)
+        return snprintf(err, err_len, "priority must be an integer from %d to %d", -LIMIT_PRIORITY, LIMIT_PRIORITY), -1;
+    if (j->state != SJOB_RUNNING) return snprintf(err, err_len, "job %u is already %s", id, state_names[j->state]), -1;
+    int old = j->priority;
+    j->priority = (int)priority;
+    if (store_save_job(j, err, err_len)) {
+        j->priority = old;
+        return -1;
+    }
+    farm_set_priority(s->f, j->farm_id, j->priority); /* -1 once rendered and waiting for disk space: nothing to reorder */
+    svc_log("job %u: priority %d -> %d (%s)", id, old, j->priority, who);
+    joblog_add(j->log, svc_wall_now(), "priority changed from %d to %d by %.60s", old, j->priority, who);
+    return 0;
 }
 
 int store_running_jobs(const service *s) {
@@ -402,7 +433,7 @@ static void load_job(service *s, const char *file) {
         if (strcmp(state->valuestring, state_names[i]) == 0) st = i;
     cJSON *jobmsg = cJSON_Duplicate(m, 1); /* the job fields, as a job message */
     static const char *const extra[] = {"name", "state", "priority", "tile_size", "error", "submitted", "finished",
-                                        "rendering_since", "noise_threshold", "min_spp"};
+                                        "rendering_since", "noise_threshold", "min_spp", "submitter"};
     for (size_t i = 0; jobmsg && i < sizeof extra / sizeof extra[0]; i++) cJSON_DeleteItemFromObject(jobmsg, extra[i]);
     if (!m || st < 0 || !cJSON_IsString(name) || !cJSON_IsNumber(pri) || !cJSON_IsNumber(ts) || !jobmsg ||
         proto_job_parse(jobmsg, path, &d, err, sizeof err) || !(j = store_job_new(s))) {
@@ -424,6 +455,8 @@ static void load_job(service *s, const char *file) {
         j->desc.adaptive = 1;
     }
     if (cJSON_IsString(error)) snprintf(j->error, sizeof j->error, "%s", error->valuestring);
+    const cJSON *who = cJSON_GetObjectItemCaseSensitive(m, "submitter");
+    if (cJSON_IsString(who)) snprintf(j->submitter, sizeof j->submitter, "%s", who->valuestring);
     const cJSON *sub = cJSON_GetObjectItemCaseSensitive(m, "submitted"), *fin = cJSON_GetObjectItemCaseSensitive(m, "finished");
     j->submitted = cJSON_IsNumber(sub) ? sub->valuedouble : svc_wall_now();
     j->finished = cJSON_IsNumber(fin) ? fin->valuedouble : 0;
@@ -448,6 +481,8 @@ static void load_job(service *s, const char *file) {
         render_split_tiles(d.width, d.height, j->tile_size, rects, j->tile_count);
         replay_tiles(s, j, rects);
         svc_log("job %u resumed: %d of %d tiles from the journal", d.id, j->tiles_resumed, j->tile_count);
+        joblog_add(j->log, svc_wall_now(), "job resumed after a restart: %d of %d tiles from the journal",
+                   j->tiles_resumed, j->tile_count);
         if (store_job_start(s, j, (const uint8_t *)bundle, len, err, sizeof err)) {
             j->state = SJOB_FAILED;
             snprintf(j->error, sizeof j->error, "%.500s", err);

@@ -430,7 +430,7 @@ int local_farm_render(const local_farm_options *o, const proto_job *job, const u
     if (o->http) {
         dashboard_options wo = *o->http;
         wo.auth = &o->farm.auth;
-        dashboard_source src = {web_jobs, web_frame, NULL, r};
+        dashboard_source src = {.jobs = web_jobs, .frame = web_frame, .ctx = r};
         struct timespec ts;
         clock_gettime(CLOCK_REALTIME, &ts);
         r->wall_start = (double)ts.tv_sec + ts.tv_nsec / 1e9;

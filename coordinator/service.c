@@ -77,6 +77,8 @@ static int request_seed(const cJSON *v, uint64_t *out) {
 static const char *request_bad_field(const cJSON *m) {
     const cJSON *v = cJSON_GetObjectItemCaseSensitive(m, "name");
     if (v && (!cJSON_IsString(v) || strlen(v->valuestring) >= 256)) return "name must be a string under 256 bytes";
+    v = cJSON_GetObjectItemCaseSensitive(m, "user");
+    if (v && (!cJSON_IsString(v) || strlen(v->valuestring) >= 64)) return "user must be a string under 64 bytes";
     v = cJSON_GetObjectItemCaseSensitive(m, "nee");
     if (v && !cJSON_IsBool(v)) return "nee must be true or false";
     v = cJSON_GetObjectItemCaseSensitive(m, "mis");
@@ -126,6 +128,7 @@ static void submit_checked(upload *u) {
     j->priority = (int)q->priority;
     j->tile_size = (int)q->tile_size;
     j->submitted = svc_wall_now();
+    snprintf(j->submitter, sizeof j->submitter, "%s%s%s", q->user, q->user[0] ? " at " : "", cl->addr);
     j->tile_count = render_split_tiles(j->desc.width, j->desc.height, j->tile_size, NULL, 0);
     j->rgb = calloc((size_t)j->desc.width * (size_t)j->desc.height * 3, sizeof(float));
     int rc = j->rgb ? 0 : -1;
@@ -141,8 +144,10 @@ static void submit_checked(upload *u) {
         store_job_unlink_free(s, j);
         return client_error(cl, "%s", err);
     }
-    svc_log("job %u submitted from %s: %s, %dx%d, %d spp, priority %d", j->desc.id, cl->addr, j->name, j->desc.width,
-            j->desc.height, j->desc.spp, j->priority);
+    svc_log("job %u submitted from %s: %s, %dx%d, %d spp, priority %d", j->desc.id, j->submitter, j->name,
+            j->desc.width, j->desc.height, j->desc.spp, j->priority);
+    joblog_add(j->log, j->submitted, "job submitted by %.60s: %.40s, %dx%d, %d spp, %d tiles, priority %d",
+               j->submitter, j->name, j->desc.width, j->desc.height, j->desc.spp, j->tile_count, j->priority);
     cJSON *r = cJSON_CreateObject();
     cJSON_AddStringToObject(r, "type", "submitted");
     cJSON_AddNumberToObject(r, "job", j->desc.id);
@@ -165,7 +170,7 @@ static void on_submit(client *cl, const cJSON *m) {
     long w = -1, ht = -1, spp = -1, depth = -1, pri = 0, tile = s->o.tile_size, min_spp = 16;
     const struct { const char *key; long lo, hi; long *out; } ints[] = {
         {"width", 1, LIMIT_SIDE, &w}, {"height", 1, LIMIT_SIDE, &ht}, {"spp", 1, LIMIT_SPP, &spp},
-        {"max_depth", 1, LIMIT_DEPTH, &depth}, {"priority", -1000000, 1000000, &pri},
+        {"max_depth", 1, LIMIT_DEPTH, &depth}, {"priority", -LIMIT_PRIORITY, LIMIT_PRIORITY, &pri},
         {"tile_size", 1, s->o.farm.max_tile_side, &tile}, {"min_spp", 2, LIMIT_SPP, &min_spp}};
     for (size_t i = 0; i < sizeof ints / sizeof ints[0]; i++)
         if (opt_int(m, ints[i].key, ints[i].lo, ints[i].hi, ints[i].out))
@@ -205,6 +210,8 @@ static void on_submit(client *cl, const cJSON *m) {
                            .no_nee = cJSON_IsFalse(cJSON_GetObjectItemCaseSensitive(m, "nee")),
                            .no_mis = cJSON_IsFalse(cJSON_GetObjectItemCaseSensitive(m, "mis"))};
     snprintf(cl->req.name, sizeof cl->req.name, "%s", cJSON_IsString(name) ? name->valuestring : "scene");
+    const cJSON *user = cJSON_GetObjectItemCaseSensitive(m, "user");
+    log_escape(cJSON_IsString(user) ? user->valuestring : "", cl->req.user, sizeof cl->req.user);
     cl->validating = 1;
     upload_queue_add(&s->uploads, u);
 }
@@ -235,6 +242,7 @@ static cJSON *job_status_json(const sjob *j) {
     double left = j->tile_count - j->tiles_done;
     cJSON_AddNumberToObject(o, "eta_s", j->state == SJOB_RUNNING && rendered > 0 ? el / rendered * left : 0);
     cJSON_AddNumberToObject(o, "submitted", j->submitted);
+    cJSON_AddStringToObject(o, "submitter", j->submitter);
     if (j->first_tile > 0) cJSON_AddNumberToObject(o, "rendering_since", j->first_tile);
     cJSON_AddStringToObject(o, "error", j->error);
     return o;
@@ -297,11 +305,48 @@ static void on_cancel(client *cl, const cJSON *m) {
     sjob *j = request_job(cl, m, "cancel");
     if (!j) return;
     if (j->state != SJOB_RUNNING) return client_error(cl, "job %u is already %s", j->desc.id, state_names[j->state]);
+    joblog_add(j->log, svc_wall_now(), "cancel asked by the client at %s", cl->addr);
     store_job_cancel(cl->svc, j); /* store_on_job_event records the state */
     cJSON *r = cJSON_CreateObject();
     cJSON_AddStringToObject(r, "type", "cancelled");
     cJSON_AddNumberToObject(r, "job", j->desc.id);
     client_send_json(cl, r);
+}
+
+/* priority: job, priority. Answered with the job's new priority. */
+static void on_priority(client *cl, const cJSON *m) {
+    sjob *j = request_job(cl, m, "priority");
+    if (!j) return;
+    long pri = 0;
+    char err[600], who[128];
+    if (!cJSON_GetObjectItemCaseSensitive(m, "priority") || opt_int(m, "priority", -LIMIT_PRIORITY, LIMIT_PRIORITY, &pri))
+        return client_error(cl, "priority: priority must be an integer from %d to %d", -LIMIT_PRIORITY, LIMIT_PRIORITY);
+    snprintf(who, sizeof who, "the client at %s", cl->addr);
+    if (store_set_priority(cl->svc, j->desc.id, pri, who, err, sizeof err)) return client_error(cl, "%s", err);
+    cJSON *r = cJSON_CreateObject();
+    cJSON_AddStringToObject(r, "type", "priority");
+    cJSON_AddNumberToObject(r, "job", j->desc.id);
+    cJSON_AddNumberToObject(r, "priority", j->priority);
+    client_send_json(cl, r);
+}
+
+/* logs: job, optional last (at most that many of the newest lines).
+ * Answered with logs: job, state, dropped, lines (paged). */
+static void on_logs(client *cl, const cJSON *m) {
+    sjob *j = request_job(cl, m, "logs");
+    if (!j) return;
+    long last = 0;
+    if (opt_int(m, "last", 1, JOBLOG_MAX, &last))
+        return client_error(cl, "logs: last must be an integer from 1 to %d", JOBLOG_MAX);
+    cJSON *r = cJSON_CreateObject();
+    cJSON_AddStringToObject(r, "type", "logs");
+    cJSON_AddNumberToObject(r, "job", j->desc.id);
+    cJSON_AddStringToObject(r, "state", state_names[j->state]);
+    if (joblog_to_json(j->log, r, (int)last)) {
+        cJSON_Delete(r);
+        return client_error(cl, "out of memory");
+    }
+    paging_send(cl->c, r, "lines");
 }
 
 /* fetch with "partial": the tiles journaled so far of a running or
@@ -411,6 +456,8 @@ static int client_on_frame(conn *c, int kind, const uint8_t *body, size_t len) {
     else if (strcmp(type, "workers") == 0) on_workers(cl);
     else if (strcmp(type, "cancel") == 0) on_cancel(cl, m);
     else if (strcmp(type, "fetch") == 0) on_fetch(cl, m);
+    else if (strcmp(type, "priority") == 0) on_priority(cl, m);
+    else if (strcmp(type, "logs") == 0) on_logs(cl, m);
     else client_error(cl, "unknown request \"%.40s\"", type);
     cJSON_Delete(m);
     return 0;
@@ -571,6 +618,7 @@ int service_run(const service_options *o) {
         return 1;
     }
     svc_log("listening on %s:%d, data in %s", o->farm.host, farm_port(s->f), o->data_dir);
+    farm_set_event_cb(s->f, service_on_farm_event, s); /* the jobs' logs, and the dashboard's events */
     if (service_web_start(s, err, sizeof err)) {
         fprintf(stderr, "tessera-coordinator: %s\n", err);
         farm_close(s->f, NULL, NULL);

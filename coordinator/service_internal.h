@@ -47,6 +47,7 @@
 #include "tjournal.h"
 #include "loopstat.h"
 #include "upload.h"
+#include "joblog.h"
 #include "service.h"
 
 #define WIRE_KIND_IMAGE 'I'
@@ -60,6 +61,8 @@ typedef struct sjob {
     struct service *svc;
     proto_job desc;
     char name[256]; /* the scene's file name, for people */
+    char submitter[160]; /* "USER at ADDR" of the client that submitted it */
+    joblog *log;         /* its events while kept in memory (joblog.h) */
     int priority, tile_size, tile_count;
     sjob_state state;
     char error[512];
@@ -118,6 +121,7 @@ typedef struct {
     sampler_kind sampler;
     int no_nee, no_mis;
     char name[256];
+    char user[64]; /* who the client says submits it ("" when not said) */
 } submit_req;
 
 /* A connected client (submit, status, ...). */
@@ -148,6 +152,10 @@ int store_save_job(sjob *j, char *err, size_t err_len);
 /* The job with this id, or NULL. */
 sjob *store_find_job(service *s, uint32_t id);
 
+/* The job whose farm job (itself, or its current adaptive round) has this
+ * farm id, or NULL. */
+sjob *store_find_farm_job(service *s, uint32_t farm_id);
+
 /* farm_job_cb of every service job (ctx: the sjob): progress, and at the end
  * the image saved, the journal closed and the state recorded. */
 void store_on_job_event(void *ctx, const farm_report *r, int done);
@@ -166,6 +174,11 @@ sjob *store_job_new(service *s);
 /* Take j out of s->jobs and free it (its files stay). */
 void store_job_unlink_free(service *s, sjob *j);
 
+/* Change a queued or running job's priority: saved in its job file, told
+ * to the farm, logged with who (e.g. "the dashboard"). Returns 0, or -1
+ * with the reason in err (unknown job, out of range, finished, cannot save). */
+int store_set_priority(service *s, uint32_t id, long priority, const char *who, char *err, size_t err_len);
+
 /* How many jobs are running (queued or rendering). */
 int store_running_jobs(const service *s);
 
@@ -182,6 +195,11 @@ void svc_log(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 /* Start the dashboard when --http was given (service_web.c). Returns 0,
  * or -1 with the reason in err. */
 int service_web_start(service *s, char *err, size_t err_len);
+
+/* The farm's event callback (farm_set_event_cb) of the service: each
+ * event goes to its job's log (a worker joining or leaving: to every
+ * running job's) and on to the dashboard when there is one. */
+void service_on_farm_event(void *ctx, const farm_event *e);
 
 /* Stop it (when started). Can't fail. */
 void service_web_stop(service *s);

@@ -1,6 +1,8 @@
-/* service_web.c - the job service seen by the dashboard (dashboard.h):
- * its jobs as JSON, a running job's frame or a finished job's image, and
- * cancel. The service calls service_web_start once its farm listens. */
+/* service_web.c - the job service seen by watchers: the farm's events into
+ * each job's log (joblog.h) and on to the dashboard (dashboard.h), and the
+ * dashboard's view of the service: its jobs as JSON, a running job's frame
+ * or a finished job's image, its log, cancel and priority. The service
+ * calls service_web_start once its farm listens. */
 #include "service_internal.h"
 #include "dashboard.h"
 
@@ -12,7 +14,8 @@ static void web_jobs(void *ctx, cJSON *arr) {
         cJSON *o = cJSON_CreateObject();
         cJSON_AddNumberToObject(o, "id", j->desc.id);
         cJSON_AddStringToObject(o, "name", j->name);
-        cJSON_AddStringToObject(o, "state", state_names[j->state]);
+        int queued = j->state == SJOB_RUNNING && j->first_tile == 0; /* as `tessera status` says */
+        cJSON_AddStringToObject(o, "state", queued ? "queued" : state_names[j->state]);
         cJSON_AddNumberToObject(o, "tiles_done", j->state == SJOB_DONE ? j->tile_count : j->tiles_done);
         cJSON_AddNumberToObject(o, "tiles_total", j->tile_count);
         cJSON_AddNumberToObject(o, "samples", (double)j->stats.samples);
@@ -21,6 +24,7 @@ static void web_jobs(void *ctx, cJSON *arr) {
         cJSON_AddNumberToObject(o, "height", j->desc.height);
         cJSON_AddNumberToObject(o, "spp", j->desc.spp);
         cJSON_AddNumberToObject(o, "submitted", j->submitted);
+        cJSON_AddStringToObject(o, "submitter", j->submitter);
         cJSON_AddNumberToObject(o, "started", j->started);
         cJSON_AddNumberToObject(o, "finished", j->state == SJOB_RUNNING ? 0 : j->finished);
         cJSON_AddNumberToObject(o, "now", now);
@@ -29,18 +33,11 @@ static void web_jobs(void *ctx, cJSON *arr) {
     }
 }
 
-static int web_frame(void *ctx, uint32_t id, float **rgb, int *w, int *h, int *owned) {
+/* A finished job's image, read from jobs/ID.pfm (the caller frees *rgb). */
+static int web_image(void *ctx, uint32_t id, float **rgb, int *w, int *h) {
     service *s = ctx;
     sjob *j = store_find_job(s, id);
-    if (!j) return -1;
-    *w = j->desc.width;
-    *h = j->desc.height;
-    if (j->rgb && !j->desc.adaptive) {
-        *rgb = j->rgb;
-        *owned = 0;
-        return 0;
-    }
-    if (j->state != SJOB_DONE) return -1;
+    if (!j || j->state != SJOB_DONE) return -1;
     char path[4096], err[300];
     store_job_path(s, id, "pfm", path, sizeof path);
     image img;
@@ -48,8 +45,22 @@ static int web_frame(void *ctx, uint32_t id, float **rgb, int *w, int *h, int *o
     *rgb = img.rgb;
     *w = img.width;
     *h = img.height;
-    *owned = 1;
     return 0;
+}
+
+static int web_frame(void *ctx, uint32_t id, float **rgb, int *w, int *h, int *owned) {
+    service *s = ctx;
+    sjob *j = store_find_job(s, id);
+    if (!j) return -1;
+    if (j->rgb && !j->desc.adaptive) {
+        *w = j->desc.width;
+        *h = j->desc.height;
+        *rgb = j->rgb;
+        *owned = 0;
+        return 0;
+    }
+    *owned = 1;
+    return web_image(ctx, id, rgb, w, h);
 }
 
 static int web_cancel(void *ctx, uint32_t id, char *err, size_t err_len) {
@@ -64,15 +75,40 @@ static int web_cancel(void *ctx, uint32_t id, char *err, size_t err_len) {
         return -1;
     }
     svc_log("job %u cancelled from the dashboard", id);
+    joblog_add(j->log, svc_wall_now(), "cancel asked from the dashboard");
     store_job_cancel(s, j); /* store_on_job_event records the state */
     return 0;
+}
+
+static int web_priority(void *ctx, uint32_t id, int priority, char *err, size_t err_len) {
+    return store_set_priority(ctx, id, priority, "the dashboard", err, err_len);
+}
+
+static int web_log(void *ctx, uint32_t id, int last, cJSON *out) {
+    sjob *j = store_find_job(ctx, id);
+    return j ? joblog_to_json(j->log, out, last) : -1;
+}
+
+void service_on_farm_event(void *ctx, const farm_event *e) {
+    service *s = ctx;
+    double now = svc_wall_now();
+    if (e->kind == FARM_EV_JOIN || e->kind == FARM_EV_LEAVE) {
+        sjob *j;
+        TAILQ_FOREACH(j, &s->jobs, link)
+            if (j->state == SJOB_RUNNING) joblog_add_event(j->log, now, e);
+    } else {
+        sjob *j = store_find_farm_job(s, e->job); /* an adaptive job's round has a farm id of its own */
+        if (j) joblog_add_event(j->log, now, e);
+    }
+    if (s->web) dashboard_farm_event(s->web, e);
 }
 
 int service_web_start(service *s, char *err, size_t err_len) {
     if (!s->o.http) return 0;
     dashboard_options o = *s->o.http;
     o.auth = &s->o.farm.auth;
-    dashboard_source src = {web_jobs, web_frame, web_cancel, s};
+    dashboard_source src = {.jobs = web_jobs, .frame = web_frame, .image = web_image, .cancel = web_cancel,
+                            .priority = web_priority, .log = web_log, .forwards_events = 1, .ctx = s};
     s->web = dashboard_new(&s->loop, s->f, &o, &src, err, err_len);
     if (!s->web) return -1;
     svc_log("dashboard on http://%s:%d/%s", o.host ? o.host : "127.0.0.1", dashboard_port(s->web),

@@ -2,8 +2,10 @@
  * tessera-coordinator with a worker: /healthz, /metrics in the Prometheus
  * text format, /api/jobs, Server-Sent Events of tiles, request limits
  * (413, 431), CSRF on POST, the token and its login cookie, the refusal to
- * serve a non-loopback address without a token, and a headless Chromium
- * screenshot of a finished Cornell box's job page (red wall on the left).
+ * serve a non-loopback address without a token, downloads and the job's
+ * event log, `tessera priority` and `tessera logs`, and the pages in
+ * headless Chromium (tests/browser_dashboard.py) with a screenshot of a
+ * finished Cornell box's job page (red wall on the left).
  * Every wait is bounded. */
 #include <arpa/inet.h>
 #include <ctype.h>
@@ -293,6 +295,20 @@ TEST(http_dashboard_endpoints_events_limits) {
               memcmp(web_body(out), "\x89PNG", 4) == 0,
           "preview: %.100s", out);
     CHECK(web_get(w.http, "/api/jobs/9/preview.png", "", out, sizeof out) == 404, "preview of no job: %.100s", out);
+    /* downloads of the finished image, and the job's event log */
+    CHECK(web_get(w.http, "/api/jobs/1/image.exr", "", out, sizeof out) == 200 &&
+              memcmp(web_body(out), "\x76\x2f\x31\x01", 4) == 0 && strstr(out, "filename=\"job-1.exr\""),
+          "EXR download: %.200s", out);
+    CHECK(web_get(w.http, "/api/jobs/1/image.png?exposure=1", "", out, sizeof out) == 200 &&
+              memcmp(web_body(out), "\x89PNG", 4) == 0 && strstr(out, "attachment"),
+          "PNG download: %.200s", out);
+    CHECK(web_get(w.http, "/api/jobs/9/image.exr", "", out, sizeof out) == 404, "download of no job: %.100s", out);
+    CHECK(web_get(w.http, "/api/jobs/1/log", "", out, sizeof out) == 200 && strstr(out, "handed to webworker") &&
+              strstr(out, "job submitted by") && strstr(out, "job done"),
+          "job log: %.300s", out);
+    CHECK(web_get(w.http, "/api/jobs/1/log?last=2", "", out, sizeof out) == 200 &&
+              strstr(out, "\"text\":\"job done") && !strstr(out, "handed to"),
+          "job log, last 2: %.300s", out);
     CHECK(web_get(w.http, "/../etc/passwd", "", out, sizeof out) == 404, "path: %.100s", out);
     /* limits */
     static char big[200000];
@@ -321,6 +337,16 @@ TEST(http_dashboard_endpoints_events_limits) {
     snprintf(hdr, sizeof hdr, "X-CSRF-Token: %s\r\n", csrf);
     CHECK(web_post(w.http, "/api/jobs/1/cancel", hdr, "", out, sizeof out) == 409 && strstr(out, "already done"),
           "cancel of a done job: %.200s", out);
+    CHECK(web_post(w.http, "/api/jobs/1/priority", hdr, "priority=3", out, sizeof out) == 409 &&
+              strstr(out, "already done"),
+          "priority of a done job: %.200s", out);
+    CHECK(web_post(w.http, "/api/jobs/1/priority", hdr, "priority=2000000", out, sizeof out) == 400 &&
+              strstr(out, "from -1000000 to 1000000"),
+          "priority out of range: %.200s", out);
+    CHECK(web_post(w.http, "/api/jobs/1/priority", hdr, "priority=1x", out, sizeof out) == 400, "priority 1x: %.200s",
+          out);
+    CHECK(web_post(w.http, "/api/jobs/1/priority", "", "priority=3", out, sizeof out) == 403,
+          "priority without CSRF: %.200s", out);
     CHECK(web_get(w.http, "/", "Host: attacker.example\r\n", out, sizeof out) == 403 ||
               web_raw(w.http, "GET / HTTP/1.1\r\nHost: attacker.example\r\n\r\n", 42, out, sizeof out, 20) == 403,
           "DNS-rebinding Host accepted: %.100s", out);
@@ -356,6 +382,22 @@ TEST(http_dashboard_token_and_binding) {
     snprintf(hdr, sizeof hdr, "Cookie: other=1; %s\r\n", cookie);
     CHECK(web_get(w.http, "/api/jobs", hdr, out, sizeof out) == 200, "cookie session: %.100s", out);
     web_stop(&w);
+    /* --http-read-only: every POST but /login is refused, CSRF token or not */
+    const char *ro[] = {"--http-read-only", NULL};
+    if (web_start(&w, "http-ro", 0, ro)) {
+        CHECK(0, "read-only coordinator did not start; log %s", w.log);
+        return;
+    }
+    web_get(w.http, "/api/csrf", "", out, sizeof out);
+    const char *c = strstr(out, "\"csrf\":\"");
+    CHECK(c && strstr(out, "\"read_only\":true"), "csrf of a read-only dashboard: %.200s", out);
+    snprintf(hdr, sizeof hdr, "X-CSRF-Token: %.64s\r\n", c ? c + 8 : "");
+    CHECK(web_post(w.http, "/api/jobs/1/cancel", hdr, "", out, sizeof out) == 403 && strstr(out, "read-only"),
+          "cancel on a read-only dashboard: %.200s", out);
+    CHECK(web_post(w.http, "/api/jobs/1/priority", hdr, "priority=1", out, sizeof out) == 403 &&
+              strstr(out, "read-only"),
+          "priority on a read-only dashboard: %.200s", out);
+    web_stop(&w);
     /* a non-loopback address without a token refuses to start */
     char cmd[4096], cout[4096], dir[300];
     snprintf(dir, sizeof dir, "%s", util_temp_path("http-open"));
@@ -379,31 +421,43 @@ static void count_walls(const uint8_t *px, int w, int h, int red[2], int green[2
         }
 }
 
-TEST(http_dashboard_chromium_job_page) {
+/* Headless Chromium drives the pages against a coordinator with a token
+ * and a worker (tests/browser_dashboard.py: login, a job appearing and its
+ * progress rising, tiles outlined, the event log, downloads, Cancel and
+ * priority buttons); then the screenshot of the finished Cornell box's job
+ * page is checked here: red wall on the left, green on the right. */
+TEST(http_dashboard_browser) {
     if (system("chromium --version >/dev/null 2>&1") != 0) {
         printf("    SKIP: chromium cannot start here (install Debian's chromium to run this test)\n");
         return;
     }
+    char token[300];
+    snprintf(token, sizeof token, "%s", util_write_temp("browser-token", "sesame-browser-7\n"));
+    const char *extra[] = {"--token-file", token, NULL};
     web w;
-    if (web_start(&w, "http-chromium", 1, NULL)) {
+    if (web_start(&w, "http-browser", 0, extra)) {
         CHECK(0, "coordinator did not start; log %s", w.log);
         return;
     }
-    char sub[4096];
-    int st = submit(&w, "scenes/cornell-box.json --width 256 --height 256 --spp 16 --tile-size 32 --wait", sub,
-                    sizeof sub);
-    CHECK(st == 0, "submit failed (%d): %s", st, sub);
-    char shot[300], cmd[2048], out[8192];
-    snprintf(shot, sizeof shot, "%s", util_temp_path("dashboard.png"));
+    char path[4096], wlog[300];
+    snprintf(path, sizeof path, "%s", util_bin("tessera-worker"));
+    snprintf(wlog, sizeof wlog, "%s.worker", w.log);
+    const char *wargv[] = {path, "--connect", w.addr, "--threads", "1", "--name", "webworker", "--token-file", token,
+                           "--retry-max", "1", NULL};
+    w.worker = util_spawn(wargv, wlog);
+    char shot[300], profile[300], cmd[4096];
+    static char out[1 << 16];
+    snprintf(shot, sizeof shot, "%s", util_temp_path("dashboard-browser.png"));
+    snprintf(profile, sizeof profile, "%s", util_temp_path("chromium-profile"));
     unlink(shot);
-    snprintf(cmd, sizeof cmd,
-             "timeout 120 chromium --headless --no-sandbox --disable-gpu --hide-scrollbars --virtual-time-budget=5000 "
-             "--user-data-dir=%s --screenshot=%s --window-size=800,600 http://127.0.0.1:%d/job/1 2>&1",
-             util_temp_path("chromium-profile"), shot, w.http);
-    st = util_run(cmd, out, sizeof out);
+    snprintf(cmd, sizeof cmd, "timeout 300 python3 tests/browser_dashboard.py %d sesame-browser-7 %s %s %s %s %s 2>&1",
+             w.http, harness_tessera(), w.addr, token, shot, profile);
+    int st = util_run(cmd, out, sizeof out);
+    printf("%s", out);
+    CHECK(st == 0, "the browser checks failed (%d); coordinator log %s", st, w.log);
     png_image img = {.version = PNG_IMAGE_VERSION};
     uint8_t *px = NULL;
-    if (png_image_begin_read_from_file(&img, shot)) {
+    if (st == 0 && png_image_begin_read_from_file(&img, shot)) {
         img.format = PNG_FORMAT_RGB;
         px = malloc(PNG_IMAGE_SIZE(img));
         if (px && !png_image_finish_read(&img, NULL, px, 0, NULL)) {
@@ -411,23 +465,114 @@ TEST(http_dashboard_chromium_job_page) {
             px = NULL;
         }
     }
-    if (!px) {
-        printf("    SKIP: chromium ran (%d) but wrote no screenshot: %.300s\n", st, out);
-        web_stop(&w);
+    CHECK(st != 0 || px, "no screenshot at %s", shot);
+    if (px) { /* the image sits in the page's left 540 px (520 px wide); split it there */
+        int red[2] = {0, 0}, green[2] = {0, 0}, wide = img.width < 540 ? (int)img.width : 540;
+        uint8_t *crop = malloc((size_t)wide * img.height * 3);
+        for (unsigned y = 0; crop && y < img.height; y++)
+            memcpy(crop + (size_t)y * wide * 3, px + (size_t)y * img.width * 3, (size_t)wide * 3);
+        if (crop) count_walls(crop, wide, (int)img.height, red, green);
+        printf("    screenshot %ux%u: red pixels left %d right %d, green left %d right %d\n", img.width, img.height,
+               red[0], red[1], green[0], green[1]);
+        CHECK(crop && red[0] > 2000 && red[0] > 20 * (red[1] + 1) && green[1] > 2000 && green[1] > 20 * (green[0] + 1),
+              "the Cornell box is not the right way round in the job page (screenshot %s)", shot);
+        free(crop);
+        free(px);
+    }
+    web_stop(&w);
+}
+
+/* Run `tessera ARGS` against w; returns the exit status, output in out. */
+static int cli(const web *w, const char *args, char *out, size_t cap) {
+    char cmd[4096];
+    snprintf(cmd, sizeof cmd, "TESSERA_COORDINATOR=%s %s %s 2>&1", w->addr, harness_tessera(), args);
+    return util_run(cmd, out, cap);
+}
+
+/* A number field of `tessera status JOB --json`'s job, or -1. */
+static double job_field(const web *w, int job, const char *field) {
+    char args[64], key[64];
+    static char out[1 << 16];
+    snprintf(args, sizeof args, "status %d --json", job);
+    if (cli(w, args, out, sizeof out)) return -1;
+    snprintf(key, sizeof key, "\"%s\":", field);
+    const char *p = strstr(out, key);
+    return p ? strtod(p + strlen(key), NULL) : -1;
+}
+
+/* `tessera priority`: a queued job raised runs before one submitted earlier;
+ * bad values are refused; the change survives a restart of the coordinator.
+ * `tessera logs` prints the job's events. */
+TEST(http_priority_and_logs) {
+    web w;
+    if (web_start(&w, "http-priority", 0, NULL)) {
+        CHECK(0, "coordinator did not start; log %s", w.log);
         return;
     }
-    /* the image sits in the page's left 520 px; split it there */
-    int red[2], green[2];
-    int wide = img.width < 520 ? (int)img.width : 520;
-    uint8_t *crop = malloc((size_t)wide * img.height * 3);
-    for (unsigned y = 0; crop && y < img.height; y++) memcpy(crop + (size_t)y * wide * 3, px + (size_t)y * img.width * 3, (size_t)wide * 3);
-    count_walls(crop, wide, (int)img.height, red, green);
-    printf("    screenshot %ux%u: red pixels left %d right %d, green left %d right %d\n", img.width, img.height,
-           red[0], red[1], green[0], green[1]);
-    CHECK(red[0] > 2000 && red[0] > 20 * (red[1] + 1) && green[1] > 2000 && green[1] > 20 * (green[0] + 1),
-          "the Cornell box is not the right way round in the job page (screenshot %s)", shot);
-    free(crop);
-    free(px);
+    static char out[1 << 18];
+    const char *job = SCENE " --tile-size 16 --spp 16";
+    char args[512];
+    snprintf(args, sizeof args, "submit %s", job);
+    CHECK(cli(&w, args, out, sizeof out) == 0 && cli(&w, args, out, sizeof out) == 0, "submit: %s", out);
+    CHECK(cli(&w, "priority 2 5", out, sizeof out) == 0 && strstr(out, "job 2: priority 5"), "priority 2 5: %s", out);
+    CHECK(cli(&w, "priority 9 5", out, sizeof out) == 1 && strstr(out, "job 9: unknown job"), "priority 9: %s", out);
+    CHECK(cli(&w, "priority 2 1000001", out, sizeof out) == 2 && strstr(out, "from -1000000 to 1000000"),
+          "priority out of range: %s", out);
+    CHECK(job_field(&w, 2, "priority") == 5 && job_field(&w, 1, "priority") == 0, "priorities %g %g",
+          job_field(&w, 2, "priority"), job_field(&w, 1, "priority"));
+    /* a worker now: job 2 (raised) gets its first tile before job 1 */
+    char path[4096], wlog[300];
+    snprintf(path, sizeof path, "%s", util_bin("tessera-worker"));
+    snprintf(wlog, sizeof wlog, "%s.worker", w.log);
+    const char *wargv[] = {path, "--connect", w.addr, "--threads", "1", "--name", "prioworker", NULL};
+    w.worker = util_spawn(wargv, wlog);
+    int done = 0;
+    for (int i = 0; i < 1200 && !done; i++, util_sleep(0.1))
+        done = cli(&w, "status", out, sizeof out) == 0 && util_file_count(w.log, "job 1 done") &&
+               util_file_count(w.log, "job 2 done");
+    CHECK(done, "the two jobs did not finish; log %s", w.log);
+    double r1 = job_field(&w, 1, "rendering_since"), r2 = job_field(&w, 2, "rendering_since");
+    CHECK(r2 > 0 && r1 > 0 && r2 < r1, "job 2 (priority 5) started at %.3f, job 1 (priority 0) at %.3f", r2, r1);
+    CHECK(cli(&w, "priority 2 7", out, sizeof out) == 1 && strstr(out, "job 2 is already done"),
+          "priority of a done job: %s", out);
+    CHECK(cli(&w, "logs 2", out, sizeof out) == 0 && strstr(out, "job submitted by") &&
+              strstr(out, "priority changed from 0 to 5 by the client at 127.0.0.1:") &&
+              strstr(out, "worker prioworker joined") && strstr(out, "handed to prioworker") &&
+              strstr(out, "done by prioworker") && strstr(out, "job done") && strstr(out, "job 2 is done"),
+          "logs 2: %.2000s", out);
+    CHECK(cli(&w, "logs 9", out, sizeof out) == 1 && strstr(out, "job 9: unknown job"), "logs 9: %s", out);
+    /* a job of 1024 tiles logs more than 2000 events: the oldest are dropped */
+    CHECK(cli(&w, "submit " SCENE " --tile-size 2 --spp 1 --wait -o /dev/null -q", out, sizeof out) == 0 ||
+              util_file_count(w.log, "job 3 done"),
+          "submit of 1024 tiles: %s", out);
+    CHECK(cli(&w, "logs 3 --json", out, sizeof out) == 0, "logs 3: %.300s", out);
+    int lines = 0;
+    for (const char *q = out; (q = strstr(q, "\"text\":")); q++) lines++;
+    const char *dropped = strstr(out, "\"dropped\":");
+    CHECK(lines == 2000 && dropped && atoi(dropped + 11) > 0 && strstr(out, "job done"),
+          "logs of 1024 tiles: %d lines kept, dropped %.20s", lines, dropped ? dropped + 11 : "?");
+    CHECK(cli(&w, "logs 3 --last 5", out, sizeof out) == 0 && strstr(out, "earlier lines not shown") &&
+              strstr(out, "job done"),
+          "logs --last 5: %.500s", out);
+    /* a queued job's priority is kept in its job file across a restart */
+    kill(w.worker, SIGTERM);
+    util_wait(w.worker, LONG, NULL);
+    w.worker = 0;
+    for (int i = 0; i < 200 && job_field(&w, 1, "workers") != 0; i++) util_sleep(0.1);
+    snprintf(args, sizeof args, "submit %s", job);
+    CHECK(cli(&w, args, out, sizeof out) == 0 && strstr(out, "job 4"), "submit 4: %s", out);
+    CHECK(cli(&w, "priority 4 -- -4", out, sizeof out) == 0 && strstr(out, "priority -4"), "priority -4: %s", out);
+    kill(w.pid, SIGTERM);
+    CHECK(util_wait(w.pid, LONG, NULL) == 0, "coordinator did not stop; log %s", w.log);
+    char coord[4096], http[64];
+    snprintf(coord, sizeof coord, "%s", util_bin("tessera-coordinator"));
+    snprintf(http, sizeof http, "127.0.0.1:%d", w.http);
+    const char *argv[] = {coord, "--listen", w.addr, "--data-dir", w.dir, "--http", http, NULL};
+    snprintf(w.log + strlen(w.log), sizeof w.log - strlen(w.log), ".2");
+    w.pid = util_spawn(argv, w.log);
+    CHECK(util_wait_for_text(w.log, "dashboard on http", LONG) == 0, "no restart; log %s", w.log);
+    CHECK(job_field(&w, 4, "priority") == -4, "job 4's priority after a restart: %g", job_field(&w, 4, "priority"));
+    CHECK(cli(&w, "logs 4", out, sizeof out) == 0 && strstr(out, "resumed after a restart"), "logs 4: %s", out);
     web_stop(&w);
 }
 
@@ -475,14 +620,15 @@ TEST(http_dashboard_stalled_stream_dropped) {
     int n = snprintf(req, sizeof req, "GET /api/events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
     CHECK(connect(fd, (struct sockaddr *)&a, sizeof a) == 0 && send(fd, req, (size_t)n, 0) == n, "stream");
     char sub[4096];
-    /* 4096 tiles: two events each, about 1.1 MB of events */
-    int st = submit(&w, "scenes/cornell-box.json --width 256 --height 256 --spp 1 --tile-size 4 --wait", sub,
+    /* 8192 tiles: two events each, about 2.3 MB of events, sent in batches
+     * every 250 ms over the render's few seconds */
+    int st = submit(&w, "scenes/cornell-box.json --width 512 --height 256 --spp 1 --tile-size 4 --wait", sub,
                     sizeof sub);
     CHECK(st == 0, "render beside a stalled stream failed (%d): %s", st, sub);
     static char out[1 << 16];
     web_get(w.http, "/metrics", "", out, sizeof out);
     CHECK(metric(web_body(out), "tessera_http_streams_dropped_total") == 1 &&
-              metric(web_body(out), "tessera_tiles_rendered_total") == 4096,
+              metric(web_body(out), "tessera_tiles_rendered_total") == 8192,
           "dropped %g, tiles %g", metric(web_body(out), "tessera_http_streams_dropped_total"),
           metric(web_body(out), "tessera_tiles_rendered_total"));
     close(fd);
