@@ -47,6 +47,7 @@
 #include "tjournal.h"
 #include "loopstat.h"
 #include "upload.h"
+#include "fetch.h"
 #include "service.h"
 
 #define WIRE_KIND_IMAGE 'I'
@@ -89,6 +90,7 @@ typedef struct service {
     uint32_t next_id;
     int stopping;
     struct dashboard *web; /* --http, or NULL (service_web.c) */
+    size_t fetch_chunk;    /* bytes per D frame of a fetched image (fetch.h) */
 } service;
 
 /* What a submit asks besides its scene, kept while the scene is checked. */
@@ -109,6 +111,7 @@ typedef struct client {
     int validating;  /* a submit's scene is on the upload queue */
     int closed;      /* gone while validating: freed when the check ends */
     submit_req req;  /* that submit's other fields */
+    fetch_stream *fetch; /* an image being sent (fetch.h), or NULL */
     uint64_t seen_bytes;           /* conn_bytes_in at the last sweep */
     double last_bytes, last_frame; /* monotonic seconds: last byte, last whole frame */
     uint64_t window_bytes;         /* bytes in the current 10 s window while mid-frame */
