@@ -21,6 +21,7 @@
 #include <string.h>
 #include <strings.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <sys/time.h>
 #include <time.h>
 #include <unistd.h>
@@ -358,6 +359,9 @@ static int fetch_stream(cli *c, long job, const cJSON *head, const char *out, im
     snprintf(tmp, sizeof tmp, "%s.XXXXXX.pfm", out);
     int fd = mkstemps(tmp, 4);
     if (fd < 0) return cli_fail("%s: cannot create: %s", tmp, strerror(errno));
+    mode_t mask = umask(0);
+    umask(mask);
+    fchmod(fd, 0666 & ~mask); /* as any file the client writes, not mkstemps' 0600 */
     int rc = receive_stream(c, job, head, fd, tmp);
     if (rc == 0 && (fsync(fd) != 0 || close(fd) != 0)) rc = cli_fail("%s: %s", tmp, strerror(errno));
     else if (rc) close(fd);
