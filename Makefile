@@ -309,3 +309,18 @@ bench-journal: $(TESSERA) $(LOADGEN)
 TRUST_BENCH_ROUNDS ?= 5
 bench-trust: $(TESSERA) $(WORKER)
 	bench/trust.sh $(BUILD)/bin scenes/cornell-box.json 16 $(TRUST_BENCH_ROUNDS) 32
+
+# ---- issue 20: job store, files or SQLite (docs/jobstore.md) ------------------
+# bench-jobstore: job-record operations (create, update, recover/list,
+# expire) on the current files and on an SQLite (WAL) prototype; a bench
+# only (libsqlite3-dev), not linked into the product.
+.PHONY: bench-jobstore
+JOBSTORE_BENCH := $(BUILD)/bin/jobstore-bench
+$(JOBSTORE_BENCH): $(BUILD)/bench/jobstore.o $(call layer_lib,base)
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS) -o $@ $^ -lsqlite3 $(LDLIBS)
+JOBSTORE_JOBS ?= 10000
+JOBSTORE_DURABLE ?= 1000
+bench-jobstore: $(JOBSTORE_BENCH)
+	@command -v sqlite3 > /dev/null || dpkg -s libsqlite3-dev > /dev/null 2>&1 || { echo "bench-jobstore needs libsqlite3-dev" >&2; exit 1; }
+	d=$$(mktemp -d $${TMPDIR:-/tmp}/tessera-jobstore.XXXXXX) && $(JOBSTORE_BENCH) $$d $(JOBSTORE_JOBS) $(JOBSTORE_DURABLE); rc=$$?; rm -rf $$d; exit $$rc
