@@ -550,6 +550,8 @@ int service_run(const service_options *o) {
     s->f = farm_new(&s->loop, &s->o.farm, err, sizeof err);
     if (!s->f) {
         fprintf(stderr, "tessera-coordinator: %s\n", err);
+        loopstat_stop(&s->stat); /* else the loop stays busy and its memory leaks (LeakSanitizer) */
+        uv_run(&s->loop, UV_RUN_DEFAULT);
         uv_loop_close(&s->loop);
         free(s);
         return 1;
@@ -558,6 +560,7 @@ int service_run(const service_options *o) {
     if (service_web_start(s, err, sizeof err)) {
         fprintf(stderr, "tessera-coordinator: %s\n", err);
         farm_close(s->f, NULL, NULL);
+        loopstat_stop(&s->stat);
         uv_run(&s->loop, UV_RUN_DEFAULT);
         farm_free(s->f);
         uv_loop_close(&s->loop);
