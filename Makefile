@@ -3,7 +3,8 @@
 #   make            install missing Debian packages, build build/release/bin/tessera (make install: below)
 #   make run        render the Cornell box and print where the image went
 #   make test       build and run every test (ends with "N passed, N failed")
-#   make test-asan  the tests under AddressSanitizer + UndefinedBehaviorSanitizer
+#   make test-asan  the tests under AddressSanitizer + UndefinedBehaviorSanitizer, leaks failing (LeakSanitizer), then test-lsan
+#   make soak       the coordinator under load, hostile clients and kill -9 for SOAK_SECONDS (default 300)
 #   make test-tsan  the threaded tests under ThreadSanitizer
 #   make fuzz       libFuzzer targets, FUZZ_SECONDS each (default 20)
 #   make stress     the numerical stress tests alone
@@ -128,7 +129,12 @@ test: $(TESSERA) $(WORKER) $(TEST_BIN)
 	TESSERA_BIN=$(TESSERA) $(TEST_BIN)
 
 test-asan:
-	$(MAKE) VARIANT=asan test
+	$(MAKE) VARIANT=asan all build/asan/bin/run-tests
+	@rm -rf $(ASAN_REPORTS) && mkdir -p $(ASAN_REPORTS)
+	ASAN_OPTIONS=detect_leaks=1:log_path=$(CURDIR)/$(ASAN_REPORTS)/asan TESSERA_BIN=build/asan/bin/tessera build/asan/bin/run-tests; \
+	rc=$$?; if compgen -G "$(ASAN_REPORTS)/*" > /dev/null; then rc=1; \
+	  echo "test-asan: sanitizer reports (leaks or errors) from $$(ls $(ASAN_REPORTS) | wc -l) processes:"; head -40 $(ASAN_REPORTS)/*; fi; exit $$rc
+	$(MAKE) test-lsan
 
 # Numerical stress alone (also part of make test and test-asan).
 stress: $(TESSERA) $(WORKER) $(TEST_BIN)
@@ -242,15 +248,16 @@ fuzz: $(FUZZ_BUILD)/fuzz_gltf
 #   make bench-cycles-seeds  the same-run table without a converged reference (two seeds each;
 #                            for a busy machine where the big references cannot be made in time)
 # Needs Blender (Debian's blender, installed here if missing): a benchmark dependency only.
-BENCH_DEB_PACKAGES := blender
+BENCH_DEB_PACKAGES := blender libsqlite3-dev
 BENCH_CYCLES_SCENES := scenes/cornell-box.json scenes/cornell-spheres.json@4096
 BENCH_CYCLES_SPP := 64 256
 BENCH_CYCLES_REPEATS := 3
 .PHONY: bench-cycles bench-cycles-depth bench-cycles-seeds bench-deps
 bench-deps:
-	@command -v blender > /dev/null || { SUDO=""; [ "$$(id -u)" -ne 0 ] && SUDO=sudo; \
+	@missing=""; for p in $(BENCH_DEB_PACKAGES); do dpkg -s $$p > /dev/null 2>&1 || missing="$$missing $$p"; done; \
+	[ -z "$$missing" ] || { SUDO=""; [ "$$(id -u)" -ne 0 ] && SUDO=sudo; \
 	  $$SUDO apt-get -o DPkg::Lock::Timeout=900 update -qq && DEBIAN_FRONTEND=noninteractive \
-	  $$SUDO apt-get install -y -qq -o DPkg::Lock::Timeout=900 $(BENCH_DEB_PACKAGES); }
+	  $$SUDO apt-get install -y -qq -o DPkg::Lock::Timeout=900 $$missing; }
 bench-cycles: $(TESSERA) $(WORKER) bench-deps
 	bench/cycles.sh $(TESSERA) "$(BENCH_CYCLES_SCENES)" "$(BENCH_CYCLES_SPP)" $(BENCH_CYCLES_REPEATS)
 bench-cycles-depth: $(TESSERA) $(WORKER) bench-deps
@@ -309,3 +316,36 @@ bench-journal: $(TESSERA) $(LOADGEN)
 TRUST_BENCH_ROUNDS ?= 5
 bench-trust: $(TESSERA) $(WORKER)
 	bench/trust.sh $(BUILD)/bin scenes/cornell-box.json 16 $(TRUST_BENCH_ROUNDS) 32
+
+# ---- issue 20: job store, files or SQLite (docs/jobstore.md) ------------------
+# bench-jobstore: job-record operations (create, update, recover/list,
+# expire) on the current files and on an SQLite (WAL) prototype; a bench
+# only (libsqlite3-dev), not linked into the product.
+.PHONY: bench-jobstore
+JOBSTORE_BENCH := $(BUILD)/bin/jobstore-bench
+$(BUILD)/bench/jobstore.o: | bench-deps
+$(JOBSTORE_BENCH): $(BUILD)/bench/jobstore.o $(call layer_lib,base)
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS) -o $@ $^ -lsqlite3 $(LDLIBS)
+JOBSTORE_JOBS ?= 10000
+JOBSTORE_DURABLE ?= 1000
+bench-jobstore: $(JOBSTORE_BENCH)
+	d=$$(mktemp -d $${TMPDIR:-/tmp}/tessera-jobstore.XXXXXX) && $(JOBSTORE_BENCH) $$d $(JOBSTORE_JOBS) $(JOBSTORE_DURABLE); rc=$$?; rm -rf $$d; exit $$rc
+
+# ---- issue 20: leaks fail the ASan run; the soak ---------------------------
+# test-lsan: the load test (loadgen), worker churn and every client request
+# against the ASan build with LeakSanitizer on (tests/lsan.sh); part of
+# test-asan, which also runs every test with detect_leaks=1 and each
+# process's report written to build/asan/reports/ (log_path), so a leak in
+# any coordinator, worker or client a test starts fails the run whatever
+# the test checks of it.
+# soak: bench/soak.sh for SOAK_SECONDS (minutes; not in CI).
+.PHONY: test-lsan soak
+ASAN_REPORTS := build/asan/reports
+LSAN_SECONDS ?= 10
+test-lsan:
+	$(MAKE) VARIANT=asan all build/asan/bin/loadgen
+	tests/lsan.sh build/asan/bin $(LSAN_SECONDS)
+SOAK_SECONDS ?= 300
+soak: $(TESSERA) $(WORKER) $(LOADGEN)
+	bench/soak.sh $(BUILD)/bin $(SOAK_SECONDS)

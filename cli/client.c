@@ -11,6 +11,8 @@
 #include "cli_util.h"
 
 #include <errno.h>
+#include <inttypes.h>
+#include <sodium.h>
 #include <netdb.h>
 #include <poll.h>
 #include <signal.h>
@@ -20,12 +22,14 @@
 #include <string.h>
 #include <strings.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <sys/time.h>
 #include <time.h>
 #include <unistd.h>
 
 #include "net/address.h"
 #include "args.h"
+#include "fileio.h"
 #include "net/auth.h"
 #include "image/image.h"
 #include "net/protocol.h"
@@ -306,6 +310,93 @@ static void warn_partial(const cJSON *p, const char *out) {
             (int)num(p, "job"), str(p, "state"), total - done, total, out, str(p, "missing"), ts, ts);
 }
 
+/* The I frame of a partial fetch (u32 width, u32 height, floats) written
+ * to out. Takes body. Returns 0 or 1 (printed). */
+static int write_image_frame(long job, int kind, uint8_t *body, size_t len, const char *out, image_write_options *wo) {
+    uint32_t w = len >= 8 ? wire_get_u32(body) : 0, h = len >= 8 ? wire_get_u32(body + 4) : 0;
+    image img;
+    if (kind != 'I' || w == 0 || h == 0 || len != 8 + (size_t)w * h * 12 || image_alloc(&img, (int)w, (int)h)) {
+        free(body);
+        return cli_fail("job %ld: the coordinator sent a malformed image", job);
+    }
+    for (size_t i = 0; i < (size_t)w * h * 3; i++) img.rgb[i] = wire_get_f32(body + 8 + 4 * i);
+    free(body);
+    char err[1024];
+    int rc = image_write(out, &img, wo, err, sizeof err);
+    image_free(&img);
+    return rc ? cli_fail("%s", err) : 0;
+}
+
+/* Receive the D frames of a streamed image into the open file fd (tmp
+ * names it) until image_end, checking the byte count and BLAKE2b-256
+ * against it and against the image message's size. Returns 0 or 1. */
+static int receive_stream(cli *c, long job, const cJSON *head, int fd, const char *tmp) {
+    double want = num(head, "bytes");
+    uint64_t got = 0;
+    crypto_generichash_state hs;
+    crypto_generichash_init(&hs, NULL, 0, 32);
+    for (;;) {
+        uint8_t *body;
+        size_t len;
+        int kind = read_frame(c, &body, &len);
+        if (kind < 0) return 1;
+        if (kind == WIRE_KIND_DATA) {
+            crypto_generichash_update(&hs, body, len);
+            got += len;
+            int over = (double)got > want, werr = over ? 0 : file_write_all(fd, body, len);
+            free(body);
+            if (over) return cli_fail("job %ld: the coordinator sent more than the %.0f bytes it announced", job, want);
+            if (werr) return cli_fail("%s: cannot write: %s", tmp, strerror(werr));
+            continue;
+        }
+        char err[256], hex[65];
+        const char *type;
+        cJSON *e = kind == WIRE_KIND_JSON ? proto_parse_json(body, len, &type, err, sizeof err) : NULL;
+        free(body);
+        if (!e) return cli_fail("job %ld: the coordinator sent a malformed image stream", job);
+        unsigned char h[32];
+        crypto_generichash_final(&hs, h, sizeof h);
+        sodium_bin2hex(hex, sizeof hex, h, sizeof h);
+        int end = strcmp(type, "image_end") == 0, ok = end && (double)got == want && num(e, "bytes") == want &&
+                                                     strcmp(str(e, "blake2b"), hex) == 0;
+        if (!ok) {
+            const cJSON *r = cJSON_GetObjectItemCaseSensitive(e, "reason");
+            if (end) cli_fail("job %ld: the image arrived damaged (%" PRIu64 " of %.0f bytes, BLAKE2b %s against %s)", job,
+                              got, want, hex, str(e, "blake2b"));
+            else cli_fail("%s", cJSON_IsString(r) ? r->valuestring : "unexpected answer during fetch");
+        }
+        cJSON_Delete(e);
+        return ok ? 0 : 1;
+    }
+}
+
+/* A streamed image (fetch.h on the coordinator): written as it arrives to
+ * a temporary file beside out, checked, then renamed to out (PFM, the
+ * format it comes in) or converted to out's format. Returns 0 or 1. */
+static int fetch_stream(cli *c, long job, const cJSON *head, const char *out, image_write_options *wo) {
+    char tmp[4200], err[1024];
+    snprintf(tmp, sizeof tmp, "%s.XXXXXX.pfm", out);
+    int fd = mkstemps(tmp, 4);
+    if (fd < 0) return cli_fail("%s: cannot create: %s", tmp, strerror(errno));
+    mode_t mask = umask(0);
+    umask(mask);
+    fchmod(fd, 0666 & ~mask); /* as any file the client writes, not mkstemps' 0600 */
+    int rc = receive_stream(c, job, head, fd, tmp);
+    if (rc == 0 && (fsync(fd) != 0 || close(fd) != 0)) rc = cli_fail("%s: %s", tmp, strerror(errno));
+    else if (rc) close(fd);
+    const char *dot = strrchr(out, '.');
+    if (rc == 0 && dot && strcasecmp(dot, ".pfm") == 0) {
+        if (rename(tmp, out) != 0) rc = cli_fail("%s: cannot rename to %s: %s", tmp, out, strerror(errno));
+    } else if (rc == 0) {
+        image img;
+        rc = image_read(tmp, &img, err, sizeof err) ? cli_fail("%s", err) : 0;
+        if (rc == 0 && image_write(out, &img, wo, err, sizeof err)) rc = cli_fail("%s", err);
+        if (rc == 0 || img.rgb) image_free(&img);
+    }
+    unlink(tmp); /* gone already when renamed */
+    return rc;
+}
+
 /* Fetch a job's image (partial: what is done so far, with a warning) and
  * write it to out. Returns 0 or 1. */
 static int fetch_image(cli *c, long job, const char *out, image_write_options *wo, int partial) {
@@ -323,6 +414,11 @@ static int fetch_image(cli *c, long job, const char *out, image_write_options *w
         const char *type;
         cJSON *e = proto_parse_json(body, len, &type, err, sizeof err);
         free(body);
+        if (e && strcmp(type, "image") == 0) { /* a finished job's image, in chunks */
+            int rc = fetch_stream(c, job, e, out, wo);
+            cJSON_Delete(e);
+            return rc;
+        }
         if (e && partial && strcmp(type, "partial") == 0) { /* the image follows */
             warn_partial(e, out);
             cJSON_Delete(e);
@@ -335,19 +431,7 @@ static int fetch_image(cli *c, long job, const char *out, image_write_options *w
         cJSON_Delete(e);
         return 1;
     }
-    uint32_t w = len >= 8 ? wire_get_u32(body) : 0, h = len >= 8 ? wire_get_u32(body + 4) : 0;
-    image img;
-    if (kind != 'I' || w == 0 || h == 0 || len != 8 + (size_t)w * h * 12 || image_alloc(&img, (int)w, (int)h)) {
-        free(body);
-        return cli_fail("job %ld: the coordinator sent a malformed image", job);
-    }
-    for (size_t i = 0; i < (size_t)w * h * 3; i++) img.rgb[i] = wire_get_f32(body + 8 + 4 * i);
-    free(body);
-    char err[1024];
-    int rc = image_write(out, &img, wo, err, sizeof err);
-    image_free(&img);
-    if (rc) return cli_fail("%s", err);
-    return 0;
+    return write_image_frame(job, kind, body, len, out, wo);
 }
 
 /* fetch_image with the job's scene, spp and seed in the file's header

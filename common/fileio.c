@@ -48,8 +48,8 @@ char *file_read_all(const char *path, size_t max_len, size_t *len, char *err, si
     return buf;
 }
 
-/* Write all of data to fd. Returns 0 or an errno value. */
-static int write_all(int fd, const char *data, size_t len) {
+int file_write_all(int fd, const void *buf, size_t len) {
+    const char *data = buf;
     while (len > 0) {
         ssize_t w = write(fd, data, len);
         if (w < 0 && errno == EINTR) continue;
@@ -88,7 +88,7 @@ int file_write_atomic(const char *path, const void *data, size_t len, char *err,
         umask(mask);
         if (fchmod(fd, 0666 & ~mask) != 0) e = errno;
     }
-    if (!e) e = write_all(fd, data, len);
+    if (!e) e = file_write_all(fd, data, len);
     if (!e && fsync(fd) != 0) e = errno;
     if (fd >= 0 && close(fd) != 0 && !e) e = errno;
     if (!e && rename(tmp, path) != 0) e = errno;

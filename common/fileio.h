@@ -20,4 +20,8 @@ char *file_read_all(const char *path, size_t max_len, size_t *len, char *err, si
  * journal's records and the scene store. */
 int file_write_atomic(const char *path, const void *data, size_t len, char *err, size_t err_len);
 
+/* Write all len bytes of buf to fd (retrying short writes and EINTR).
+ * Returns 0 or an errno value. */
+int file_write_all(int fd, const void *buf, size_t len);
+
 #endif

@@ -400,21 +400,11 @@ static void on_fetch(client *cl, const cJSON *m) {
         return client_error(cl, "job %u is %s (%d of %d tiles)%s%s%s", j->desc.id, state_names[j->state], j->tiles_done,
                             j->tile_count, j->error[0] ? ": " : "", j->error,
                             unfinished ? "; fetch --partial writes what is done so far" : "");
-    char path[4096], err[600];
-    image img;
+    if (cl->fetch) return client_error(cl, "fetch: this connection is already receiving an image");
+    char path[4096];
     store_job_path(cl->svc, j->desc.id, "pfm", path, sizeof path);
-    if (image_read(path, &img, err, sizeof err)) return client_error(cl, "%s", err);
-    size_t n = (size_t)img.width * (size_t)img.height * 3, len;
-    uint8_t *f = wire_frame_new(WIRE_KIND_IMAGE, 8 + 4 * n, &len);
-    if (!f) {
-        image_free(&img);
-        return client_error(cl, "out of memory");
-    }
-    wire_put_u32(f + WIRE_HEADER_BYTES, (uint32_t)img.width);
-    wire_put_u32(f + WIRE_HEADER_BYTES + 4, (uint32_t)img.height);
-    for (size_t i = 0; i < n; i++) wire_put_f32(f + WIRE_HEADER_BYTES + 8 + 4 * i, img.rgb[i]);
-    image_free(&img);
-    conn_send(cl->c, f, len);
+    if (fetch_start(&cl->svc->loop, cl->c, j->desc.id, path, cl->svc->fetch_chunk, &cl->fetch))
+        client_error(cl, "out of memory");
 }
 
 static int client_on_frame(conn *c, int kind, const uint8_t *body, size_t len) {
@@ -465,6 +455,7 @@ static int client_on_frame(conn *c, int kind, const uint8_t *body, size_t len) {
 
 static void client_on_close(conn *c, const char *reason) {
     client *cl = conn_data(c);
+    fetch_detach(&cl->fetch);
     if (conn_malformed(c)) svc_log("client %s: %s; disconnecting", cl->addr, reason);
     free(cl->bundle);
     cl->bundle = NULL;
@@ -511,7 +502,8 @@ static void on_expiry(uv_timer_t *t) {
 #define TRICKLE_MIN_BYTES 1024 /* a frame in progress must grow by this much per window */
 
 /* Close clients that are idle (no request and no byte for
- * --client-timeout; one whose submit is being checked is busy, not idle)
+ * --client-timeout; one whose submit is being checked or that is receiving
+ * an image is busy, not idle)
  * or that trickle a frame (less than TRICKLE_MIN_BYTES in TRICKLE_WINDOW_S,
  * or in --client-timeout when that is shorter). Each close is logged once, naming the client. */
 static void on_sweep(uv_timer_t *t) {
@@ -525,7 +517,7 @@ static void on_sweep(uv_timer_t *t) {
         cl->seen_bytes = in;
         const char *why = NULL;
         char reason[160];
-        if (!cl->validating && now - cl->last_bytes > limit) {
+        if (!cl->validating && !cl->fetch && now - cl->last_bytes > limit) {
             snprintf(reason, sizeof reason, "idle for %.0f s (--client-timeout)", now - cl->last_bytes);
             why = reason;
         } else if (conn_pending(cl->c) == 0) { /* between frames: the trickle window starts with the next one */
@@ -600,6 +592,7 @@ int service_run(const service_options *o) {
     TAILQ_INIT(&s->clients);
     s->o = *o;
     s->next_id = 1;
+    s->fetch_chunk = fetch_chunk_size();
     if (prepare_data_dir(o->data_dir, err, sizeof err) || data_dir_lock(o->data_dir, err, sizeof err) < 0) {
         fprintf(stderr, "tessera-coordinator: %s\n", err);
         free(s);
@@ -613,6 +606,8 @@ int service_run(const service_options *o) {
     s->f = farm_new(&s->loop, &s->o.farm, err, sizeof err);
     if (!s->f) {
         fprintf(stderr, "tessera-coordinator: %s\n", err);
+        loopstat_stop(&s->stat); /* else the loop stays busy and its memory leaks (LeakSanitizer) */
+        uv_run(&s->loop, UV_RUN_DEFAULT);
         uv_loop_close(&s->loop);
         free(s);
         return 1;
@@ -622,6 +617,7 @@ int service_run(const service_options *o) {
     if (service_web_start(s, err, sizeof err)) {
         fprintf(stderr, "tessera-coordinator: %s\n", err);
         farm_close(s->f, NULL, NULL);
+        loopstat_stop(&s->stat);
         uv_run(&s->loop, UV_RUN_DEFAULT);
         farm_free(s->f);
         uv_loop_close(&s->loop);

@@ -48,6 +48,7 @@
 #include "loopstat.h"
 #include "upload.h"
 #include "joblog.h"
+#include "fetch.h"
 #include "service.h"
 
 #define WIRE_KIND_IMAGE 'I'
@@ -108,6 +109,7 @@ typedef struct service {
     uint32_t next_round; /* farm ids of adaptive rounds: SVC_ROUND_IDS + n */
     int stopping;
     struct dashboard *web; /* --http, or NULL (service_web.c) */
+    size_t fetch_chunk;    /* bytes per D frame of a fetched image (fetch.h) */
 } service;
 
 /* Farm ids of adaptive rounds start here, above any job number the service
@@ -134,6 +136,7 @@ typedef struct client {
     int validating;  /* a submit's scene is on the upload queue */
     int closed;      /* gone while validating: freed when the check ends */
     submit_req req;  /* that submit's other fields */
+    fetch_stream *fetch; /* an image being sent (fetch.h), or NULL */
     uint64_t seen_bytes;           /* conn_bytes_in at the last sweep */
     double last_bytes, last_frame; /* monotonic seconds: last byte, last whole frame */
     uint64_t window_bytes;         /* bytes in the current 10 s window while mid-frame */

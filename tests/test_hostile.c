@@ -776,3 +776,142 @@ TEST(hostile_absurd_mesh_scale_is_refused) {
     CHECK(st != 0 && strstr(out, "scale"), "a mesh scaled by 1e30 was not refused (%d): %s", st, out);
     (void)err;
 }
+
+/* Read one frame of any kind within timeout_s into a malloc'd body (the
+ * caller frees). Returns its kind, or -1 on EOF or timeout. */
+static int raw_frame(int fd, uint8_t **body, size_t *len, double timeout_s) {
+    uint8_t hdr[WIRE_HEADER_BYTES];
+    size_t have = 0, need = sizeof hdr;
+    double end = now_s() + timeout_s;
+    *body = NULL;
+    while (have < need) {
+        struct pollfd pf = {fd, POLLIN, 0};
+        int left = (int)((end - now_s()) * 1000);
+        ssize_t n = left > 0 && poll(&pf, 1, left) > 0
+                        ? (have < sizeof hdr ? recv(fd, hdr + have, sizeof hdr - have, 0)
+                                             : recv(fd, *body + have - sizeof hdr, need - have, 0))
+                        : -1;
+        if (n <= 0) break;
+        have += (size_t)n;
+        if (have == sizeof hdr) {
+            *len = wire_get_u32(hdr) - 1;
+            need = sizeof hdr + *len;
+            *body = malloc(*len + 1);
+            if (!*body || wire_get_u32(hdr) == 0 || wire_get_u32(hdr) > (64u << 20)) break;
+        }
+    }
+    if (have == need && *body) {
+        (*body)[*len] = 0;
+        return hdr[4];
+    }
+    free(*body);
+    *body = NULL;
+    return -1;
+}
+
+/* A raw fetch of job on fd, read to the end: the image's bytes (malloc'd,
+ * *len) and the number of D frames, or NULL with why in err. */
+static uint8_t *raw_fetch_read(int fd, size_t *len, int *chunks, char *err, size_t err_len) {
+    uint8_t *body, *img = NULL;
+    size_t n, want = 0;
+    *len = 0;
+    *chunks = 0;
+    for (int kind; (kind = raw_frame(fd, &body, &n, 30 * slack())) >= 0; free(body)) {
+        if (kind == WIRE_KIND_DATA && img && *len + n <= want) {
+            memcpy(img + *len, body, n);
+            *len += n;
+            ++*chunks;
+        } else if (kind == WIRE_KIND_JSON && strstr((char *)body, "\"image\"") && !img) {
+            const char *b = strstr((char *)body, "\"bytes\":");
+            want = b ? strtoull(b + 8, NULL, 10) : 0;
+            img = malloc(want + 1);
+        } else if (kind == WIRE_KIND_JSON && strstr((char *)body, "\"image_end\"") && img && *len == want) {
+            free(body);
+            return img;
+        } else {
+            snprintf(err, err_len, "unexpected frame '%c' (%zu bytes) after %zu of %zu bytes: %.200s", kind, n, *len, want,
+                     kind == WIRE_KIND_JSON ? (char *)body : "");
+            free(body);
+            free(img);
+            return NULL;
+        }
+    }
+    snprintf(err, err_len, "the stream ended after %zu of %zu bytes", *len, want);
+    free(img);
+    return NULL;
+}
+
+/* Images of any size (more than 2 GiB could not be fetched; one frame built
+ * on the loop): fetch streams the finished file in chunks read off the
+ * loop, only as fast as the client reads. With 64 KiB chunks
+ * (TESSERA_FETCH_CHUNK), a 1024x768 image comes in 145 of them, each byte
+ * as in a single-process render, through the CLI too (PFM renamed into
+ * place, PNG converted); a client that asks and then does not read holds
+ * the coordinator's memory to about a chunk while `status` answers at once
+ * (the image built whole and queued: +9 MiB). */
+TEST(hostile_fetch_streams_in_chunks_with_back_pressure) {
+    coord c = {0};
+    setenv("TESSERA_FETCH_CHUNK", "65536", 1);
+    int started = coord_start(&c, "hostile-fetch", NULL);
+    unsetenv("TESSERA_FETCH_CHUNK");
+    if (started) {
+        CHECK(0, "coordinator did not start; log %s", c.log);
+        return;
+    }
+    pid_t w = worker_start(&c, "fetch-w");
+    char ref[256], got[256], png[256], cmd[4096], out[8192], err[512];
+    snprintf(ref, sizeof ref, "%s", util_temp_path("hostile-fetch-ref.pfm"));
+    snprintf(got, sizeof got, "%s", util_temp_path("hostile-fetch.pfm"));
+    snprintf(png, sizeof png, "%s", util_temp_path("hostile-fetch.png"));
+    /* Past the kernel's socket buffers (4 MiB each way at most here), so that
+     * an image queued whole would show in the coordinator's memory; smaller
+     * under a sanitizer, which renders 10 times slower and whose memory
+     * figures are not checked. */
+    const char *size = slack() > 1 ? "--width 512 --height 512" : "--width 1024 --height 768";
+    snprintf(cmd, sizeof cmd, "%s render tests/scenes/cornell-small.json %s --spp 1 --workers 0 -o %s", harness_tessera(),
+             size, ref);
+    CHECK(util_run(cmd, out, sizeof out) == 0, "reference render: %s", out);
+    snprintf(cmd, sizeof cmd, "submit tests/scenes/cornell-small.json %s --spp 1 --tile-size 128", size);
+    int st = cli(&c, out, sizeof out, cmd);
+    CHECK(st == 0, "submit (%d): %s", st, out);
+    for (int i = 0; i < (int)(600 * slack()) && !strstr(out, "\"done\""); i++) {
+        util_sleep(0.1);
+        cli(&c, out, sizeof out, "status 1 --json");
+    }
+    CHECK(strstr(out, "\"done\"") != NULL, "the job did not finish: %s", out);
+    long before = rss_kib(c.pid); /* before any fetch: the first one's memory shows */
+    int fd = raw_open(&c), small = 16384;
+    CHECK(fd >= 0, "raw client not welcomed");
+    if (fd < 0) goto out;
+    setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
+    raw_send_text(fd, "{\"type\":\"fetch\",\"job\":1}");
+    util_sleep(1.0);
+    long during = rss_kib(c.pid);
+    double t0 = now_s();
+    st = cli(&c, out, sizeof out, "status");
+    double t = now_s() - t0;
+    CHECK(st == 0 && t < 2 * slack(), "status took %.2f s (%d) while a client stalled a fetch: %s", t, st, out);
+    CHECK(slack() > 1 || (before > 0 && during - before < 1024),
+          "coordinator RSS grew %ld KiB while a client did not read a 9 MiB image (want < 1024)", during - before);
+    size_t len, flen;
+    int chunks;
+    uint8_t *img = raw_fetch_read(fd, &len, &chunks, err, sizeof err);
+    snprintf(cmd, sizeof cmd, "fetch 1 -o %s", got);
+    st = cli(&c, out, sizeof out, cmd);
+    CHECK(st == 0 && util_same_file(got, ref), "fetch (%d) did not give the single-process image: %s", st, out);
+    snprintf(cmd, sizeof cmd, "fetch 1 -o %s", png);
+    st = cli(&c, out, sizeof out, cmd);
+    CHECK(st == 0 && access(png, F_OK) == 0, "fetch to PNG (%d): %s", st, out);
+    char *file = file_read_all(got, (size_t)1 << 26, &flen, err, sizeof err);
+    CHECK(img && file && len == flen && memcmp(img, file, len) == 0 && chunks == (int)((flen + 65535) / 65536),
+          "raw fetch: %zu bytes in %d chunks against %zu in the file: %s", len, chunks, flen, img ? "bytes differ" : err);
+    fprintf(stderr, "  (stalled fetch: coordinator RSS %ld -> %ld KiB; status in %.3f s; %d chunks)\n", before, during, t,
+            chunks);
+    free(img);
+    free(file);
+    close(fd);
+out:
+    kill(w, SIGTERM);
+    util_wait(w, 30, NULL);
+    coord_stop(&c);
+}

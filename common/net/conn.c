@@ -24,6 +24,9 @@ struct conn {
     unsigned char tx_key[32], rx_key[32];  /* XChaCha20-Poly1305 keys, each way */
     uint64_t tx_count, rx_count;           /* frames sealed and opened: the nonces */
     size_t max_frame;                      /* the owner's limit, before sealing's overhead */
+    void (*drain_cb)(conn *c, void *arg);  /* conn_on_drain: once, when the queue falls to drain_below */
+    void *drain_arg;
+    size_t drain_below;
 };
 
 #define SEAL_OVERHEAD (WIRE_HEADER_BYTES + crypto_aead_xchacha20poly1305_ietf_ABYTES)
@@ -195,9 +198,21 @@ int conn_start(conn *c) { return uv_read_start((uv_stream_t *)&c->tcp, on_alloc,
 static void on_written(uv_write_t *req, int status) {
     (void)status; /* a failed write shows up as a read error or EOF too */
     write_req *w = (write_req *)req;
+    conn *c = (conn *)req->handle; /* the uv_tcp_t is the conn's first member; NULL when never queued */
     free(w->owned);
     conn_blob_unref(w->blob);
     free(w);
+    if (c && c->drain_cb && !c->closing && c->tcp.write_queue_size <= c->drain_below) {
+        void (*cb)(conn *, void *) = c->drain_cb;
+        c->drain_cb = NULL;
+        cb(c, c->drain_arg);
+    }
+}
+
+void conn_on_drain(conn *c, size_t below, void (*cb)(conn *c, void *arg), void *arg) {
+    c->drain_cb = cb;
+    c->drain_arg = arg;
+    c->drain_below = below;
 }
 
 /* Queue buf for writing with w holding what to release afterwards. */

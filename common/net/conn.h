@@ -76,6 +76,12 @@ uint64_t conn_bytes_in(const conn *c);
 uint64_t conn_bytes_out(const conn *c);
 size_t conn_write_queue(const conn *c);
 
+/* Back-pressure for a sender that streams: call cb(c, arg) once, when a
+ * write completes and at most `below` bytes are still queued. Replaces an
+ * earlier request; cb NULL cancels. Not called once the connection is
+ * closing (the owner's on_close runs instead). Can't fail. */
+void conn_on_drain(conn *c, size_t below, void (*cb)(conn *c, void *arg), void *arg);
+
 /* In on_frame: take the memory of the frame being delivered (the body
  * passed to on_frame is at + WIRE_HEADER_BYTES in it); the caller frees it.
  * NULL outside a frame callback. */

@@ -3,7 +3,8 @@
  *
  * A frame is a 4-byte little-endian length L followed by L bytes: one kind
  * byte and L - 1 bytes of body. Kinds: 'J' a JSON object (control
- * messages), 'T' a rendered tile (binary), 'S' a scene bundle (binary).
+ * messages), 'T' a rendered tile (binary), 'S' a scene bundle (binary),
+ * 'D' a chunk of a streamed file.
  * A decoder never buffers more than one frame, and refuses a length above
  * its limit before allocating anything, so a peer can't make it hold more
  * than the limit however it lies. */
@@ -18,6 +19,7 @@
 #define WIRE_KIND_TILE 'T'
 #define WIRE_KIND_SCENE 'S'
 #define WIRE_KIND_SEALED 'E' /* an encrypted frame (conn_seal) */
+#define WIRE_KIND_DATA 'D'   /* a chunk of a file sent in pieces (a fetched image) */
 #define WIRE_HEADER_BYTES 5 /* length + kind */
 #define WIRE_JSON_MAX (64u << 10) /* largest JSON control message */
 

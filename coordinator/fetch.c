@@ -1,0 +1,180 @@
+/* fetch.c - a finished image streamed to a client in chunks (fetch.h): each
+ * chunk is read with pread and hashed on libuv's thread pool, sent from the
+ * loop, and the next one read when the write queue has drained. */
+#define _GNU_SOURCE
+#include "fetch.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <inttypes.h>
+#include <sodium.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "net/protocol.h"
+#include "net/wire.h"
+
+struct fetch_stream {
+    uv_work_t work;
+    uv_loop_t *loop;
+    conn *c;             /* NULL once detached */
+    fetch_stream **slot; /* the owner's pointer to us, cleared at the end */
+    uint32_t job;
+    char path[4096];
+    int fd;              /* -1 until the first chunk's work opens it */
+    uint64_t size, sent; /* file size; bytes read so far */
+    size_t chunk;
+    int busy;            /* a read is on the pool */
+    /* the pool's, read on the loop after the work */
+    uint8_t *frame; /* a D frame holding the chunk just read */
+    size_t frame_len;
+    int err_no;
+    crypto_generichash_state hash;
+};
+
+size_t fetch_chunk_size(void) {
+    const char *e = getenv("TESSERA_FETCH_CHUNK");
+    char *end;
+    long long v = e && *e ? strtoll(e, &end, 10) : 0;
+    return e && *e && *end == 0 && v >= 16 && v <= (64ll << 20) ? (size_t)v : FETCH_CHUNK_DEFAULT;
+}
+
+/* On the pool: open the file (first time), then read and hash the next chunk. */
+static void read_chunk(uv_work_t *w) {
+    fetch_stream *f = w->data;
+    if (f->fd < 0) {
+        struct stat st;
+        f->fd = open(f->path, O_RDONLY | O_CLOEXEC);
+        if (f->fd < 0 || fstat(f->fd, &st) != 0) {
+            f->err_no = errno;
+            return;
+        }
+        f->size = (uint64_t)st.st_size;
+    }
+    uint64_t left = f->size - f->sent;
+    size_t n = left < f->chunk ? (size_t)left : f->chunk, got = 0;
+    f->frame = wire_frame_new(WIRE_KIND_DATA, n, &f->frame_len);
+    if (!f->frame) {
+        f->err_no = ENOMEM;
+        return;
+    }
+    while (got < n) {
+        ssize_t r = pread(f->fd, f->frame + WIRE_HEADER_BYTES + got, n - got, (off_t)(f->sent + got));
+        if (r < 0 && errno == EINTR) continue;
+        if (r <= 0) {
+            f->err_no = r < 0 ? errno : EIO; /* shorter than at the start: changed under us */
+            return;
+        }
+        got += (size_t)r;
+    }
+    crypto_generichash_update(&f->hash, f->frame + WIRE_HEADER_BYTES, n);
+}
+
+static void stream_free(fetch_stream *f) {
+    if (f->slot) *f->slot = NULL;
+    if (f->fd >= 0) close(f->fd);
+    free(f->frame);
+    free(f);
+}
+
+static void send_message(fetch_stream *f, cJSON *m) {
+    size_t len;
+    uint8_t *fr = wire_frame_json(m, &len);
+    cJSON_Delete(m);
+    if (fr) conn_send(f->c, fr, len);
+}
+
+static void send_error(fetch_stream *f) {
+    char reason[4200];
+    snprintf(reason, sizeof reason, "job %u: cannot read its image %s: %s", f->job, f->path, strerror(f->err_no));
+    size_t len;
+    uint8_t *fr = proto_frame_reason("error", reason, &len);
+    if (fr) conn_send(f->c, fr, len);
+}
+
+static void send_end(fetch_stream *f) {
+    unsigned char h[32];
+    char hex[65];
+    crypto_generichash_final(&f->hash, h, sizeof h);
+    sodium_bin2hex(hex, sizeof hex, h, sizeof h);
+    cJSON *m = cJSON_CreateObject();
+    cJSON_AddStringToObject(m, "type", "image_end");
+    cJSON_AddNumberToObject(m, "job", f->job);
+    cJSON_AddNumberToObject(m, "bytes", (double)f->sent);
+    cJSON_AddStringToObject(m, "blake2b", hex);
+    send_message(f, m);
+}
+
+static void after_read(uv_work_t *w, int status);
+
+static void next_chunk(fetch_stream *f) {
+    f->busy = 1;
+    uv_queue_work(f->loop, &f->work, read_chunk, after_read);
+}
+
+static void on_drained(conn *c, void *arg) {
+    (void)c;
+    next_chunk(arg);
+}
+
+/* On the loop: send what was read; then read on at once while the queue
+ * holds under a chunk, else when it has drained to that. */
+static void after_read(uv_work_t *w, int status) {
+    fetch_stream *f = w->data;
+    f->busy = 0;
+    if (!f->c) return stream_free(f); /* the client went away meanwhile */
+    if (status != 0 && !f->err_no) f->err_no = ECANCELED;
+    if (f->err_no) {
+        send_error(f);
+        return stream_free(f);
+    }
+    if (f->sent == 0) { /* the header, now that the size is known */
+        cJSON *m = cJSON_CreateObject();
+        cJSON_AddStringToObject(m, "type", "image");
+        cJSON_AddNumberToObject(m, "job", f->job);
+        cJSON_AddStringToObject(m, "format", "pfm");
+        cJSON_AddNumberToObject(m, "bytes", (double)f->size);
+        send_message(f, m);
+    }
+    size_t n = f->frame_len - WIRE_HEADER_BYTES;
+    f->sent += n;
+    if (n > 0) conn_send(f->c, f->frame, f->frame_len);
+    else free(f->frame);
+    f->frame = NULL;
+    if (f->sent >= f->size) {
+        send_end(f);
+        return stream_free(f);
+    }
+    if (conn_write_queue(f->c) < f->chunk) next_chunk(f);
+    else conn_on_drain(f->c, f->chunk, on_drained, f);
+}
+
+int fetch_start(uv_loop_t *loop, conn *c, uint32_t job, const char *path, size_t chunk, fetch_stream **slot) {
+    fetch_stream *f = calloc(1, sizeof *f);
+    if (!f) return -1;
+    f->loop = loop;
+    f->c = c;
+    f->slot = slot;
+    f->job = job;
+    f->fd = -1;
+    f->chunk = chunk;
+    f->work.data = f;
+    snprintf(f->path, sizeof f->path, "%s", path);
+    crypto_generichash_init(&f->hash, NULL, 0, 32);
+    *slot = f;
+    next_chunk(f);
+    return 0;
+}
+
+void fetch_detach(fetch_stream **slot) {
+    fetch_stream *f = *slot;
+    if (!f) return;
+    *slot = NULL;
+    f->slot = NULL;
+    conn_on_drain(f->c, 0, NULL, NULL);
+    f->c = NULL;
+    if (!f->busy) stream_free(f);
+}
