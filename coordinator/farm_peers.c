@@ -92,9 +92,13 @@ void farm_set_auth(farm *f, const auth_keyring *r) { f->opt.auth = *r; }
 /* The one refusal every authentication failure gets, whatever it was (no,
  * wrong or malformed proof, wrong class, a hello that is not one): the
  * same bytes, then the close. A stranger learns that a token is needed,
- * never whether one was close. why goes to the log only. Returns 1. */
-static int peer_refuse_auth(peer *p, const char *why) {
-    farm_log(p->f, "peer %s: authentication failed (%s); refused", p->rec.addr, why);
+ * never whether one was close. who (what the peer called itself, or NULL)
+ * and fault go to the log only. Returns 1. */
+static int peer_refuse_auth(peer *p, const char *who, const char *fault) {
+    if (who)
+        farm_log(p->f, "peer %s (calling itself %s): authentication failed (%s); refused", p->rec.addr, who, fault);
+    else
+        farm_log(p->f, "peer %s: authentication failed (%s); refused", p->rec.addr, fault);
     p->rec.name[0] = '\0';
     return peer_refuse(p, "refused", "authentication failed: this coordinator requires a token");
 }
@@ -107,19 +111,18 @@ static auth_class hello_auth(peer *p, const cJSON *m, const auth_key **key) {
     const cJSON *role = cJSON_GetObjectItemCaseSensitive(m, "role"), *name = cJSON_GetObjectItemCaseSensitive(m, "name");
     const cJSON *proof = cJSON_GetObjectItemCaseSensitive(m, "proof"), *nonce = cJSON_GetObjectItemCaseSensitive(m, "nonce");
     int client = cJSON_IsString(role) && strcmp(role->valuestring, "client") == 0;
-    char why[300];
+    char who[100], fault[160];
     if (cls == AUTH_NONE && offered != AUTH_NONE)
-        snprintf(why, sizeof why, "%s %.60s offered the %s token, which may not %s", client ? "client" : "worker",
-                 cJSON_IsString(name) ? name->valuestring : "?", auth_class_name(offered),
+        snprintf(fault, sizeof fault, "the %s token, which may not %s", auth_class_name(offered),
                  client ? "act as a client" : "register as a worker");
     else if (cls == AUTH_NONE)
-        snprintf(why, sizeof why, "%s %.60s: %s proof", client ? "client" : "worker",
-                 cJSON_IsString(name) ? name->valuestring : "?", cJSON_IsString(proof) ? "wrong" : "no");
+        snprintf(fault, sizeof fault, "%s token", cJSON_IsString(proof) ? "wrong" : "no");
     else if (!(cJSON_IsString(nonce) && strlen(nonce->valuestring) >= 32 && strlen(nonce->valuestring) < 200))
-        snprintf(why, sizeof why, "hello without a nonce of 32 to 199 characters (the link keys need one)");
+        snprintf(fault, sizeof fault, "no nonce of 32 to 199 characters: the link keys need one");
     else
         return cls;
-    peer_refuse_auth(p, why);
+    snprintf(who, sizeof who, "%s %.60s", client ? "client" : "worker", cJSON_IsString(name) ? name->valuestring : "?");
+    peer_refuse_auth(p, who, fault);
     return AUTH_NONE;
 }
 
@@ -219,12 +222,12 @@ static int on_json(peer *p, const uint8_t *body, size_t len) {
     char err[256];
     const char *type;
     cJSON *m = proto_parse_json(body, len, &type, err, sizeof err);
-    if (!m && p->state == PEER_HELLO && auth_keyring_enabled(&p->f->opt.auth)) return peer_refuse_auth(p, err);
+    if (!m && p->state == PEER_HELLO && auth_keyring_enabled(&p->f->opt.auth)) return peer_refuse_auth(p, NULL, err);
     if (!m) return peer_violation(p, "%s", err);
     int rc = 0;
     if (p->state == PEER_HELLO) {
         if (strcmp(type, "hello") == 0) rc = on_hello(p, m);
-        else if (auth_keyring_enabled(&p->f->opt.auth)) rc = peer_refuse_auth(p, "a message before hello");
+        else if (auth_keyring_enabled(&p->f->opt.auth)) rc = peer_refuse_auth(p, NULL, "a message before hello");
         else rc = peer_violation(p, "expected hello, got \"%.40s\"", type);
     } else if (strcmp(type, "ready") == 0) {
         const cJSON *s = cJSON_GetObjectItemCaseSensitive(m, "slots");
@@ -257,7 +260,7 @@ static int on_frame(conn *c, int kind, const uint8_t *body, size_t len) {
     if (kind == WIRE_KIND_JSON) return on_json(p, body, len);
     if (kind == WIRE_KIND_TILE && p->state != PEER_HELLO) return farm_on_tile(p, body, len);
     if (p->state == PEER_HELLO && auth_keyring_enabled(&f->opt.auth))
-        return peer_refuse_auth(p, "a binary frame before hello");
+        return peer_refuse_auth(p, NULL, "a binary frame before hello");
     return peer_violation(p, "unexpected frame kind 0x%02x%s", kind, p->state == PEER_HELLO ? " before hello" : "");
 }
 

@@ -295,7 +295,7 @@ TEST(service_token_required_of_workers_and_clients) {
     /* Clients: no token or the wrong one are refused; the right one works. */
     int st = cli(&s, out, sizeof out, "status");
     CHECK(st == 1 && strstr(out, "authentication failed") && strstr(out, "requires a token") &&
-              strstr(out, "--token-file F or TESSERA_TOKEN_FILE"),
+              strstr(out, "--token-file F or TESSERA_CLIENT_TOKEN_FILE"),
           "client without a token is not told a token is required (%d): %s", st, out);
     st = cli(&s, out, sizeof out, "status --token-file %s", bad);
     CHECK(st == 1 && strstr(out, "authentication failed") && strstr(out, "did not accept the token in"),
