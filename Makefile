@@ -307,5 +307,8 @@ bench-journal: $(TESSERA) $(LOADGEN)
 # farm run interleaved (bench/trust.sh; printed, not asserted).
 .PHONY: bench-trust
 TRUST_BENCH_ROUNDS ?= 5
-bench-trust: $(TESSERA) $(WORKER)
+bench-trust: $(TESSERA) $(WORKER) $(LOADGEN)
 	bench/trust.sh $(BUILD)/bin scenes/cornell-box.json 16 $(TRUST_BENCH_ROUNDS) 32
+# The sealed frame layer and the handshake's check (tests/fuzz/fuzz_seal.c).
+FUZZ_TARGETS += seal
+fuzz: $(FUZZ_BUILD)/fuzz_seal

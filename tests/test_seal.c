@@ -24,7 +24,7 @@
 #define SCENE "tests/scenes/cornell-small.json"
 #define LONG 60.0 /* seconds: only hit when something is broken */
 
-enum { T_FLIP, T_REPLAY, T_DROP, T_CUT };
+enum { T_FLIP, T_REPLAY, T_DROP, T_CUT, T_SWAP };
 
 typedef struct {
     int listen_fd, target_port;
@@ -40,6 +40,8 @@ typedef struct {
     int frames;
     uint8_t *last; /* the previous whole frame, for a replay */
     size_t last_len;
+    uint8_t *held; /* T_SWAP: the frame held back, sent after the next one */
+    size_t held_len;
 } stream;
 
 static int send_all(int fd, const uint8_t *p, size_t n) {
@@ -72,9 +74,18 @@ static int pump(proxy *px, stream *s, int fd, int tamper_here) {
             } else if (px->mode == T_CUT) {
                 send_all(fd, s->buf, n / 2);
                 rc = -1;
+            } else if (px->mode == T_SWAP) {
+                s->held = malloc(n);
+                memcpy(s->held, s->buf, n);
+                s->held_len = n;
             } /* T_DROP: nothing */
         } else {
             rc = send_all(fd, s->buf, n);
+            if (rc == 0 && s->held) { /* the swapped frame, one late */
+                rc = send_all(fd, s->held, s->held_len);
+                free(s->held);
+                s->held = NULL;
+            }
         }
         free(s->last);
         s->last = malloc(n);
@@ -96,6 +107,21 @@ static int read_into(int fd, stream *s) {
     if (k <= 0) return -1;
     s->len += (size_t)k;
     return 0;
+}
+
+/* A listening socket on a free loopback port for the proxy; its port in
+ * *port. */
+static int proxy_listen(int *port) {
+    int lfd = socket(AF_INET, SOCK_STREAM, 0), one = 1;
+    setsockopt(lfd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+    struct sockaddr_in sa = {.sin_family = AF_INET, .sin_port = 0};
+    sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    socklen_t sl = sizeof sa;
+    CHECK(bind(lfd, (struct sockaddr *)&sa, sizeof sa) == 0 && listen(lfd, 4) == 0 &&
+              getsockname(lfd, (struct sockaddr *)&sa, &sl) == 0,
+          "proxy cannot listen");
+    *port = ntohs(sa.sin_port);
+    return lfd;
 }
 
 /* Relay the first connection (tampering), then stop accepting. */
@@ -126,8 +152,10 @@ static void *proxy_main(void *arg) {
     close(b);
     free(up.buf);
     free(up.last);
+    free(up.held);
     free(down.buf);
     free(down.last);
+    free(down.held);
     return NULL;
 }
 
@@ -168,14 +196,8 @@ static void run_tampered(const char *tag, int up, int mode, int at, const char *
     fclose(tf);
     int port = util_free_port();
     snprintf(laddr, sizeof laddr, "127.0.0.1:%d", port);
-    int lfd = socket(AF_INET, SOCK_STREAM, 0), one = 1;
-    setsockopt(lfd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
-    struct sockaddr_in sa = {.sin_family = AF_INET, .sin_port = 0};
-    sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    socklen_t sl = sizeof sa;
-    CHECK(bind(lfd, (struct sockaddr *)&sa, sizeof sa) == 0 && listen(lfd, 4) == 0 &&
-              getsockname(lfd, (struct sockaddr *)&sa, &sl) == 0,
-          "proxy cannot listen");
+    int proxy_port;
+    int lfd = proxy_listen(&proxy_port);
     proxy px = {.listen_fd = lfd, .target_port = port, .up = up, .mode = mode, .at = at};
     const char *argv[] = {harness_tessera(), "render", SCENE, "--tile-size", "8", "--no-progress", "-v", "-o", img,
                           "--listen", laddr, "--token-file", token, NULL};
@@ -183,7 +205,7 @@ static void run_tampered(const char *tag, int up, int mode, int at, const char *
     CHECK(util_wait_for_text(clog, "coordinator listening on", LONG) == 0, "coordinator did not start; log %s", clog);
     pthread_t th;
     pthread_create(&th, NULL, proxy_main, &px);
-    pid_t t = start_worker(tlog, ntohs(sa.sin_port), "T", token); /* through the proxy */
+    pid_t t = start_worker(tlog, proxy_port, "T", token); /* through the proxy */
     const char *where = up ? clog : tlog;
     CHECK(util_wait_for_text(where, reason, LONG) == 0, "%s: no \"%s\" in %s", tag, reason, where);
     pid_t h = start_worker(hlog, port, "H", token); /* finishes the render */
@@ -239,4 +261,76 @@ TEST(seal_no_token_only_on_loopback_unless_insecure) {
              harness_tessera(), img);
     st = util_run(cmd, out, sizeof out);
     CHECK(st == 0, "loopback without a token refused (%d): %s", st, out);
+}
+
+/* ---- client links (tessera submit/status/... to tessera-coordinator) ---- */
+
+/* One client command through a tampering proxy to a coordinator service
+ * with a token; expect `reason` in the coordinator's log (up) or in the
+ * client's output (down), and the client to fail. */
+static void run_client_tampered(const char *tag, int up, int mode, int at, const char *command, const char *reason) {
+    char clog[256], dir[256], token[256], laddr[64], name[96], cmd[4096], out[8192];
+    snprintf(name, sizeof name, "seal-client-%s.log", tag);
+    snprintf(clog, sizeof clog, "%s", util_temp_path(name));
+    unlink(clog);
+    snprintf(name, sizeof name, "seal-client-%s.data", tag);
+    snprintf(dir, sizeof dir, "%s", util_temp_path(name));
+    snprintf(token, sizeof token, "%s", util_write_temp("seal-client-token", "seal client token\n"));
+    int port = util_free_port(), proxy_port;
+    snprintf(laddr, sizeof laddr, "127.0.0.1:%d", port);
+    int lfd = proxy_listen(&proxy_port);
+    proxy px = {.listen_fd = lfd, .target_port = port, .up = up, .mode = mode, .at = at};
+    const char *argv[] = {util_bin("tessera-coordinator"), "--listen", laddr, "--data-dir", dir, "--token-file", token,
+                          NULL};
+    pid_t coord = util_spawn(argv, clog);
+    CHECK(util_wait_for_text(clog, "listening on", LONG) == 0, "coordinator did not start; log %s", clog);
+    pthread_t th;
+    pthread_create(&th, NULL, proxy_main, &px);
+    snprintf(cmd, sizeof cmd, "TESSERA_CLIENT_TIMEOUT=20 %s %s --coordinator 127.0.0.1:%d --token-file %s",
+             harness_tessera(), command, proxy_port, token);
+    int st = util_run(cmd, out, sizeof out);
+    CHECK(st != 0, "%s: the client succeeded over a tampered link: %s", tag, out);
+    CHECK(px.done, "%s: the proxy never tampered", tag);
+    if (up) {
+        CHECK(util_wait_for_text(clog, reason, LONG) == 0, "%s: no \"%s\" in %s", tag, reason, clog);
+        CHECK(util_file_count(clog, "disconnecting"), "%s: the coordinator did not log the disconnection", tag);
+    } else {
+        CHECK(strstr(out, reason) && strstr(out, "not intact"), "%s: client said (%d): %s", tag, st, out);
+    }
+    kill(coord, SIGTERM);
+    CHECK(util_wait(coord, LONG, NULL) == 0, "%s: coordinator did not stop cleanly; log %s", tag, clog);
+    CHECK(!util_file_count(clog, "Sanitizer") && !util_file_count(clog, "runtime error"), "sanitizer report in %s",
+          clog);
+    shutdown(lfd, SHUT_RDWR);
+    close(lfd);
+    pthread_join(th, NULL);
+}
+
+/* Client frames up: 0 hello (clear); submit sends 1 the scene (sealed 0),
+ * 2 the submit (sealed 1). Down: 0 challenge, 1 welcome (clear), then
+ * sealed answers. Every fault ends the link with the reason logged. */
+TEST(seal_client_link_refuses_altered_replayed_reordered_cut_frames) {
+    run_client_tampered("flip-up", 1, T_FLIP, 2, "submit " SCENE, "sealed frame 1 failed authentication");
+    run_client_tampered("replay-up", 1, T_REPLAY, 2, "submit " SCENE, "sealed frame 1 failed authentication");
+    run_client_tampered("swap-up", 1, T_SWAP, 1, "submit " SCENE, "sealed frame 0 failed authentication");
+    run_client_tampered("drop-up", 1, T_DROP, 1, "submit " SCENE, "sealed frame 0 failed authentication");
+    run_client_tampered("cut-up", 1, T_CUT, 2, "submit " SCENE, "in the middle of a frame");
+    run_client_tampered("flip-down", 0, T_FLIP, 2, "status", "sealed frame 0 failed authentication");
+    run_client_tampered("replay-down", 0, T_REPLAY, 2, "status", "unsealed frame");
+}
+
+/* Without a token a client reaches only a loopback coordinator, unless --insecure. */
+TEST(seal_client_without_token_only_on_loopback_unless_insecure) {
+    char cmd[1024], out[4096];
+    snprintf(cmd, sizeof cmd, "env -u TESSERA_TOKEN_FILE -u TESSERA_CLIENT_TOKEN_FILE %s status --coordinator 10.255.255.1:7000",
+             harness_tessera());
+    int st = util_run(cmd, out, sizeof out);
+    CHECK(st == 1 && strstr(out, "without a token") && strstr(out, "--insecure"), "expected a refusal, got %d: %s", st,
+          out);
+    snprintf(cmd, sizeof cmd,
+             "env -u TESSERA_TOKEN_FILE -u TESSERA_CLIENT_TOKEN_FILE TESSERA_CLIENT_TIMEOUT=1 %s status --insecure "
+             "--coordinator 10.255.255.1:7000",
+             harness_tessera());
+    st = util_run(cmd, out, sizeof out);
+    CHECK(st == 1 && strstr(out, "cannot reach") && !strstr(out, "without a token"), "--insecure (%d): %s", st, out);
 }
