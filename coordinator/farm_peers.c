@@ -103,6 +103,16 @@ static int peer_refuse_auth(peer *p, const char *who, const char *fault) {
     return peer_refuse(p, "refused", "authentication failed: this coordinator requires a token");
 }
 
+/* A refusal before any hello could be checked (not JSON, another message
+ * or frame first): the check runs all the same on nothing, so this costs
+ * what a wrong proof costs. Returns 1. */
+static int peer_refuse_unheard(peer *p, const char *fault) {
+    auth_class offered;
+    const auth_key *key;
+    auth_check_hello(&p->f->opt.auth, p->nonce, NULL, &offered, &key);
+    return peer_refuse_auth(p, NULL, fault);
+}
+
 /* With tokens: check hello's proof, class and nonce. Returns the class
  * proved (and *key), or AUTH_NONE after refusing p. */
 static auth_class hello_auth(peer *p, const cJSON *m, const auth_key **key) {
@@ -222,12 +232,12 @@ static int on_json(peer *p, const uint8_t *body, size_t len) {
     char err[256];
     const char *type;
     cJSON *m = proto_parse_json(body, len, &type, err, sizeof err);
-    if (!m && p->state == PEER_HELLO && auth_keyring_enabled(&p->f->opt.auth)) return peer_refuse_auth(p, NULL, err);
+    if (!m && p->state == PEER_HELLO && auth_keyring_enabled(&p->f->opt.auth)) return peer_refuse_unheard(p, err);
     if (!m) return peer_violation(p, "%s", err);
     int rc = 0;
     if (p->state == PEER_HELLO) {
         if (strcmp(type, "hello") == 0) rc = on_hello(p, m);
-        else if (auth_keyring_enabled(&p->f->opt.auth)) rc = peer_refuse_auth(p, NULL, "a message before hello");
+        else if (auth_keyring_enabled(&p->f->opt.auth)) rc = peer_refuse_unheard(p, "a message before hello");
         else rc = peer_violation(p, "expected hello, got \"%.40s\"", type);
     } else if (strcmp(type, "ready") == 0) {
         const cJSON *s = cJSON_GetObjectItemCaseSensitive(m, "slots");
@@ -260,7 +270,7 @@ static int on_frame(conn *c, int kind, const uint8_t *body, size_t len) {
     if (kind == WIRE_KIND_JSON) return on_json(p, body, len);
     if (kind == WIRE_KIND_TILE && p->state != PEER_HELLO) return farm_on_tile(p, body, len);
     if (p->state == PEER_HELLO && auth_keyring_enabled(&f->opt.auth))
-        return peer_refuse_auth(p, NULL, "a binary frame before hello");
+        return peer_refuse_unheard(p, "a binary frame before hello");
     return peer_violation(p, "unexpected frame kind 0x%02x%s", kind, p->state == PEER_HELLO ? " before hello" : "");
 }
 

@@ -6,6 +6,7 @@
  * frame, or cuts it in half and hangs up. The side that receives the bad
  * frame must end the connection with a logged reason; the render must
  * still come out byte-identical to the single-process one. */
+#define _GNU_SOURCE
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <poll.h>
@@ -16,7 +17,14 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/socket.h>
+#include <time.h>
 #include <unistd.h>
+
+#include <cjson/cJSON.h>
+
+#include "net/auth.h"
+#include "net/protocol.h"
+#include "net/wire.h"
 
 #include "harness.h"
 #include "util.h"
@@ -333,4 +341,179 @@ TEST(seal_client_without_token_only_on_loopback_unless_insecure) {
              harness_tessera());
     st = util_run(cmd, out, sizeof out);
     CHECK(st == 1 && strstr(out, "cannot reach") && !strstr(out, "without a token"), "--insecure (%d): %s", st, out);
+}
+
+/* ---- every authentication failure looks the same ------------------------------ */
+
+enum { V_WRONG, V_CLASS, V_MAC, V_REPLAY, V_TRUNC, V_NONE, V_KINDS, V_GOOD = V_KINDS };
+static const char *const v_names[] = {"wrong token", "wrong class", "bad MAC", "replayed nonce", "truncated hello",
+                                      "no proof"};
+
+typedef struct {
+    auth_key worker, client, stranger;
+} probe_keys;
+
+/* The hello text of variant v for challenge nonce (prev: an earlier
+ * connection's challenge, for the replay). Written into out. */
+static void probe_hello(int v, const probe_keys *k, const char *nonce, const char *prev, char *out, size_t cap) {
+    char proof[AUTH_HEX], mine[AUTH_HEX], field[120] = "";
+    const auth_key *key = v == V_WRONG ? &k->stranger : v == V_CLASS ? &k->client : &k->worker;
+    auth_proof(key, v == V_REPLAY ? prev : nonce, "worker:probe", proof);
+    if (v == V_MAC) proof[10] = proof[10] == '0' ? '1' : '0';
+    if (v != V_NONE) snprintf(field, sizeof field, ",\"proof\":\"%s\"", proof);
+    auth_nonce(mine);
+    snprintf(out, cap, "{\"type\":\"hello\",\"protocol\":%d,\"build\":\"%s\",\"name\":\"probe\",\"threads\":1%s,"
+             "\"nonce\":\"%s\"}", PROTOCOL_VERSION, protocol_build_id(), field, mine);
+    if (v == V_TRUNC) out[strlen(out) / 2] = '\0';
+}
+
+/* Read up to cap bytes until EOF (or 30 s). Returns the count, or -1. */
+static ssize_t read_to_eof(int fd, uint8_t *buf, size_t cap) {
+    size_t n = 0;
+    for (;;) {
+        struct pollfd pf = {fd, POLLIN, 0};
+        if (poll(&pf, 1, 30000) <= 0) return -1;
+        ssize_t k = recv(fd, buf + n, cap - n, 0);
+        if (k < 0) return -1;
+        if (k == 0) return (ssize_t)n;
+        n += (size_t)k;
+        if (n == cap) return -1;
+    }
+}
+
+/* One connection: read the challenge (its nonce into nonce), send variant
+ * v's hello, read the answer to EOF into ans. Returns the answer's length
+ * (or -1) and the seconds from the hello to the close in *secs. */
+static ssize_t probe_once(int port, int v, const probe_keys *k, char nonce[200], const char *prev, uint8_t *ans,
+                          size_t cap, double *secs) {
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    struct sockaddr_in sa = {.sin_family = AF_INET, .sin_port = htons((uint16_t)port)};
+    sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    uint8_t hdr[WIRE_HEADER_BYTES], body[512];
+    ssize_t got = -1;
+    if (connect(fd, (struct sockaddr *)&sa, sizeof sa) == 0 && recv(fd, hdr, sizeof hdr, MSG_WAITALL) == sizeof hdr &&
+        wire_get_u32(hdr) - 1 < sizeof body && recv(fd, body, wire_get_u32(hdr) - 1, MSG_WAITALL) == wire_get_u32(hdr) - 1) {
+        body[wire_get_u32(hdr) - 1] = 0;
+        cJSON *ch = cJSON_Parse((const char *)body);
+        const cJSON *n = cJSON_GetObjectItemCaseSensitive(ch, "nonce");
+        snprintf(nonce, 200, "%s", cJSON_IsString(n) ? n->valuestring : "");
+        cJSON_Delete(ch);
+        char text[1024];
+        probe_hello(v, k, nonce, prev, text, sizeof text);
+        size_t flen;
+        uint8_t *f = wire_frame_new(WIRE_KIND_JSON, strlen(text), &flen);
+        memcpy(f + WIRE_HEADER_BYTES, text, strlen(text));
+        struct timespec t0, t1;
+        clock_gettime(CLOCK_MONOTONIC, &t0);
+        if (send_all(fd, f, flen) == 0 && v != V_GOOD) got = read_to_eof(fd, ans, cap);
+        if (v == V_GOOD && recv(fd, ans, WIRE_HEADER_BYTES, MSG_WAITALL) == WIRE_HEADER_BYTES &&
+            wire_get_u32(ans) - 1 < cap - WIRE_HEADER_BYTES)
+            got = WIRE_HEADER_BYTES + recv(fd, ans + WIRE_HEADER_BYTES, wire_get_u32(ans) - 1, MSG_WAITALL);
+        clock_gettime(CLOCK_MONOTONIC, &t1);
+        *secs = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
+        free(f);
+    }
+    close(fd);
+    return got;
+}
+
+static int cmp_dbl(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* CPU seconds of n checks of hello (what the coordinator does with it). */
+static double check_cost(const auth_keyring *ring, const char *nonce, const cJSON *hello, int n) {
+    struct timespec t0, t1;
+    auth_class offered;
+    const auth_key *key;
+    int proved = 0;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t0);
+    for (int i = 0; i < n; i++) proved += auth_check_hello(ring, nonce, hello, &offered, &key) != AUTH_NONE;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t1);
+    CHECK(proved == 0, "a failing hello was accepted");
+    return (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
+}
+
+/* Wrong token, wrong class, bad MAC, replayed nonce, truncated hello and
+ * no proof: the peer gets the same bytes and then the close, after about
+ * the same time; and the check itself does the same work for each (CPU
+ * time in this process, the minimum of interleaved rounds: robust to load). */
+TEST(seal_every_auth_failure_looks_the_same) {
+    char wt[256], ct[256], xt[256], clog[256], dir[256], laddr[64], err[300];
+    snprintf(wt, sizeof wt, "%s", util_write_temp("same-worker.token", "same worker token\n"));
+    snprintf(ct, sizeof ct, "%s", util_write_temp("same-client.token", "same client token\n"));
+    snprintf(xt, sizeof xt, "%s", util_write_temp("same-stranger.token", "a stranger's guess\n"));
+    probe_keys k;
+    CHECK(auth_key_load(wt, &k.worker, err, sizeof err) == 0 && auth_key_load(ct, &k.client, err, sizeof err) == 0 &&
+              auth_key_load(xt, &k.stranger, err, sizeof err) == 0, "%s", err);
+    snprintf(clog, sizeof clog, "%s", util_temp_path("same.log"));
+    unlink(clog);
+    snprintf(dir, sizeof dir, "%s", util_temp_path("same.data"));
+    int port = util_free_port();
+    snprintf(laddr, sizeof laddr, "127.0.0.1:%d", port);
+    const char *argv[] = {util_bin("tessera-coordinator"), "--listen", laddr, "--data-dir", dir,
+                          "--worker-token-file", wt, "--client-token-file", ct, NULL};
+    pid_t coord = util_spawn(argv, clog);
+    CHECK(util_wait_for_text(clog, "listening on", LONG) == 0, "coordinator did not start; log %s", clog);
+    enum { ROUNDS = 7 };
+    uint8_t first[4096], ans[4096];
+    ssize_t first_len = -1;
+    double t[V_KINDS][ROUNDS], secs, all[V_KINDS * ROUNDS];
+    char nonce[200], prev[200] = "0000";
+    for (int r = 0; r < ROUNDS; r++)
+        for (int v = 0; v < V_KINDS; v++) {
+            ssize_t n = probe_once(port, v, &k, nonce, prev, ans, sizeof ans, &secs);
+            snprintf(prev, sizeof prev, "%s", nonce);
+            CHECK(n > 0, "%s: no answer, or no close within 30 s", v_names[v]);
+            if (first_len < 0) memcpy(first, ans, (size_t)(first_len = n));
+            CHECK(n == first_len && memcmp(ans, first, (size_t)n) == 0, "%s: answered differently (%zd bytes): %.*s",
+                  v_names[v], n, (int)n, (const char *)ans);
+            t[v][r] = all[r * V_KINDS + v] = secs;
+        }
+    ssize_t n = probe_once(port, V_GOOD, &k, nonce, prev, ans, sizeof ans, &secs);
+    /* The control: the right token passes (welcome, or a build mismatch
+     * when the test runner was built at another commit than tessera). */
+    CHECK(n > 0 && (memmem(ans, (size_t)n, "welcome", 7) || memmem(ans, (size_t)n, "version mismatch", 16)),
+          "the right hello was not welcomed (%zd bytes): %.*s", n, (int)(n > 5 ? n - 5 : 0), (const char *)ans + 5);
+    CHECK(memmem(first, (size_t)first_len, "authentication failed: this coordinator requires a token", 56),
+          "the refusal is not the uniform one: %.*s", (int)first_len, (const char *)first);
+    qsort(all, V_KINDS * ROUNDS, sizeof *all, cmp_dbl);
+    double overall = all[V_KINDS * ROUNDS / 2];
+    for (int v = 0; v < V_KINDS; v++) {
+        qsort(t[v], ROUNDS, sizeof t[v][0], cmp_dbl);
+        double m = t[v][ROUNDS / 2], tol = overall > 0.005 ? overall : 0.005;
+        CHECK(m - overall < tol && overall - m < tol, "%s: median %.2f ms to the close against %.2f ms for all",
+              v_names[v], m * 1e3, overall * 1e3);
+    }
+    CHECK(util_file_count(clog, "authentication failed") >= V_KINDS * ROUNDS, "refusals not logged; log %s", clog);
+    kill(coord, SIGTERM);
+    CHECK(util_wait(coord, LONG, NULL) == 0, "coordinator did not stop cleanly; log %s", clog);
+    /* The check's own cost, variant by variant. */
+    auth_keyring ring;
+    CHECK(auth_keyring_load(&ring, NULL, wt, ct, NULL, err, sizeof err) == 0, "%s", err);
+    char challenge[AUTH_HEX], old[AUTH_HEX], text[1024];
+    auth_nonce(challenge);
+    auth_nonce(old);
+    cJSON *hello[V_KINDS];
+    for (int v = 0; v < V_KINDS; v++) {
+        probe_hello(v, &k, challenge, old, text, sizeof text);
+        hello[v] = cJSON_Parse(text); /* NULL for the truncated one, as the coordinator sees it */
+    }
+    double best[V_KINDS];
+    for (int v = 0; v < V_KINDS; v++) best[v] = 1e9;
+    for (int r = 0; r < 5; r++)
+        for (int v = 0; v < V_KINDS; v++) {
+            double c = check_cost(&ring, challenge, hello[v], 2000);
+            if (c < best[v]) best[v] = c;
+        }
+    double lo = best[0], hi = best[0];
+    for (int v = 0; v < V_KINDS; v++) {
+        lo = best[v] < lo ? best[v] : lo;
+        hi = best[v] > hi ? best[v] : hi;
+        cJSON_Delete(hello[v]);
+    }
+    for (int v = 0; v < V_KINDS; v++)
+        CHECK(hi / lo < 1.25, "%s: %.2f us of CPU per check against %.2f to %.2f us for the others", v_names[v],
+              best[v] / 2000 * 1e6, lo / 2000 * 1e6, hi / 2000 * 1e6);
 }
