@@ -213,6 +213,7 @@ static cJSON *job_status_json(const sjob *j) {
     double el = j->first_tile > 0 ? (j->state == SJOB_RUNNING ? now : j->finished) - j->first_tile : 0;
     cJSON_AddNumberToObject(o, "job", j->desc.id);
     cJSON_AddStringToObject(o, "name", j->name);
+    if (j->owner[0]) cJSON_AddStringToObject(o, "owner", j->owner);
     cJSON_AddStringToObject(o, "state", queued ? "queued" : state_names[j->state]);
     cJSON_AddNumberToObject(o, "priority", j->priority);
     cJSON_AddNumberToObject(o, "width", j->desc.width);

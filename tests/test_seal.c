@@ -340,7 +340,8 @@ TEST(seal_client_without_token_only_on_loopback_unless_insecure) {
              "--coordinator 10.255.255.1:7000",
              harness_tessera());
     st = util_run(cmd, out, sizeof out);
-    CHECK(st == 1 && strstr(out, "cannot reach") && !strstr(out, "without a token"), "--insecure (%d): %s", st, out);
+    CHECK(st == 1 && (strstr(out, "cannot reach") || strstr(out, "did not answer")) && !strstr(out, "without a token"),
+          "--insecure (%d): %s", st, out);
 }
 
 /* ---- every authentication failure looks the same ------------------------------ */
@@ -437,8 +438,9 @@ static double check_cost(const auth_keyring *ring, const char *nonce, const cJSO
 
 /* Wrong token, wrong class, bad MAC, replayed nonce, truncated hello and
  * no proof: the peer gets the same bytes and then the close, after about
- * the same time; and the check itself does the same work for each (CPU
- * time in this process, the minimum of interleaved rounds: robust to load). */
+ * the same time (coarse: the wall clock of a loaded host); and the check
+ * itself does the same work for each (CPU time in this process, the
+ * minimum of interleaved rounds: robust to load). */
 TEST(seal_every_auth_failure_looks_the_same) {
     char wt[256], ct[256], xt[256], clog[256], dir[256], laddr[64], err[300];
     snprintf(wt, sizeof wt, "%s", util_write_temp("same-worker.token", "same worker token\n"));
@@ -478,13 +480,16 @@ TEST(seal_every_auth_failure_looks_the_same) {
           "the right hello was not welcomed (%zd bytes): %.*s", n, (int)(n > 5 ? n - 5 : 0), (const char *)ans + 5);
     CHECK(memmem(first, (size_t)first_len, "authentication failed: this coordinator requires a token", 56),
           "the refusal is not the uniform one: %.*s", (int)first_len, (const char *)first);
+    /* Over the wire, the fastest of the rounds of each kind (load only adds
+     * time): a coarse check, within 10 ms or twice the fastest overall, that
+     * no failure is answered by a slower path. The fine check is the CPU
+     * one below. */
     qsort(all, V_KINDS * ROUNDS, sizeof *all, cmp_dbl);
-    double overall = all[V_KINDS * ROUNDS / 2];
+    double fastest = all[0], tol = 2 * fastest > 0.010 ? 2 * fastest : 0.010;
     for (int v = 0; v < V_KINDS; v++) {
         qsort(t[v], ROUNDS, sizeof t[v][0], cmp_dbl);
-        double m = t[v][ROUNDS / 2], tol = overall > 0.005 ? overall : 0.005;
-        CHECK(m - overall < tol && overall - m < tol, "%s: median %.2f ms to the close against %.2f ms for all",
-              v_names[v], m * 1e3, overall * 1e3);
+        CHECK(t[v][0] - fastest < tol, "%s: at best %.2f ms to the close against %.2f ms for the fastest",
+              v_names[v], t[v][0] * 1e3, fastest * 1e3);
     }
     CHECK(util_file_count(clog, "authentication failed") >= V_KINDS * ROUNDS, "refusals not logged; log %s", clog);
     kill(coord, SIGTERM);
