@@ -207,7 +207,7 @@ fuzz: $(FUZZ_BINS)
 	done; echo "fuzz: $(words $(FUZZ_TARGETS)) targets, no failures"
 
 -include $(FUZZ_COMMON_OBJ:.o=.d)
--include $(COMMON_OBJ:.o=.d) $(TEST_OBJ:.o=.d) $(COORD_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(BUILD)/bench/loadgen.d
+-include $(COMMON_OBJ:.o=.d) $(TEST_OBJ:.o=.d) $(COORD_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(BUILD)/bench/loadgen.d $(BUILD)/bench/seal_speed.d
 
 # ---- make install (issue 18) -------------------------------------------------
 # `make install [PREFIX=/usr/local] [DESTDIR=]` copies tessera and tessera-worker
@@ -314,7 +314,12 @@ bench-journal: $(TESSERA) $(LOADGEN)
 # farm run interleaved (bench/trust.sh; printed, not asserted).
 .PHONY: bench-trust
 TRUST_BENCH_ROUNDS ?= 5
-bench-trust: $(TESSERA) $(WORKER)
+SEAL_SPEED := $(BUILD)/bin/seal_speed
+$(SEAL_SPEED): $(BUILD)/bench/seal_speed.o $(call layer_lib,net) $(call layer_lib,base)
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
+bench-trust: $(TESSERA) $(WORKER) $(LOADGEN) $(SEAL_SPEED)
+	$(SEAL_SPEED)
 	bench/trust.sh $(BUILD)/bin scenes/cornell-box.json 16 $(TRUST_BENCH_ROUNDS) 32
 
 # ---- issue 20: job store, files or SQLite (docs/jobstore.md) ------------------
@@ -349,3 +354,6 @@ test-lsan:
 SOAK_SECONDS ?= 300
 soak: $(TESSERA) $(WORKER) $(LOADGEN)
 	bench/soak.sh $(BUILD)/bin $(SOAK_SECONDS)
+# The sealed frame layer and the handshake's check (tests/fuzz/fuzz_seal.c).
+FUZZ_TARGETS += seal
+fuzz: $(FUZZ_BUILD)/fuzz_seal

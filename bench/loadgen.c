@@ -1,7 +1,11 @@
 /* loadgen.c - a load generator for the coordinator: N simulated workers on
  * one libuv loop that answer every tile instantly (with black pixels).
  *
- *   loadgen --connect HOST:PORT [--connections N]
+ *   loadgen --connect HOST:PORT [--connections N] [--token-file F]
+ *
+ * With --token-file each simulated worker answers the challenge with the
+ * token and seals its link as a real worker does (conn_seal), so the cost
+ * of encryption shows in the figures.
  *
  * Prints how many tiles the coordinator scheduled and stitched per second
  * and the time from a worker's "ready" to the "assign" it gets back (p50,
@@ -12,6 +16,7 @@
 #include <uv.h>
 
 #include "net/address.h"
+#include "net/auth.h"
 #include "net/conn.h"
 #include "job/job.h"
 #include "net/protocol.h"
@@ -22,7 +27,10 @@ typedef struct {
     uv_connect_t req;
     int index;
     double ready_at; /* when our last "ready" went out */
+    char challenge[200], nonce[AUTH_HEX]; /* with a token: the handshake's nonces */
 } sim;
+
+static auth_key key; /* --token-file: prove it and seal every link */
 
 static uv_loop_t *loop;
 static int open_conns, connections = 500;
@@ -73,6 +81,21 @@ static void on_assign(sim *s, const cJSON *m) {
     send_ready(s);
 }
 
+/* hello as worker load-INDEX, with a proof and a nonce when there is a token. */
+static void send_hello(sim *s) {
+    char hello[600], name[32], who[48], proof[AUTH_HEX], extra[200] = "";
+    snprintf(name, sizeof name, "load-%d", s->index);
+    if (key.enabled) {
+        snprintf(who, sizeof who, "worker:%s", name);
+        auth_proof(&key, s->challenge, who, proof);
+        auth_nonce(s->nonce);
+        snprintf(extra, sizeof extra, ",\"proof\":\"%s\",\"nonce\":\"%s\"", proof, s->nonce);
+    }
+    snprintf(hello, sizeof hello, "{\"type\":\"hello\",\"protocol\":%d,\"build\":\"%s\",\"name\":\"%s\",\"threads\":1%s}",
+             PROTOCOL_VERSION, protocol_build_id(), name, extra);
+    send_json_text(s, hello);
+}
+
 static int on_frame(conn *c, int kind, const uint8_t *body, size_t len) {
     sim *s = conn_data(c);
     if (kind != WIRE_KIND_JSON) return 0; /* the scene */
@@ -80,8 +103,17 @@ static int on_frame(conn *c, int kind, const uint8_t *body, size_t len) {
     char err[256];
     cJSON *m = proto_parse_json(body, len, &type, err, sizeof err);
     if (!m) return 0;
-    if (strcmp(type, "welcome") == 0) {
+    if (strcmp(type, "challenge") == 0 && key.enabled) {
+        const cJSON *n = cJSON_GetObjectItemCaseSensitive(m, "nonce");
+        snprintf(s->challenge, sizeof s->challenge, "%s", cJSON_IsString(n) ? n->valuestring : "");
+        send_hello(s);
+    } else if (strcmp(type, "welcome") == 0) {
         conn_set_max_frame(c, SCENE_BUNDLE_MAX_BYTES + 1);
+        if (key.enabled) {
+            unsigned char down[AUTH_KEY_BYTES], up[AUTH_KEY_BYTES];
+            auth_link_keys(&key, s->challenge, s->nonce, down, up);
+            conn_seal(c, up, down);
+        }
         send_ready(s);
     } else if (strcmp(type, "assign") == 0) {
         on_assign(s, m);
@@ -109,11 +141,7 @@ static void on_connected(uv_connect_t *req, int status) {
         return;
     }
     uv_tcp_nodelay(conn_tcp(s->c), 1);
-    char hello[256];
-    snprintf(hello, sizeof hello,
-             "{\"type\":\"hello\",\"protocol\":%d,\"build\":\"%s\",\"name\":\"load-%d\",\"threads\":1}",
-             PROTOCOL_VERSION, protocol_build_id(), s->index);
-    send_json_text(s, hello);
+    if (!key.enabled) send_hello(s); /* else after the challenge */
 }
 
 static int cmp_double(const void *a, const void *b) {
@@ -122,12 +150,13 @@ static int cmp_double(const void *a, const void *b) {
 }
 
 int main(int argc, char **argv) {
-    const char *addr = NULL;
+    const char *addr = NULL, *token = NULL;
     for (int i = 1; i < argc; i++) {
         if (strcmp(argv[i], "--connect") == 0 && i + 1 < argc) addr = argv[++i];
+        else if (strcmp(argv[i], "--token-file") == 0 && i + 1 < argc) token = argv[++i];
         else if (strcmp(argv[i], "--connections") == 0 && i + 1 < argc) connections = atoi(argv[++i]);
         else {
-            fprintf(stderr, "usage: loadgen --connect HOST:PORT [--connections N]\n");
+            fprintf(stderr, "usage: loadgen --connect HOST:PORT [--connections N] [--token-file F]\n");
             return 2;
         }
     }
@@ -136,6 +165,10 @@ int main(int argc, char **argv) {
     if (!addr || connections < 1 || address_parse(addr, host, sizeof host, &port, err, sizeof err) ||
         uv_ip4_addr(host, port, (struct sockaddr_in *)&target)) {
         fprintf(stderr, "loadgen: --connect IPv4:PORT and --connections N >= 1 are required\n");
+        return 2;
+    }
+    if (token && auth_key_load(token, &key, err, sizeof err)) {
+        fprintf(stderr, "loadgen: --token-file %s\n", err);
         return 2;
     }
     loop = uv_default_loop();

@@ -14,6 +14,7 @@
 #include <inttypes.h>
 #include <sodium.h>
 #include <netdb.h>
+#include <sodium.h>
 #include <poll.h>
 #include <signal.h>
 #include <stdarg.h>
@@ -33,6 +34,7 @@
 #include "net/auth.h"
 #include "image/image.h"
 #include "net/protocol.h"
+#include "net/seal.h"
 #include "render/model_files.h"
 #include "render/scene.h"
 #include "render/scene_bundle.h"
@@ -51,11 +53,16 @@ typedef struct {
     char where[300];
     double max_upload; /* from welcome: the largest scene bundle accepted */
     int refused;       /* the last answer was "refused" (the handshake failed) */
+    int sealed;        /* every frame after the welcome is sealed (a token was given) */
+    seal_dir tx, rx;   /* keys and frame counters, each way (net/seal.h) */
+    const char *client_name; /* --client-name, or NULL */
 } cli;
 
 typedef struct {
     const char *coordinator;
     const char *token_file;
+    const char *client_name; /* --client-name: who owns the jobs it submits */
+    int insecure;            /* a coordinator beyond loopback without a token */
     int json;
     int wait;
     int partial; /* fetch: what is done so far of a running or cancelled job */
@@ -92,7 +99,7 @@ static const char *str(const cJSON *o, const char *k) {
     return cJSON_IsString(v) ? v->valuestring : "";
 }
 
-static int send_all(cli *c, const uint8_t *p, size_t len) {
+static int send_raw(cli *c, const uint8_t *p, size_t len) {
     while (len > 0) {
         ssize_t n = send(c->fd, p, len, MSG_NOSIGNAL);
         if (n < 0 && errno == EINTR) continue; /* poll's or recv's: a signal (SIGINT during --wait) */
@@ -128,13 +135,23 @@ static int read_all(cli *c, uint8_t *p, size_t len) {
     return 0;
 }
 
-/* Read one frame into a malloc'd body (the caller frees). Returns its kind
- * or -1 (printed). */
-static int read_frame(cli *c, uint8_t **body, size_t *len) {
+/* Send one whole frame, sealed once the link is. Returns 0 or 1 (printed). */
+static int send_all(cli *c, const uint8_t *frame, size_t len) {
+    if (!c->sealed) return send_raw(c, frame, len);
+    size_t slen;
+    uint8_t *s = seal_wrap(&c->tx, frame, len, &slen);
+    int rc = s ? send_raw(c, s, slen) : cli_fail("out of memory");
+    free(s);
+    return rc;
+}
+
+/* Read one frame as it came into a malloc'd body (the caller frees).
+ * Returns its kind or -1 (printed). */
+static int read_raw_frame(cli *c, uint8_t **body, size_t *len) {
     uint8_t hdr[WIRE_HEADER_BYTES];
     if (read_all(c, hdr, sizeof hdr)) return -1;
     size_t l = wire_get_u32(hdr);
-    if (l < 1 || l > MAX_ANSWER) return cli_fail("the coordinator at %s sent a malformed frame", c->where), -1;
+    if (l < 1 || l > MAX_ANSWER + (c->sealed ? SEAL_OVERHEAD : 0)) return cli_fail("the coordinator at %s sent a malformed frame", c->where), -1;
     *body = malloc(l);
     if (!*body) return cli_fail("out of memory for a %zu-byte answer", l), -1;
     if (read_all(c, *body, l - 1)) {
@@ -143,6 +160,31 @@ static int read_frame(cli *c, uint8_t **body, size_t *len) {
     }
     *len = l - 1;
     return hdr[4];
+}
+
+/* Read one frame (opened, when the link is sealed) into a malloc'd body
+ * (the caller frees). Returns its kind or -1 (printed: a frame that fails
+ * to open ends the connection, naming the fault). */
+static int read_frame(cli *c, uint8_t **body, size_t *len) {
+    uint8_t *raw = NULL;
+    size_t rlen = 0;
+    int kind = read_raw_frame(c, &raw, &rlen);
+    if (kind < 0 || !c->sealed) {
+        *body = raw;
+        *len = rlen;
+        return kind;
+    }
+    uint8_t *plain;
+    size_t plen;
+    char err[200];
+    int rc = seal_open(&c->rx, kind, raw, rlen, &plain, &plen, err, sizeof err);
+    free(raw);
+    if (rc) return cli_fail("the link to the coordinator at %s is not intact: %s; disconnecting", c->where, err), -1;
+    int inner = plain[4];
+    memmove(plain, plain + WIRE_HEADER_BYTES, plen - WIRE_HEADER_BYTES);
+    *body = plain;
+    *len = plen - WIRE_HEADER_BYTES;
+    return inner;
 }
 
 static int send_json(cli *c, cJSON *m) {
@@ -177,18 +219,77 @@ static cJSON *read_answer(cli *c, const char *want) {
     return NULL;
 }
 
+/* Answer the challenge, say hello as a client (its name bound to the
+ * proof), check the coordinator's proof and seal the link when key is
+ * enabled. Returns 0 or 1 (printed). */
+static int cli_hello(cli *c, auth_key *key, const char *token) {
+    cJSON *ch = read_answer(c, "challenge");
+    if (!ch) return 1;
+    char nonce[AUTH_HEX], proof[AUTH_HEX], theirs[200], who[160];
+    snprintf(theirs, sizeof theirs, "%s", str(ch, "nonce"));
+    cJSON_Delete(ch);
+    const char *name = getenv("TESSERA_CLIENT_NAME");
+    if (!name || !*name) name = "tessera-cli";
+    if (c->client_name) name = c->client_name;
+    cJSON *h = cJSON_CreateObject();
+    cJSON_AddStringToObject(h, "type", "hello");
+    cJSON_AddStringToObject(h, "role", "client");
+    cJSON_AddNumberToObject(h, "protocol", PROTOCOL_VERSION);
+    cJSON_AddStringToObject(h, "build", protocol_build_id());
+    cJSON_AddStringToObject(h, "name", name);
+    cJSON_AddNumberToObject(h, "threads", 1);
+    if (key->enabled) {
+        snprintf(who, sizeof who, "client:%.128s", name);
+        auth_proof(key, theirs, who, proof);
+        auth_nonce(nonce);
+        cJSON_AddStringToObject(h, "proof", proof);
+        cJSON_AddStringToObject(h, "nonce", nonce);
+    }
+    if (send_json(c, h)) return 1;
+    c->refused = 0;
+    cJSON *w = read_answer(c, "welcome");
+    if (!w && c->refused && !key->enabled)
+        cli_fail("the coordinator at %s requires a token: give its client token file with --token-file F or "
+                 "TESSERA_CLIENT_TOKEN_FILE=F", c->where);
+    else if (!w && c->refused)
+        cli_fail("the coordinator at %s did not accept the token in %s (is it the client or admin token?)", c->where,
+                 token);
+    int ok = w && (!key->enabled || auth_check(key, nonce, "coordinator", str(w, "proof")));
+    c->max_upload = num(w, "max_upload");
+    if (w && !ok) cli_fail("the coordinator at %s could not prove it knows the token", c->where);
+    cJSON_Delete(w);
+    if (ok && key->enabled) { /* every frame after the welcome is sealed, both ways */
+        unsigned char down[AUTH_KEY_BYTES], up[AUTH_KEY_BYTES];
+        auth_link_keys(key, theirs, nonce, down, up);
+        seal_init(&c->tx, up);
+        seal_init(&c->rx, down);
+        c->sealed = 1;
+        sodium_memzero(down, sizeof down);
+        sodium_memzero(up, sizeof up);
+    }
+    sodium_memzero(key, sizeof *key);
+    return ok ? 0 : 1;
+}
+
 /* Connect, answer the challenge and say hello as a client. Returns 0 or 1
  * (printed). */
 static int cli_open(cli *c, const cli_args *args) {
     auth_key key = {0};
     char err[256];
-    const char *token = args->token_file ? args->token_file : getenv("TESSERA_TOKEN_FILE");
+    memset(c, 0, sizeof *c);
+    c->fd = -1;
+    c->client_name = args->client_name;
+    const char *token = args->token_file ? args->token_file : getenv("TESSERA_CLIENT_TOKEN_FILE");
+    if (!token || !*token) token = getenv("TESSERA_TOKEN_FILE");
     if (token && *token && auth_key_load(token, &key, err, sizeof err)) return cli_fail("%s", err);
     const char *addr = args->coordinator ? args->coordinator : getenv("TESSERA_COORDINATOR");
     if (!addr || !*addr) addr = DEFAULT_COORDINATOR;
     char host[256], port_s[16];
     int port;
     if (address_parse(addr, host, sizeof host, &port, err, sizeof err)) return cli_fail("--coordinator %s", err);
+    if (!key.enabled && !args->insecure && !address_is_loopback(host))
+        return cli_fail("--coordinator %s without a token: the scene and the images would cross the network in "
+                        "clear; give the client token with --token-file F, or --insecure on a network you trust", addr);
     snprintf(c->where, sizeof c->where, "%s", addr);
     snprintf(port_s, sizeof port_s, "%d", port);
     struct addrinfo hints = {.ai_family = AF_UNSPEC, .ai_socktype = SOCK_STREAM}, *res;
@@ -209,41 +310,13 @@ static int cli_open(cli *c, const cli_args *args) {
     }
     freeaddrinfo(res);
     if (c->fd < 0) return cli_fail("cannot reach the coordinator at %s: %s", addr, strerror(saved));
-    cJSON *ch = read_answer(c, "challenge");
-    if (!ch) return 1;
-    char nonce[AUTH_HEX], proof[AUTH_HEX], theirs[200];
-    snprintf(theirs, sizeof theirs, "%s", str(ch, "nonce"));
-    cJSON_Delete(ch);
-    cJSON *h = cJSON_CreateObject();
-    cJSON_AddStringToObject(h, "type", "hello");
-    cJSON_AddStringToObject(h, "role", "client");
-    cJSON_AddNumberToObject(h, "protocol", PROTOCOL_VERSION);
-    cJSON_AddStringToObject(h, "build", protocol_build_id());
-    cJSON_AddStringToObject(h, "name", "tessera-cli");
-    cJSON_AddNumberToObject(h, "threads", 1);
-    if (key.enabled) {
-        auth_proof(&key, theirs, "client:tessera-cli", proof);
-        auth_nonce(nonce);
-        cJSON_AddStringToObject(h, "proof", proof);
-        cJSON_AddStringToObject(h, "nonce", nonce);
-    }
-    if (send_json(c, h)) return 1;
-    c->refused = 0;
-    cJSON *w = read_answer(c, "welcome");
-    if (!w && c->refused && !key.enabled)
-        cli_fail("the coordinator at %s requires a token: give its token file with --token-file F or "
-                 "TESSERA_TOKEN_FILE=F", c->where);
-    else if (!w && c->refused)
-        cli_fail("the coordinator at %s did not accept the token in %s", c->where, token);
-    int ok = w && (!key.enabled || auth_check(&key, nonce, "coordinator", str(w, "proof")));
-    c->max_upload = num(w, "max_upload");
-    if (w && !ok) cli_fail("the coordinator at %s could not prove it knows the token", c->where);
-    cJSON_Delete(w);
-    return ok ? 0 : 1;
+    return cli_hello(c, &key, token);
 }
 
 static void cli_close(cli *c) {
     if (c->fd >= 0) close(c->fd);
+    seal_wipe(&c->tx);
+    seal_wipe(&c->rx);
 }
 
 /* ---- requests ------------------------------------------------------------------ */
@@ -735,7 +808,11 @@ static int do_fetch(const cli_args *a, long job) {
 
 #define COMMON_OPTIONS_HELP                                                                              \
     "      --coordinator HOST:PORT  the coordinator (default: $TESSERA_COORDINATOR, else " DEFAULT_COORDINATOR ")\n" \
-    "      --token-file F       the coordinator's shared secret (default: $TESSERA_TOKEN_FILE)\n"          \
+    "      --token-file F       the client (or admin) token (default: $TESSERA_CLIENT_TOKEN_FILE,\n"     \
+    "                           else $TESSERA_TOKEN_FILE); with one, every frame is encrypted\n"        \
+    "      --client-name NAME   who this client is: jobs belong to the name that submitted them\n"       \
+    "                           (default: $TESSERA_CLIENT_NAME, else tessera-cli)\n"                   \
+    "      --insecure           allow a coordinator beyond loopback without a token (in clear)\n"     \
     "      --json               machine-readable output\n"                                             \
     "  -h, --help               this text\n"
 
@@ -846,7 +923,7 @@ typedef struct {
     const char *args_error;
 } client_command;
 
-static const char *const common_opts[] = {"coordinator", "token-file", "json", NULL};
+static const char *const common_opts[] = {"coordinator", "token-file", "client-name", "insecure", "json", NULL};
 static const char *const submit_opts[] = {"spp", "width", "height", "max-depth", "seed", "priority", "tile-size",
                                           "noise-threshold", "min-spp", "wait", "quiet", "verbose", "output", "tonemap", "exposure", "quality",
                                           "png16", "camera", NULL};
@@ -885,6 +962,8 @@ int client_main(int argc, char **argv) {
     const arg_spec all[] = {
         {.name = "coordinator", .kind = ARG_STRING, .dest = &a.coordinator},
         {.name = "token-file", .kind = ARG_STRING, .dest = &a.token_file},
+        {.name = "client-name", .kind = ARG_STRING, .dest = &a.client_name},
+        {.name = "insecure", .kind = ARG_FLAG, .dest = &a.insecure},
         {.name = "json", .kind = ARG_FLAG, .dest = &a.json},
         {.name = "wait", .kind = ARG_FLAG, .dest = &a.wait},
         {.name = "quiet", .short_name = 'q', .kind = ARG_FLAG, .dest = &a.quiet},

@@ -204,7 +204,7 @@ static void render_args_check(render_args *a) {
     if (a->http && !a->listen && a->workers == 0)
         args_usage_error("tessera render", "--http watches a farm render: not with --workers 0 and no --listen");
     char terr[300];
-    if (a->token_file && auth_key_load(a->token_file, &a->farm.auth, terr, sizeof terr))
+    if (a->token_file && auth_keyring_load(&a->farm.auth, a->token_file, NULL, NULL, NULL, terr, sizeof terr))
         args_usage_error("tessera render", "--token-file %s", terr);
     if (!(a->farm.heartbeat_s < a->farm.timeout_s))
         args_usage_error("tessera render", "--worker-timeout (%g s) must be longer than --heartbeat (%g s)",
@@ -587,6 +587,11 @@ static void usage_coordinator(FILE *f) {
             "      --keep-jobs N        keep at most N finished jobs, oldest deleted first (default 1000)\n"
             "      --client-timeout S   close a client that sends nothing for S s (default 30)\n"
             "      --token-file F       workers and clients must prove they know this secret\n"
+            "      --worker-token-file F, --client-token-file F\n"
+            "                           separate secrets: a worker token only renders tiles, a client\n"
+            "                           token only submits, watches, fetches and cancels its own jobs\n"
+            "      --admin-token-file F a client with this one may cancel and fetch any job\n"
+            "                           (SIGHUP re-reads every token file; docs/security.md)\n"
             "      --heartbeat S, --worker-timeout S, --lease S, --audit FRACTION, --insecure\n"
             "                           as for tessera render\n"
             "      --http ADDR:PORT     serve the web dashboard and /metrics there (loopback unless\n"
@@ -606,7 +611,8 @@ static int cmd_coordinator(int argc, char **argv) {
     service_options o = {.tile_size = 32, .max_upload = (size_t)LIMIT_UPLOAD_DEFAULT_MIB << 20, .max_jobs = 100,
                          .keep_s = 86400, .client_timeout_s = 30, .keep_jobs = 1000};
     farm_options_default(&o.farm);
-    const char *listen = "127.0.0.1:7000", *token = NULL;
+    const char *listen = "127.0.0.1:7000", *token = NULL, *worker_token = NULL, *client_token = NULL,
+               *admin_token = NULL;
     char host[256], err[300];
     int upload_mib = LIMIT_UPLOAD_DEFAULT_MIB, version = 0, insecure = 0;
     double keep_hours = 24;
@@ -628,6 +634,9 @@ static int cmd_coordinator(int argc, char **argv) {
         {.name = "worker-timeout", .kind = ARG_DOUBLE, .dest = &o.farm.timeout_s, .lo = 0.05, .hi = 86400},
         {.name = "lease", .kind = ARG_DOUBLE, .dest = &o.farm.lease_s, .lo = 0.1, .hi = 1e7},
         {.name = "token-file", .kind = ARG_STRING, .dest = &token},
+        {.name = "worker-token-file", .kind = ARG_STRING, .dest = &worker_token},
+        {.name = "client-token-file", .kind = ARG_STRING, .dest = &client_token},
+        {.name = "admin-token-file", .kind = ARG_STRING, .dest = &admin_token},
         {.name = "audit", .kind = ARG_DOUBLE, .dest = &o.farm.audit, .lo = 0, .hi = 1},
         {.name = "insecure", .kind = ARG_FLAG, .dest = &insecure},
         {.name = "verbose", .short_name = 'v', .kind = ARG_FLAG, .dest = &o.farm.verbose},
@@ -643,11 +652,14 @@ static int cmd_coordinator(int argc, char **argv) {
     if (address_parse(listen, host, sizeof host, &o.farm.port, err, sizeof err))
         args_usage_error("tessera-coordinator", "--listen %s", err);
     o.farm.host = host;
-    if (!token && !insecure && !address_is_loopback(host))
+    if ((worker_token || client_token || admin_token) && !((token || worker_token) && (token || client_token)))
+        args_usage_error("tessera-coordinator", "--worker-token-file and --client-token-file go together (or with "
+                         "--token-file for the other class); --admin-token-file needs them too");
+    if (!token && !worker_token && !insecure && !address_is_loopback(host))
         args_usage_error("tessera-coordinator", "--listen %s without --token-file: links would be in clear beyond "
                          "this machine; add --token-file F, or --insecure on a network you trust", listen);
-    if (token && auth_key_load(token, &o.farm.auth, err, sizeof err))
-        args_usage_error("tessera-coordinator", "--token-file %s", err);
+    if (auth_keyring_load(&o.farm.auth, token, worker_token, client_token, admin_token, err, sizeof err))
+        args_usage_error("tessera-coordinator", "token file %s", err);
     if (!(o.farm.heartbeat_s < o.farm.timeout_s))
         args_usage_error("tessera-coordinator", "--worker-timeout must be longer than --heartbeat");
     if (o.farm.drop_s < 6 * o.farm.timeout_s) o.farm.drop_s = 6 * o.farm.timeout_s;

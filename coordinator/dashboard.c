@@ -58,10 +58,11 @@ struct dashboard {
     farm *f;
     http_server *http;
     dashboard_options o;
-    auth_key auth;
+    const auth_keyring *auth; /* NULL: no tokens; the owner's ring, which SIGHUP may change */
     dashboard_source src;
     char csrf[AUTH_HEX];
     char sessions[DASH_SESSIONS][AUTH_HEX];
+    auth_class session_class[DASH_SESSIONS]; /* the token each session logged in with */
     int next_session;
     uint64_t tiles_done, tiles_assigned, tiles_requeued, samples, joins, leaves;
     uint64_t latency_counts[LATENCY_BUCKETS + 1];
@@ -144,25 +145,33 @@ static void on_flush(uv_timer_t *t) {
 
 /* ---- authentication ---------------------------------------------------------- */
 
-/* Whether token (as typed or sent) is the coordinator's token. */
-static int token_ok(const dashboard *d, const char *token, size_t len) {
+static int dash_secured(const dashboard *d) { return d->auth && auth_keyring_enabled(d->auth); }
+
+/* Which token (as typed or sent) this is: AUTH_ADMIN or AUTH_CLIENT, or
+ * AUTH_NONE (a worker token opens nothing here). Both keys are compared
+ * every time, in constant time. */
+static auth_class token_class(const dashboard *d, const char *token, size_t len) {
     while (len && isspace((unsigned char)*token)) token++, len--;
     while (len && isspace((unsigned char)token[len - 1])) len--;
-    if (!len) return 0;
     unsigned char key[AUTH_KEY_BYTES];
     crypto_generichash(key, sizeof key, (const unsigned char *)token, len, NULL, 0);
-    return sodium_memcmp(key, d->auth.key, sizeof key) == 0;
+    const auth_key *a = &d->auth->keys[AUTH_ADMIN], *c = &d->auth->keys[AUTH_CLIENT];
+    int admin = (sodium_memcmp(key, a->key, sizeof key) == 0) & a->enabled & (len > 0);
+    int client = (sodium_memcmp(key, c->key, sizeof key) == 0) & c->enabled & (len > 0);
+    return admin ? AUTH_ADMIN : client ? AUTH_CLIENT : AUTH_NONE;
 }
 
-static int request_authorised(const dashboard *d, const http_request *rq) {
-    if (!d->auth.enabled) return 1;
+/* The class a request is authorised as: AUTH_ADMIN without tokens, the
+ * bearer token's or the session's class, or AUTH_NONE. */
+static auth_class request_class(const dashboard *d, const http_request *rq) {
+    if (!dash_secured(d)) return AUTH_ADMIN;
     if (strncasecmp(rq->authorization, "Bearer ", 7) == 0)
-        return token_ok(d, rq->authorization + 7, strlen(rq->authorization + 7));
+        return token_class(d, rq->authorization + 7, strlen(rq->authorization + 7));
     char sid[AUTH_HEX];
-    if (http_cookie_get(rq->cookie, "tessera_session", sid, sizeof sid) || strlen(sid) != AUTH_HEX - 1) return 0;
+    if (http_cookie_get(rq->cookie, "tessera_session", sid, sizeof sid) || strlen(sid) != AUTH_HEX - 1) return AUTH_NONE;
     for (int i = 0; i < DASH_SESSIONS; i++)
-        if (d->sessions[i][0] && sodium_memcmp(d->sessions[i], sid, AUTH_HEX - 1) == 0) return 1;
-    return 0;
+        if (d->sessions[i][0] && sodium_memcmp(d->sessions[i], sid, AUTH_HEX - 1) == 0) return d->session_class[i];
+    return AUTH_NONE;
 }
 
 /* Browsers send Origin on POSTs; one that is not this server is refused. */
@@ -380,13 +389,15 @@ static void route_login(dashboard *d, http_conn *c, const http_request *rq) {
         return;
     }
     char token[1024];
-    if (!origin_ok(rq) || http_form_get(rq->body, "token", token, sizeof token) || !d->auth.enabled ||
-        !token_ok(d, token, strlen(token))) {
+    auth_class cls = AUTH_NONE;
+    if (!origin_ok(rq) || http_form_get(rq->body, "token", token, sizeof token) || !dash_secured(d) ||
+        (cls = token_class(d, token, strlen(token))) == AUTH_NONE) {
         sodium_memzero(token, sizeof token);
         http_respond(c, 303, "text/plain", "", 0, "Location: /login?failed=1\r\n");
         return;
     }
     sodium_memzero(token, sizeof token);
+    d->session_class[d->next_session] = cls;
     char *sid = d->sessions[d->next_session];
     d->next_session = (d->next_session + 1) % DASH_SESSIONS;
     auth_nonce(sid);
@@ -415,7 +426,8 @@ static void on_request(void *ctx, http_conn *c, const http_request *rq) {
     if (!host_ok(d, rq)) return send_text(c, 403, "this dashboard answers to loopback names only\n");
     if (strcmp(rq->path, "/healthz") == 0) return send_text(c, 200, "ok\n");
     if (strcmp(rq->path, "/login") == 0 && (get || post)) return route_login(d, c, rq);
-    if (!request_authorised(d, rq)) {
+    auth_class cls = request_class(d, rq);
+    if (cls == AUTH_NONE) {
         if (get && strncmp(rq->path, "/api/", 5) != 0 && strcmp(rq->path, "/metrics") != 0)
             return http_respond(c, 303, "text/plain", "", 0, "Location: /login\r\n");
         return http_respond(c, 401, "text/plain; charset=utf-8", "401 token required\n", 19,
@@ -427,10 +439,12 @@ static void on_request(void *ctx, http_conn *c, const http_request *rq) {
             return send_text(c, 403, "missing or wrong CSRF token\n");
         uint32_t id;
         const char *rest;
-        if (strncmp(rq->path, "/api/jobs/", 10) != 0 || parse_job_path(rq->path, &id, &rest))
+        if (strncmp(rq->path, "/api/jobs/", 10) != 0 || parse_job_path(rq->path, &id, &rest) ||
+            (strcmp(rest, "priority") != 0 && strcmp(rest, "cancel") != 0))
             return send_text(c, 404, "not found\n");
+        if (cls != AUTH_ADMIN && d->auth->keys[AUTH_ADMIN].enabled)
+            return send_text(c, 403, "changing a job from the dashboard needs the admin token\n");
         if (strcmp(rest, "priority") == 0) return route_priority(d, c, id, rq);
-        if (strcmp(rest, "cancel") != 0) return send_text(c, 404, "not found\n");
         char err[300] = "cancel is not offered here";
         if (!d->src.cancel || d->src.cancel(d->src.ctx, id, err, sizeof err)) return send_text(c, 409, err);
         return send_text(c, 200, "cancelled\n");
@@ -471,7 +485,7 @@ static void on_request(void *ctx, http_conn *c, const http_request *rq) {
 dashboard *dashboard_new(uv_loop_t *loop, farm *f, const dashboard_options *o, const dashboard_source *src,
                          char *err, size_t err_len) {
     const char *host = o->host ? o->host : "127.0.0.1";
-    int secured = o->auth && o->auth->enabled;
+    int secured = o->auth && auth_keyring_enabled(o->auth);
     if (!host_is_loopback(host) && !secured && !o->insecure) {
         snprintf(err, err_len,
                  "--http %s:%d is not a loopback address and there is no --token-file: anyone who can reach it "
@@ -492,7 +506,7 @@ dashboard *dashboard_new(uv_loop_t *loop, farm *f, const dashboard_options *o, c
     d->f = f;
     d->o = *o;
     d->o.host = host;
-    if (secured) d->auth = *o->auth;
+    d->auth = secured ? o->auth : NULL;
     d->src = *src;
     auth_nonce(d->csrf);
     http_options ho = {.host = host, .port = o->port, .max_request = DASH_MAX_REQUEST,

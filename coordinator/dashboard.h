@@ -59,7 +59,8 @@ typedef struct {
 typedef struct {
     const char *host; /* default 127.0.0.1 */
     int port;
-    const auth_key *auth; /* enabled: HTTP needs the token too */
+    const auth_keyring *auth; /* any key: HTTP needs the client or admin token too (read on
+                               * every login, so a rotation by SIGHUP applies at once) */
     int read_only;        /* no POSTs but /login */
     int insecure;         /* allow a non-loopback address without a token */
 } dashboard_options;

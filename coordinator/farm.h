@@ -41,9 +41,10 @@ typedef struct {
      * forgets it and calls this with its connection and hello message; the
      * callee must take the connection (conn_set_callbacks) or close it.
      * NULL: clients are refused. */
-    void (*on_client)(void *ctx, struct conn *c, const cJSON *hello, const char *addr);
+    /* cls is the credential the client proved (AUTH_NONE without tokens). */
+    void (*on_client)(void *ctx, struct conn *c, const cJSON *hello, const char *addr, auth_class cls);
     void *client_ctx;
-    auth_key auth; /* enabled: every peer must prove it knows the token */
+    auth_keyring auth; /* any key enabled: every peer must prove the token of its class */
     double audit;  /* fraction of tiles (0 to 1) rendered by two workers and compared (farm_audit.c) */
 } farm_options;
 
@@ -176,9 +177,14 @@ typedef struct {
 } farm_totals;
 void farm_get_totals(const farm *f, farm_totals *t);
 
-/* Add to welcome the coordinator's proof for the nonce the peer sent in
- * hello (when a token is configured and the peer asked). Can't fail. */
-void farm_add_proof(const farm *f, const cJSON *hello, cJSON *welcome);
+/* Add to welcome the coordinator's proof, with the key of class cls, for
+ * the nonce the peer sent in hello (when a token is configured and the peer
+ * asked). Can't fail. */
+void farm_add_proof(const farm *f, auth_class cls, const cJSON *hello, cJSON *welcome);
+
+/* Use these credentials for connections from now on (SIGHUP re-reads the
+ * token files): links already sealed keep their session keys. Can't fail. */
+void farm_set_auth(farm *f, const auth_keyring *r);
 
 /* Print one line per worker, current and departed: name, address,
  * threads, tiles, bytes. Can't fail. */

@@ -52,29 +52,95 @@ static void peer_unlink(farm *f, peer *p) {
     LIST_REMOVE(p, link);
 }
 
-/* Give a client's connection to opt.on_client and forget the peer. */
-static void peer_hand_over(peer *p, const cJSON *hello) {
+/* Seal p's link with the keys of key (auth_link_keys) from the next frame
+ * on: the welcome went in clear. */
+static void peer_seal(conn *c, const auth_key *key, const char *nonce, const char *peer_nonce) {
+    unsigned char down[AUTH_KEY_BYTES], up[AUTH_KEY_BYTES];
+    auth_link_keys(key, nonce, peer_nonce, down, up);
+    conn_seal(c, down, up);
+    sodium_memzero(down, sizeof down);
+    sodium_memzero(up, sizeof up);
+}
+
+/* Give a client's connection to opt.on_client (which sends the welcome),
+ * seal it when a token was proved, and forget the peer. */
+static void peer_hand_over(peer *p, const cJSON *hello, auth_class cls, const auth_key *key) {
     farm *f = p->f;
     conn *c = p->c;
-    char addr[64];
+    char addr[64], nonce[AUTH_HEX];
     snprintf(addr, sizeof addr, "%s", p->rec.addr);
+    snprintf(nonce, sizeof nonce, "%s", p->nonce);
     peer_unlink(f, p);
     free(p->scenes);
     free(p->jobs);
     free(p);
-    f->opt.on_client(f->opt.client_ctx, c, hello, addr);
+    f->opt.on_client(f->opt.client_ctx, c, hello, addr, cls);
+    const cJSON *peer_nonce = cJSON_GetObjectItemCaseSensitive(hello, "nonce");
+    if (key && !conn_is_closing(c)) peer_seal(c, key, nonce, peer_nonce->valuestring);
 }
 
-void farm_add_proof(const farm *f, const cJSON *hello, cJSON *welcome) {
+void farm_add_proof(const farm *f, auth_class cls, const cJSON *hello, cJSON *welcome) {
     const cJSON *nonce = cJSON_GetObjectItemCaseSensitive(hello, "nonce");
-    if (!f->opt.auth.enabled || !cJSON_IsString(nonce)) return;
+    if (cls <= AUTH_NONE || cls >= AUTH_CLASSES || !f->opt.auth.keys[cls].enabled || !cJSON_IsString(nonce)) return;
     char proof[AUTH_HEX];
-    auth_proof(&f->opt.auth, nonce->valuestring, "coordinator", proof);
+    auth_proof(&f->opt.auth.keys[cls], nonce->valuestring, "coordinator", proof);
     cJSON_AddStringToObject(welcome, "proof", proof);
+}
+
+void farm_set_auth(farm *f, const auth_keyring *r) { f->opt.auth = *r; }
+
+/* The one refusal every authentication failure gets, whatever it was (no,
+ * wrong or malformed proof, wrong class, a hello that is not one): the
+ * same bytes, then the close. A stranger learns that a token is needed,
+ * never whether one was close. who (what the peer called itself, or NULL)
+ * and fault go to the log only. Returns 1. */
+static int peer_refuse_auth(peer *p, const char *who, const char *fault) {
+    if (who)
+        farm_log(p->f, "peer %s (calling itself %s): authentication failed (%s); refused", p->rec.addr, who, fault);
+    else
+        farm_log(p->f, "peer %s: authentication failed (%s); refused", p->rec.addr, fault);
+    p->rec.name[0] = '\0';
+    return peer_refuse(p, "refused", "authentication failed: this coordinator requires a token");
+}
+
+/* A refusal before any hello could be checked (not JSON, another message
+ * or frame first): the check runs all the same on nothing, so this costs
+ * what a wrong proof costs. Returns 1. */
+static int peer_refuse_unheard(peer *p, const char *fault) {
+    auth_class offered;
+    const auth_key *key;
+    auth_check_hello(&p->f->opt.auth, p->nonce, NULL, &offered, &key);
+    return peer_refuse_auth(p, NULL, fault);
+}
+
+/* With tokens: check hello's proof, class and nonce. Returns the class
+ * proved (and *key), or AUTH_NONE after refusing p. */
+static auth_class hello_auth(peer *p, const cJSON *m, const auth_key **key) {
+    auth_class offered;
+    auth_class cls = auth_check_hello(&p->f->opt.auth, p->nonce, m, &offered, key);
+    const cJSON *role = cJSON_GetObjectItemCaseSensitive(m, "role"), *name = cJSON_GetObjectItemCaseSensitive(m, "name");
+    const cJSON *proof = cJSON_GetObjectItemCaseSensitive(m, "proof"), *nonce = cJSON_GetObjectItemCaseSensitive(m, "nonce");
+    int client = cJSON_IsString(role) && strcmp(role->valuestring, "client") == 0;
+    char who[100], fault[160];
+    if (cls == AUTH_NONE && offered != AUTH_NONE)
+        snprintf(fault, sizeof fault, "the %s token, which may not %s", auth_class_name(offered),
+                 client ? "act as a client" : "register as a worker");
+    else if (cls == AUTH_NONE)
+        snprintf(fault, sizeof fault, "%s token", cJSON_IsString(proof) ? "wrong" : "no");
+    else if (!(cJSON_IsString(nonce) && strlen(nonce->valuestring) >= 32 && strlen(nonce->valuestring) < 200))
+        snprintf(fault, sizeof fault, "no nonce of 32 to 199 characters: the link keys need one");
+    else
+        return cls;
+    snprintf(who, sizeof who, "%s %.60s", client ? "client" : "worker", cJSON_IsString(name) ? name->valuestring : "?");
+    peer_refuse_auth(p, who, fault);
+    return AUTH_NONE;
 }
 
 static int on_hello(peer *p, const cJSON *m) {
     farm *f = p->f;
+    const auth_key *key = NULL;
+    auth_class cls = AUTH_NONE;
+    if (auth_keyring_enabled(&f->opt.auth) && (cls = hello_auth(p, m, &key)) == AUTH_NONE) return 1;
     const cJSON *proto = cJSON_GetObjectItemCaseSensitive(m, "protocol");
     const cJSON *build = cJSON_GetObjectItemCaseSensitive(m, "build");
     const cJSON *name = cJSON_GetObjectItemCaseSensitive(m, "name");
@@ -85,27 +151,12 @@ static int on_hello(peer *p, const cJSON *m) {
     snprintf(p->rec.name, sizeof p->rec.name, "%s", name->valuestring);
     snprintf(p->label, sizeof p->label, "worker %s (%s)", p->rec.name, p->rec.addr);
     const cJSON *role = cJSON_GetObjectItemCaseSensitive(m, "role");
-    int is_client = cJSON_IsString(role) && strcmp(role->valuestring, "client") == 0;
-    if (f->opt.auth.enabled) {
-        char who[128];
-        snprintf(who, sizeof who, "%s:%s", is_client ? "client" : "worker", name->valuestring);
-        const cJSON *proof = cJSON_GetObjectItemCaseSensitive(m, "proof");
-        if (!auth_check(&f->opt.auth, p->nonce, who, cJSON_IsString(proof) ? proof->valuestring : NULL)) {
-            /* Says nothing else: an outsider learns no version, job or worker. */
-            farm_log(f, "peer %s (calling itself %s %.60s): authentication failed (%s token); refused", p->rec.addr,
-                     is_client ? "client" : "worker", name->valuestring, cJSON_IsString(proof) ? "wrong" : "no");
-            p->rec.name[0] = '\0';
-            /* The same words whatever the proof: a stranger learns that a
-             * token is needed, never whether one was close. */
-            return peer_refuse(p, "refused", "authentication failed: this coordinator requires a token");
-        }
-    }
-    if (is_client) {
+    if (cJSON_IsString(role) && strcmp(role->valuestring, "client") == 0) {
         if (!f->opt.on_client) return peer_violation(p, "this coordinator takes no clients (it renders one scene)");
         if (proto->valuedouble != PROTOCOL_VERSION)
             return peer_violation(p, "version mismatch: client speaks protocol %g; coordinator speaks protocol %d",
                                   proto->valuedouble, PROTOCOL_VERSION);
-        peer_hand_over(p, m);
+        peer_hand_over(p, m, cls, key);
         return 0; /* the connection lives on with the client's callbacks */
     }
     if (proto->valuedouble != PROTOCOL_VERSION || strcmp(build->valuestring, protocol_build_id()) != 0) {
@@ -117,9 +168,6 @@ static int on_hello(peer *p, const cJSON *m) {
         farm_log(f, "%s refused: %s", p->label, reason);
         return peer_refuse(p, "refused", reason);
     }
-    const cJSON *peer_nonce = cJSON_GetObjectItemCaseSensitive(m, "nonce");
-    if (f->opt.auth.enabled && !(cJSON_IsString(peer_nonce) && strlen(peer_nonce->valuestring) < 200))
-        return peer_violation(p, "hello: no nonce (with a token the link is encrypted, and its keys need one)");
     p->rec.threads = (int)threads->valuedouble;
     p->state = PEER_ACTIVE;
     size_t max_frame = proto_tile_frame_max(f->opt.max_tile_side);
@@ -130,15 +178,9 @@ static int on_hello(peer *p, const cJSON *m) {
     cJSON_AddStringToObject(w, "build", protocol_build_id());
     cJSON_AddNumberToObject(w, "heartbeat_ms", f->opt.heartbeat_s * 1e3);
     cJSON_AddNumberToObject(w, "timeout_ms", f->opt.timeout_s * 1e3);
-    farm_add_proof(f, m, w);
+    farm_add_proof(f, cls, m, w);
     peer_send_json(p, w);
-    if (f->opt.auth.enabled) { /* the welcome went in clear; from here on every frame is sealed */
-        unsigned char down[AUTH_KEY_BYTES], up[AUTH_KEY_BYTES];
-        auth_link_keys(&f->opt.auth, p->nonce, peer_nonce->valuestring, down, up);
-        conn_seal(p->c, down, up);
-        sodium_memzero(down, sizeof down);
-        sodium_memzero(up, sizeof up);
-    }
+    if (key) peer_seal(p->c, key, p->nonce, cJSON_GetObjectItemCaseSensitive(m, "nonce")->valuestring);
     if (f->opt.verbose) farm_log(f, "%s joined with %d threads", p->label, p->rec.threads);
     farm_emit(f, FARM_EV_JOIN, NULL, 0, p->rec.name, 0, 0, 0);
     return 0;
@@ -190,10 +232,13 @@ static int on_json(peer *p, const uint8_t *body, size_t len) {
     char err[256];
     const char *type;
     cJSON *m = proto_parse_json(body, len, &type, err, sizeof err);
+    if (!m && p->state == PEER_HELLO && auth_keyring_enabled(&p->f->opt.auth)) return peer_refuse_unheard(p, err);
     if (!m) return peer_violation(p, "%s", err);
     int rc = 0;
     if (p->state == PEER_HELLO) {
-        rc = strcmp(type, "hello") == 0 ? on_hello(p, m) : peer_violation(p, "expected hello, got \"%.40s\"", type);
+        if (strcmp(type, "hello") == 0) rc = on_hello(p, m);
+        else if (auth_keyring_enabled(&p->f->opt.auth)) rc = peer_refuse_unheard(p, "a message before hello");
+        else rc = peer_violation(p, "expected hello, got \"%.40s\"", type);
     } else if (strcmp(type, "ready") == 0) {
         const cJSON *s = cJSON_GetObjectItemCaseSensitive(m, "slots");
         if (!cJSON_IsNumber(s) || s->valuedouble < 1 || p->credits + s->valuedouble > MAX_CREDITS) {
@@ -224,6 +269,8 @@ static int on_frame(conn *c, int kind, const uint8_t *body, size_t len) {
     }
     if (kind == WIRE_KIND_JSON) return on_json(p, body, len);
     if (kind == WIRE_KIND_TILE && p->state != PEER_HELLO) return farm_on_tile(p, body, len);
+    if (p->state == PEER_HELLO && auth_keyring_enabled(&f->opt.auth))
+        return peer_refuse_unheard(p, "a binary frame before hello");
     return peer_violation(p, "unexpected frame kind 0x%02x%s", kind, p->state == PEER_HELLO ? " before hello" : "");
 }
 

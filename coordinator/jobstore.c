@@ -16,6 +16,7 @@ int store_save_job(sjob *j, char *err, size_t err_len) {
     cJSON *m = cJSON_CreateObject();
     cJSON_AddNumberToObject(m, "job", j->desc.id);
     cJSON_AddStringToObject(m, "name", j->name);
+    if (j->owner[0]) cJSON_AddStringToObject(m, "owner", j->owner);
     cJSON_AddStringToObject(m, "scene", j->desc.scene_hash);
     cJSON_AddNumberToObject(m, "width", j->desc.width);
     cJSON_AddNumberToObject(m, "height", j->desc.height);
@@ -433,7 +434,7 @@ static void load_job(service *s, const char *file) {
         if (strcmp(state->valuestring, state_names[i]) == 0) st = i;
     cJSON *jobmsg = cJSON_Duplicate(m, 1); /* the job fields, as a job message */
     static const char *const extra[] = {"name", "state", "priority", "tile_size", "error", "submitted", "finished",
-                                        "rendering_since", "noise_threshold", "min_spp", "submitter"};
+                                        "rendering_since", "noise_threshold", "min_spp", "submitter", "owner"};
     for (size_t i = 0; jobmsg && i < sizeof extra / sizeof extra[0]; i++) cJSON_DeleteItemFromObject(jobmsg, extra[i]);
     if (!m || st < 0 || !cJSON_IsString(name) || !cJSON_IsNumber(pri) || !cJSON_IsNumber(ts) || !jobmsg ||
         proto_job_parse(jobmsg, path, &d, err, sizeof err) || !(j = store_job_new(s))) {
@@ -457,6 +458,8 @@ static void load_job(service *s, const char *file) {
     if (cJSON_IsString(error)) snprintf(j->error, sizeof j->error, "%s", error->valuestring);
     const cJSON *who = cJSON_GetObjectItemCaseSensitive(m, "submitter");
     if (cJSON_IsString(who)) snprintf(j->submitter, sizeof j->submitter, "%s", who->valuestring);
+    const cJSON *owner = cJSON_GetObjectItemCaseSensitive(m, "owner");
+    if (cJSON_IsString(owner)) snprintf(j->owner, sizeof j->owner, "%s", owner->valuestring);
     const cJSON *sub = cJSON_GetObjectItemCaseSensitive(m, "submitted"), *fin = cJSON_GetObjectItemCaseSensitive(m, "finished");
     j->submitted = cJSON_IsNumber(sub) ? sub->valuedouble : svc_wall_now();
     j->finished = cJSON_IsNumber(fin) ? fin->valuedouble : 0;

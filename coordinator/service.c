@@ -125,6 +125,7 @@ static void submit_checked(upload *u) {
     j->min_spp = (int)q->min_spp;
     memcpy(j->desc.scene_hash, u->hash, sizeof u->hash);
     snprintf(j->name, sizeof j->name, "%s", q->name);
+    snprintf(j->owner, sizeof j->owner, "%s", cl->name);
     j->priority = (int)q->priority;
     j->tile_size = (int)q->tile_size;
     j->submitted = svc_wall_now();
@@ -225,6 +226,7 @@ static cJSON *job_status_json(const sjob *j) {
     double el = j->first_tile > 0 ? (j->state == SJOB_RUNNING ? now : j->finished) - j->first_tile : 0;
     cJSON_AddNumberToObject(o, "job", j->desc.id);
     cJSON_AddStringToObject(o, "name", j->name);
+    if (j->owner[0]) cJSON_AddStringToObject(o, "owner", j->owner);
     cJSON_AddStringToObject(o, "state", queued ? "queued" : state_names[j->state]);
     cJSON_AddNumberToObject(o, "priority", j->priority);
     cJSON_AddNumberToObject(o, "width", j->desc.width);
@@ -301,9 +303,20 @@ static sjob *request_job(client *cl, const cJSON *m, const char *type) {
     return j;
 }
 
+/* Whether cl may cancel, reprioritise or fetch j: its own job, or any with the admin
+ * token (or without tokens); refused with a logged reason otherwise. */
+static int owner_ok(client *cl, const sjob *j, const char *type) {
+    if (cl->cls == AUTH_ADMIN || !j->owner[0] || strcmp(j->owner, cl->name) == 0) return 1;
+    svc_log("client %s (%s, %s token): %s of job %u refused: it belongs to %s", cl->addr, cl->name,
+            auth_class_name(cl->cls), type, j->desc.id, j->owner);
+    client_error(cl, "job %u belongs to client %s: only it, or a client with the admin token, may %s it", j->desc.id,
+                 j->owner, type);
+    return 0;
+}
+
 static void on_cancel(client *cl, const cJSON *m) {
     sjob *j = request_job(cl, m, "cancel");
-    if (!j) return;
+    if (!j || !owner_ok(cl, j, "cancel")) return;
     if (j->state != SJOB_RUNNING) return client_error(cl, "job %u is already %s", j->desc.id, state_names[j->state]);
     joblog_add(j->log, svc_wall_now(), "cancel asked by the client at %s", cl->addr);
     store_job_cancel(cl->svc, j); /* store_on_job_event records the state */
@@ -316,7 +329,7 @@ static void on_cancel(client *cl, const cJSON *m) {
 /* priority: job, priority. Answered with the job's new priority. */
 static void on_priority(client *cl, const cJSON *m) {
     sjob *j = request_job(cl, m, "priority");
-    if (!j) return;
+    if (!j || !owner_ok(cl, j, "reprioritise")) return;
     long pri = 0;
     char err[600], who[128];
     if (!cJSON_GetObjectItemCaseSensitive(m, "priority") || opt_int(m, "priority", -LIMIT_PRIORITY, LIMIT_PRIORITY, &pri))
@@ -393,7 +406,7 @@ static void fetch_partial(client *cl, sjob *j) {
 
 static void on_fetch(client *cl, const cJSON *m) {
     sjob *j = request_job(cl, m, "fetch");
-    if (!j) return;
+    if (!j || !owner_ok(cl, j, "fetch")) return;
     int unfinished = j->state == SJOB_RUNNING || j->state == SJOB_CANCELLED;
     if (unfinished && cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(m, "partial"))) return fetch_partial(cl, j);
     if (j->state != SJOB_DONE)
@@ -469,7 +482,7 @@ static void client_on_close(conn *c, const char *reason) {
 
 static const conn_callbacks client_cbs = {client_on_frame, client_on_close};
 
-static void on_client(void *ctx, conn *c, const cJSON *hello, const char *addr) {
+static void on_client(void *ctx, conn *c, const cJSON *hello, const char *addr, auth_class cls) {
     service *s = ctx;
     client *cl = calloc(1, sizeof *cl);
     if (!cl) {
@@ -479,6 +492,9 @@ static void on_client(void *ctx, conn *c, const cJSON *hello, const char *addr) 
     cl->svc = s;
     cl->c = c;
     snprintf(cl->addr, sizeof cl->addr, "%s", addr);
+    const cJSON *name = cJSON_GetObjectItemCaseSensitive(hello, "name");
+    snprintf(cl->name, sizeof cl->name, "%s", cJSON_IsString(name) ? name->valuestring : "?");
+    cl->cls = auth_keyring_enabled(&s->o.farm.auth) ? cls : AUTH_ADMIN;
     cl->last_bytes = cl->last_frame = cl->window_start = svc_mono_now();
     cl->seen_bytes = conn_bytes_in(c);
     TAILQ_INSERT_TAIL(&s->clients, cl, link);
@@ -489,7 +505,7 @@ static void on_client(void *ctx, conn *c, const cJSON *hello, const char *addr) 
     cJSON_AddNumberToObject(w, "protocol", PROTOCOL_VERSION);
     cJSON_AddStringToObject(w, "build", protocol_build_id());
     cJSON_AddNumberToObject(w, "max_upload", (double)s->o.max_upload);
-    farm_add_proof(s->f, hello, w);
+    farm_add_proof(s->f, cls, hello, w);
     client_send_json(cl, w);
 }
 
@@ -556,6 +572,32 @@ static void on_farm_closed(void *ctx) {
     uv_close((uv_handle_t *)&s->expiry, NULL);
     uv_close((uv_handle_t *)&s->sigint, NULL);
     uv_close((uv_handle_t *)&s->sigterm, NULL);
+    uv_close((uv_handle_t *)&s->sighup, NULL);
+}
+
+/* SIGHUP: re-read the token files. New connections need the new tokens;
+ * connections already authenticated keep going (their links are sealed
+ * with session keys, which do not depend on the token any more), and so do
+ * dashboard sessions already logged in. A file that cannot be read keeps
+ * every old token (logged). */
+static void on_sighup(uv_signal_t *h, int signum) {
+    (void)signum;
+    service *s = h->data;
+    char err[600], which[64] = "";
+    if (!auth_keyring_enabled(&s->o.farm.auth)) {
+        svc_log("SIGHUP: no token files to re-read");
+        return;
+    }
+    if (auth_keyring_reload(&s->o.farm.auth, err, sizeof err)) {
+        svc_log("SIGHUP: %s; keeping the previous tokens", err);
+        return;
+    }
+    farm_set_auth(s->f, &s->o.farm.auth);
+    for (int c = AUTH_WORKER; c < AUTH_CLASSES; c++)
+        if (s->o.farm.auth.paths[c])
+            snprintf(which + strlen(which), sizeof which - strlen(which), "%s%s", which[0] ? ", " : "",
+                     auth_class_name((auth_class)c));
+    svc_log("SIGHUP: token files re-read (%s); new connections need the new tokens, open ones go on", which);
 }
 
 static void on_signal(uv_signal_t *h, int signum) {
@@ -631,6 +673,9 @@ int service_run(const service_options *o) {
     s->sigint.data = s->sigterm.data = s;
     uv_signal_start(&s->sigint, on_signal, SIGINT);
     uv_signal_start(&s->sigterm, on_signal, SIGTERM);
+    uv_signal_init(&s->loop, &s->sighup);
+    s->sighup.data = s;
+    uv_signal_start(&s->sighup, on_sighup, SIGHUP);
     uv_timer_init(&s->loop, &s->expiry);
     s->expiry.data = s;
     uv_timer_start(&s->expiry, on_expiry, 1000, 2000);

@@ -64,6 +64,7 @@ typedef struct sjob {
     char name[256]; /* the scene's file name, for people */
     char submitter[160]; /* "USER at ADDR" of the client that submitted it */
     joblog *log;         /* its events while kept in memory (joblog.h) */
+    char owner[128]; /* the name of the client that submitted it ("" before tokens had classes) */
     int priority, tile_size, tile_count;
     sjob_state state;
     char error[512];
@@ -98,6 +99,7 @@ typedef struct service {
     uv_loop_t loop;
     farm *f;
     uv_signal_t sigint, sigterm;
+    uv_signal_t sighup;    /* re-reads the token files (on_sighup) */
     uv_timer_t expiry;
     uv_timer_t stat_timer; /* -v: the longest loop iteration every 10 s */
     loopstat stat;         /* loop stalls (loopstat.h); svc_longest_stall_ms */
@@ -131,6 +133,8 @@ typedef struct client {
     service *svc;
     conn *c;
     char addr[64];
+    char name[128];  /* from its hello (bound to its proof when there are tokens) */
+    auth_class cls;  /* the credential it proved; AUTH_ADMIN without tokens */
     uint8_t *bundle; /* the last scene uploaded */
     size_t bundle_len;
     int validating;  /* a submit's scene is on the upload queue */

@@ -408,6 +408,47 @@ TEST(http_dashboard_token_and_binding) {
           "non-loopback without a token (%d): %s", st, cout);
 }
 
+/* Separate tokens: the dashboard opens to the client and the admin token,
+ * never the worker token; cancelling from it needs the admin token when
+ * there is one. */
+TEST(http_dashboard_client_and_admin_tokens) {
+    char wt[300], ct[300], at[300];
+    snprintf(wt, sizeof wt, "%s", util_write_temp("web-worker-token", "web-worker-secret\n"));
+    snprintf(ct, sizeof ct, "%s", util_write_temp("web-client-token", "web-client-secret\n"));
+    snprintf(at, sizeof at, "%s", util_write_temp("web-admin-token", "web-admin-secret\n"));
+    const char *extra[] = {"--worker-token-file", wt, "--client-token-file", ct, "--admin-token-file", at, NULL};
+    web w;
+    if (web_start(&w, "http-classes", 0, extra)) {
+        CHECK(0, "coordinator did not start; log %s", w.log);
+        return;
+    }
+    static char out[1 << 16];
+    CHECK(web_get(w.http, "/api/jobs", "Authorization: Bearer web-worker-secret\r\n", out, sizeof out) == 401,
+          "the worker token opened the dashboard: %.100s", out);
+    CHECK(web_post(w.http, "/login", "", "token=web-worker-secret", out, sizeof out) == 303 &&
+              !strstr(out, "Set-Cookie"),
+          "login with the worker token: %.200s", out);
+    CHECK(web_get(w.http, "/api/jobs", "Authorization: Bearer web-client-secret\r\n", out, sizeof out) == 200,
+          "client bearer: %.100s", out);
+    CHECK(web_post(w.http, "/login", "", "token=web-client-secret", out, sizeof out) == 303 &&
+              strstr(out, "Set-Cookie: tessera_session="),
+          "login with the client token: %.200s", out);
+    char cookie[200] = "", csrf[128] = "", hdr[600];
+    const char *ck = strstr(out, "Set-Cookie: tessera_session=");
+    if (ck) sscanf(ck + 12, "%199[^;]", cookie);
+    snprintf(hdr, sizeof hdr, "Cookie: %s\r\n", cookie);
+    web_get(w.http, "/api/csrf", hdr, out, sizeof out);
+    const char *c = strstr(out, "\"csrf\":\"");
+    if (c) snprintf(csrf, sizeof csrf, "%.64s", c + 8);
+    snprintf(hdr, sizeof hdr, "Cookie: %s\r\nX-CSRF-Token: %s\r\n", cookie, csrf);
+    CHECK(web_post(w.http, "/api/jobs/1/cancel", hdr, "", out, sizeof out) == 403 && strstr(out, "admin token"),
+          "cancel with the client session: %.200s", out);
+    snprintf(hdr, sizeof hdr, "Authorization: Bearer web-admin-secret\r\nX-CSRF-Token: %s\r\n", csrf);
+    CHECK(web_post(w.http, "/api/jobs/1/cancel", hdr, "", out, sizeof out) == 409 && strstr(out, "no job 1"),
+          "cancel with the admin token reaches the job service: %.200s", out);
+    web_stop(&w);
+}
+
 /* Count red-dominant and green-dominant pixels in the left and right halves
  * of an RGB image. */
 static void count_walls(const uint8_t *px, int w, int h, int red[2], int green[2]) {

@@ -26,6 +26,7 @@
 typedef struct {
     char dir[256], log[256], addr[64];
     const char *token; /* --token-file for the coordinator, or NULL */
+    const char *extra[8]; /* more options for the coordinator, NULL-terminated */
     int port;
     pid_t pid;
 } service;
@@ -43,8 +44,12 @@ static void service_start(service *s, const char *name) {
     }
     char coord[4096];
     snprintf(coord, sizeof coord, "%s", util_bin("tessera-coordinator"));
-    const char *argv[] = {coord, "--listen", s->addr, "--data-dir", s->dir, "--heartbeat", "0.2",
-                          "--worker-timeout", "2", s->token ? "--token-file" : NULL, s->token, NULL};
+    const char *argv[24] = {coord, "--listen", s->addr, "--data-dir", s->dir, "--heartbeat", "0.2",
+                            "--worker-timeout", "2"};
+    int n = 9;
+    if (s->token) argv[n++] = "--token-file", argv[n++] = s->token;
+    for (int i = 0; i < 8 && s->extra[i]; i++) argv[n++] = s->extra[i];
+    argv[n] = NULL;
     int before = util_file_count(s->log, "listening on");
     s->pid = util_spawn(argv, s->log);
     for (int i = 0; i < (int)(LONG * 100) && util_file_count(s->log, "listening on") == before; i++) util_sleep(0.01);
@@ -349,7 +354,7 @@ TEST(service_token_required_of_workers_and_clients) {
     /* Clients: no token or the wrong one are refused; the right one works. */
     int st = cli(&s, out, sizeof out, "status");
     CHECK(st == 1 && strstr(out, "authentication failed") && strstr(out, "requires a token") &&
-              strstr(out, "--token-file F or TESSERA_TOKEN_FILE"),
+              strstr(out, "--token-file F or TESSERA_CLIENT_TOKEN_FILE"),
           "client without a token is not told a token is required (%d): %s", st, out);
     st = cli(&s, out, sizeof out, "status --token-file %s", bad);
     CHECK(st == 1 && strstr(out, "authentication failed") && strstr(out, "did not accept the token in"),
@@ -690,6 +695,78 @@ TEST(service_submit_wait_sigint_cancels_the_job) {
     CHECK(access(img, F_OK) != 0, "%s was written after SIGINT", img);
     st = cli(&s, out, sizeof out, "status 1");
     CHECK(st == 0 && strstr(out, "cancelled"), "job 1 after the client's SIGINT (%d): %s", st, out);
+    worker_stop(w);
+    service_stop(&s);
+}
+
+/* Replace path's contents at once (a rename, as an operator rotating a
+ * token would). */
+static void rewrite(const char *path, const char *text) {
+    char tmp[300];
+    snprintf(tmp, sizeof tmp, "%s.new", path);
+    FILE *f = fopen(tmp, "w");
+    fputs(text, f);
+    fclose(f);
+    rename(tmp, path);
+}
+
+/* Separate credentials: a worker token only renders, a client token only
+ * submits and handles its own jobs, the admin token any job; SIGHUP
+ * rotates them without a restart, and a sealed worker link opened before
+ * the rotation goes on rendering. */
+TEST(service_worker_client_admin_tokens_and_sighup_rotation) {
+    char wt[256], ct[256], at[256], old_w[256], old_c[256], out[8192], img[256];
+    snprintf(wt, sizeof wt, "%s", util_write_temp("cls-worker.token", "worker secret one\n"));
+    snprintf(ct, sizeof ct, "%s", util_write_temp("cls-client.token", "client secret one\n"));
+    snprintf(at, sizeof at, "%s", util_write_temp("cls-admin.token", "admin secret one\n"));
+    snprintf(old_w, sizeof old_w, "%s", util_write_temp("cls-worker-old.token", "worker secret one\n"));
+    snprintf(old_c, sizeof old_c, "%s", util_write_temp("cls-client-old.token", "client secret one\n"));
+    service s = {.extra = {"--worker-token-file", wt, "--client-token-file", ct, "--admin-token-file", at}};
+    service_start(&s, "svc-classes");
+    /* The wrong class is refused, with the fault in the log only. */
+    pid_t intruder = worker_start_token(&s, "clientasworker", "0", ct);
+    CHECK(util_wait(intruder, LONG, NULL) == 1, "a worker holding the client token was not refused");
+    CHECK(util_file_count(s.log, "(calling itself worker clientasworker): authentication failed (the client token, "
+                                 "which may not register as a worker)"),
+          "refusal of the client token as a worker not logged; log %s", s.log);
+    int st = cli(&s, out, sizeof out, "submit " SCENE " --token-file %s", wt);
+    CHECK(st == 1 && strstr(out, "authentication failed"), "the worker token submitted a job (%d): %s", st, out);
+    CHECK(util_file_count(s.log, "authentication failed (the worker token, which may not act as a client)"),
+          "refusal of the worker token as a client not logged; log %s", s.log);
+    /* Jobs belong to the client name that submitted them. */
+    pid_t w = worker_start_token(&s, "member", "0", wt);
+    snprintf(img, sizeof img, "%s", util_temp_path("svc-classes.pfm"));
+    st = cli(&s, out, sizeof out, "submit " SCENE " --client-name alice --token-file %s --wait -o %s", ct, img);
+    CHECK(st == 0 && util_same_file(img, reference()), "alice's submit failed (%d): %s", st, out);
+    st = cli(&s, out, sizeof out, "fetch 1 -o %s --client-name bob --token-file %s", img, ct);
+    CHECK(st == 1 && strstr(out, "job 1 belongs to client alice"), "bob fetched alice's job (%d): %s", st, out);
+    st = cli(&s, out, sizeof out, "cancel 1 --client-name bob --token-file %s", ct);
+    CHECK(st == 1 && strstr(out, "belongs to client alice"), "bob cancelled alice's job (%d): %s", st, out);
+    CHECK(util_file_count(s.log, "(bob, client token): cancel of job 1 refused: it belongs to alice"),
+          "bob's refusal not logged; log %s", s.log);
+    st = cli(&s, out, sizeof out, "fetch 1 -o %s --client-name bob --token-file %s", img, at);
+    CHECK(st == 0, "the admin token could not fetch alice's job (%d): %s", st, out);
+    /* Rotation: new worker and client tokens, read on SIGHUP. */
+    rewrite(wt, "worker secret two\n");
+    rewrite(ct, "client secret two\n");
+    kill(s.pid, SIGHUP);
+    CHECK(util_wait_for_text(s.log, "SIGHUP: token files re-read (worker, client, admin)", LONG) == 0,
+          "no rotation logged; log %s", s.log);
+    st = cli(&s, out, sizeof out, "status --token-file %s", old_c);
+    CHECK(st == 1 && strstr(out, "authentication failed"), "the old client token still works (%d): %s", st, out);
+    pid_t stale = worker_start_token(&s, "stale", "0", old_w);
+    CHECK(util_wait(stale, LONG, NULL) == 1, "a worker with the old worker token was not refused");
+    /* The worker connected before the rotation (old token, sealed) renders the new job. */
+    st = cli(&s, out, sizeof out, "submit " SCENE " --client-name alice --token-file %s --wait -o %s", ct, img);
+    CHECK(st == 0 && util_same_file(img, reference()), "submit after the rotation failed (%d): %s", st, out);
+    CHECK(util_file_count(util_temp_path("member.log"), "refused") == 0, "the sealed worker was dropped");
+    /* A token file that cannot be read keeps every old token. */
+    unlink(at);
+    kill(s.pid, SIGHUP);
+    CHECK(util_wait_for_text(s.log, "keeping the previous tokens", LONG) == 0, "bad reload not logged; log %s",
+          s.log);
+    st = cli(&s, out, sizeof out, "status --token-file %s", ct);
+    CHECK(st == 0, "the current client token stopped working after a failed reload (%d): %s", st, out);
     worker_stop(w);
     service_stop(&s);
 }

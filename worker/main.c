@@ -33,7 +33,8 @@ static void usage(FILE *f) {
             "                           no coordinator reachable, or none that gives work\n"
             "                           (batch schedulers: frees the allocation; default: never)\n"
             "      --throttle-ms MS     sleep after each tile: simulates a slow machine (tests)\n"
-            "      --token-file F       prove this shared secret to the coordinator (default:\n"
+            "      --token-file F       prove this worker token to the coordinator; links are then\n"
+            "                           encrypted (default: $TESSERA_WORKER_TOKEN_FILE, else\n"
             "                           $TESSERA_TOKEN_FILE; none: no authentication)\n"
             "      --insecure           allow a coordinator beyond loopback without a token\n"
             "  -v, --verbose            log jobs and totals\n"
@@ -79,7 +80,8 @@ int main(int argc, char **argv) {
         {"quiet", no_argument, 0, 'q'}, {"token-file", required_argument, 0, OPT_TOKEN}, {"insecure", no_argument, 0, OPT_INSECURE}, {"version", no_argument, 0, OPT_VERSION}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
     signal(SIGPIPE, SIG_IGN); /* a vanished coordinator is an error to handle, not a reason to die */
     worker_config cfg = {.threads = (int)sysconf(_SC_NPROCESSORS_ONLN), .prefetch = 1, .retry_max_s = 5};
-    const char *connect = NULL, *token = getenv("TESSERA_TOKEN_FILE");
+    const char *connect = NULL, *token = getenv("TESSERA_WORKER_TOKEN_FILE");
+    if (!token || !*token) token = getenv("TESSERA_TOKEN_FILE");
     char host[256], name[128], err[256] = "";
     int c, insecure = 0;
     opterr = 0; /* bad_option says it in one line */

@@ -55,14 +55,85 @@ void auth_proof(const auth_key *k, const char *nonce, const char *who, char hex[
     sodium_bin2hex(hex, AUTH_HEX, p, sizeof p);
 }
 
+/* The 32 bytes of a hex proof in got; 0, or -1 when proof is not 64 hex
+ * digits (got is then zeros, so the caller can compare all the same). */
+static int proof_parse(const char *proof, unsigned char got[32]) {
+    size_t n = 0;
+    memset(got, 0, 32);
+    if (!proof || strlen(proof) != 64 || sodium_hex2bin(got, 32, proof, 64, NULL, &n, NULL) != 0 || n != 32) {
+        memset(got, 0, 32);
+        return -1;
+    }
+    return 0;
+}
+
 int auth_check(const auth_key *k, const char *nonce, const char *who, const char *proof) {
     unsigned char want[32], got[32];
-    size_t n = 0;
-    if (!proof || strlen(proof) != 64 ||
-        sodium_hex2bin(got, sizeof got, proof, 64, NULL, &n, NULL) != 0 || n != sizeof got)
-        return 0;
-    proof_bytes(k, nonce, who, want);
-    return sodium_memcmp(want, got, sizeof want) == 0;
+    int bad = proof_parse(proof, got);
+    proof_bytes(k, nonce, who, want); /* even for a malformed proof: the same work either way */
+    return (sodium_memcmp(want, got, sizeof want) == 0) & !bad;
+}
+
+int auth_keyring_enabled(const auth_keyring *r) {
+    for (int c = AUTH_WORKER; c < AUTH_CLASSES; c++)
+        if (r->keys[c].enabled) return 1;
+    return 0;
+}
+
+int auth_keyring_reload(auth_keyring *r, char *err, size_t err_len) {
+    auth_key fresh[AUTH_CLASSES] = {{0}};
+    for (int c = AUTH_WORKER; c < AUTH_CLASSES; c++)
+        if (r->paths[c] && auth_key_load(r->paths[c], &fresh[c], err, err_len)) {
+            sodium_memzero(fresh, sizeof fresh);
+            return -1;
+        }
+    memcpy(r->keys, fresh, sizeof fresh);
+    sodium_memzero(fresh, sizeof fresh);
+    return 0;
+}
+
+int auth_keyring_load(auth_keyring *r, const char *both, const char *worker, const char *client, const char *admin,
+                      char *err, size_t err_len) {
+    memset(r, 0, sizeof *r);
+    r->paths[AUTH_WORKER] = worker ? worker : both;
+    r->paths[AUTH_CLIENT] = client ? client : both;
+    r->paths[AUTH_ADMIN] = admin;
+    return auth_keyring_reload(r, err, err_len);
+}
+
+const char *auth_class_name(auth_class c) {
+    static const char *const names[] = {"none", "worker", "client", "admin"};
+    return c >= AUTH_NONE && c < AUTH_CLASSES ? names[c] : "none";
+}
+
+/* hello's string field key, or "" (so that the work does not depend on it). */
+static const char *hello_str(const cJSON *hello, const char *key) {
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(hello, key);
+    return cJSON_IsString(v) && v->valuestring ? v->valuestring : "";
+}
+
+auth_class auth_check_hello(const auth_keyring *r, const char *nonce, const cJSON *hello, auth_class *offered,
+                            const auth_key **key) {
+    const char *role = hello_str(hello, "role"), *name = hello_str(hello, "name");
+    int client = strcmp(role, "client") == 0;
+    char who[160];
+    snprintf(who, sizeof who, "%s:%.128s", client ? "client" : "worker", name);
+    unsigned char got[32], want[32];
+    int bad = proof_parse(hello_str(hello, "proof"), got);
+    int ok[AUTH_CLASSES] = {0};
+    for (int c = AUTH_WORKER; c < AUTH_CLASSES; c++) { /* every class, enabled or not: constant work */
+        proof_bytes(&r->keys[c], nonce, who, want);
+        ok[c] = (sodium_memcmp(want, got, sizeof want) == 0) & !bad & r->keys[c].enabled;
+    }
+    sodium_memzero(want, sizeof want);
+    auth_class proved = AUTH_NONE;
+    if (client) proved = ok[AUTH_ADMIN] ? AUTH_ADMIN : ok[AUTH_CLIENT] ? AUTH_CLIENT : AUTH_NONE;
+    else proved = ok[AUTH_WORKER] ? AUTH_WORKER : AUTH_NONE;
+    *offered = AUTH_NONE;
+    if (proved == AUTH_NONE)
+        *offered = ok[AUTH_WORKER] ? AUTH_WORKER : ok[AUTH_ADMIN] ? AUTH_ADMIN : ok[AUTH_CLIENT] ? AUTH_CLIENT : AUTH_NONE;
+    *key = proved == AUTH_NONE ? NULL : &r->keys[proved];
+    return proved;
 }
 
 void auth_link_keys(const auth_key *k, const char *coordinator_nonce, const char *peer_nonce,

@@ -9,6 +9,7 @@
 #ifndef TESSERA_AUTH_H
 #define TESSERA_AUTH_H
 
+#include <cjson/cJSON.h>
 #include <stddef.h>
 
 #define AUTH_KEY_BYTES 32
@@ -18,6 +19,53 @@ typedef struct {
     int enabled;
     unsigned char key[AUTH_KEY_BYTES];
 } auth_key;
+
+/* What a credential lets its holder do (docs/security.md). */
+typedef enum {
+    AUTH_NONE = 0,   /* no credential proved */
+    AUTH_WORKER = 1, /* register as a worker and render tiles, nothing else */
+    AUTH_CLIENT = 2, /* submit, watch, fetch; cancel its own jobs; never a worker */
+    AUTH_ADMIN = 3,  /* a client that may also cancel others' jobs */
+    AUTH_CLASSES = 4
+} auth_class;
+
+/* The coordinator's credentials, one key per class (keys[AUTH_NONE] is
+ * unused; a class whose key is not enabled cannot be proved). paths[] are
+ * the token files, re-read by auth_keyring_reload. */
+typedef struct {
+    auth_key keys[AUTH_CLASSES];
+    const char *paths[AUTH_CLASSES];
+} auth_keyring;
+
+/* Whether any class needs a token (then every peer must prove one and links
+ * are sealed). */
+int auth_keyring_enabled(const auth_keyring *r);
+
+/* Load every class whose path is set. Returns 0, or -1 with "PATH: reason"
+ * in err, leaving r as it was. */
+int auth_keyring_reload(auth_keyring *r, char *err, size_t err_len);
+
+/* Set the token files (NULL: none) and load them: both is the one
+ * --token-file of old, the worker and the client token at once; worker and
+ * client override it for their class. Returns 0, or -1 with "PATH: reason"
+ * in err. */
+int auth_keyring_load(auth_keyring *r, const char *both, const char *worker, const char *client, const char *admin,
+                      char *err, size_t err_len);
+
+/* "worker", "client", "admin" or "none". Can't fail. */
+const char *auth_class_name(auth_class c);
+
+/* Check a hello's proof against the ring for the role it claims ("role":
+ * "client" or else a worker): proof = auth_proof(key, nonce, "ROLE:NAME").
+ * Every key is tried and the proof compared in constant time whatever is
+ * missing or wrong in hello, so a refusal costs the same whatever caused it.
+ * Returns the class proved (AUTH_WORKER for a worker; AUTH_CLIENT or
+ * AUTH_ADMIN for a client), or AUTH_NONE; then *offered is the class whose
+ * key made the proof when it is the wrong one for the role (a worker token
+ * said to be a client), else AUTH_NONE. *key, when a class is proved, is
+ * the key that seals the link. Can't fail. */
+auth_class auth_check_hello(const auth_keyring *r, const char *nonce, const cJSON *hello, auth_class *offered,
+                            const auth_key **key);
 
 /* Read a token file (surrounding whitespace ignored) and derive the key.
  * Returns 0, or -1 with "PATH: reason" in err (unreadable, empty). */

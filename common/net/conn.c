@@ -1,11 +1,11 @@
 /* conn.c - framed TCP connections over libuv (see conn.h). */
 #include "conn.h"
 
-#include <sodium.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "seal.h"
 #include "wire.h"
 
 #define CONN_READ_BYTES (64u << 10)
@@ -21,15 +21,12 @@ struct conn {
     uint64_t bytes_in, bytes_out;
     uv_shutdown_t shutdown;
     int sealed;                            /* conn_seal was called */
-    unsigned char tx_key[32], rx_key[32];  /* XChaCha20-Poly1305 keys, each way */
-    uint64_t tx_count, rx_count;           /* frames sealed and opened: the nonces */
+    seal_dir tx, rx;                       /* keys and frame counters, each way */
     size_t max_frame;                      /* the owner's limit, before sealing's overhead */
     void (*drain_cb)(conn *c, void *arg);  /* conn_on_drain: once, when the queue falls to drain_below */
     void *drain_arg;
     size_t drain_below;
 };
-
-#define SEAL_OVERHEAD (WIRE_HEADER_BYTES + crypto_aead_xchacha20poly1305_ietf_ABYTES)
 
 typedef struct {
     uv_write_t req;
@@ -76,76 +73,26 @@ void conn_set_max_frame(conn *c, size_t max_frame) {
 int conn_sealed(const conn *c) { return c->sealed; }
 
 void conn_seal(conn *c, const unsigned char tx_key[32], const unsigned char rx_key[32]) {
-    memcpy(c->tx_key, tx_key, sizeof c->tx_key);
-    memcpy(c->rx_key, rx_key, sizeof c->rx_key);
+    seal_init(&c->tx, tx_key);
+    seal_init(&c->rx, rx_key);
     c->sealed = 1;
-    c->tx_count = c->rx_count = 0;
     conn_set_max_frame(c, c->max_frame);
 }
 
-static void seal_nonce(uint64_t count, unsigned char n[crypto_aead_xchacha20poly1305_ietf_NPUBBYTES]) {
-    memset(n, 0, crypto_aead_xchacha20poly1305_ietf_NPUBBYTES);
-    for (int i = 0; i < 8; i++) n[i] = (unsigned char)(count >> (8 * i));
-}
-
-/* The sealed frame for a whole plain frame (malloc'd; *out_len set), or
- * NULL when out of memory or too long. The outer header is the AEAD's
- * additional data. */
-static uint8_t *seal_frame(conn *c, const uint8_t *plain, size_t len, size_t *out_len) {
-    size_t body = len + crypto_aead_xchacha20poly1305_ietf_ABYTES;
-    if (body + 1 > UINT32_MAX) return NULL;
-    uint8_t *out = malloc(WIRE_HEADER_BYTES + body);
-    if (!out) return NULL;
-    wire_put_u32(out, (uint32_t)(body + 1));
-    out[4] = WIRE_KIND_SEALED;
-    unsigned char nonce[crypto_aead_xchacha20poly1305_ietf_NPUBBYTES];
-    seal_nonce(c->tx_count++, nonce);
-    crypto_aead_xchacha20poly1305_ietf_encrypt(out + WIRE_HEADER_BYTES, NULL, plain, len, out, WIRE_HEADER_BYTES,
-                                               NULL, nonce, c->tx_key);
-    *out_len = WIRE_HEADER_BYTES + body;
-    return out;
-}
-
-/* Open a sealed frame's body and hand the frame inside to the owner.
- * Returns on_frame's answer, or 1 after closing c with the reason. */
+/* Open a sealed frame and hand the frame inside to the owner. Returns
+ * on_frame's answer, or 1 after closing c with the reason. */
 static int open_frame(conn *c, int kind, const uint8_t *body, size_t len) {
     char reason[200];
-    if (kind != WIRE_KIND_SEALED || len < crypto_aead_xchacha20poly1305_ietf_ABYTES) {
-        snprintf(reason, sizeof reason, "unsealed frame (kind 0x%02x) on an encrypted link", kind);
-        goto bad;
-    }
-    size_t plen = len - crypto_aead_xchacha20poly1305_ietf_ABYTES;
-    uint8_t *plain = malloc(plen ? plen : 1), ad[WIRE_HEADER_BYTES];
-    if (!plain) {
-        snprintf(reason, sizeof reason, "out of memory opening a sealed frame");
-        goto bad;
-    }
-    wire_put_u32(ad, (uint32_t)(len + 1));
-    ad[4] = WIRE_KIND_SEALED;
-    unsigned char nonce[crypto_aead_xchacha20poly1305_ietf_NPUBBYTES];
-    seal_nonce(c->rx_count, nonce);
-    if (crypto_aead_xchacha20poly1305_ietf_decrypt(plain, NULL, NULL, body, len, ad, sizeof ad, nonce, c->rx_key)) {
-        free(plain);
-        snprintf(reason, sizeof reason,
-                 "sealed frame %llu failed authentication (altered, replayed, reordered, or one went missing)",
-                 (unsigned long long)c->rx_count);
-        goto bad;
-    }
-    c->rx_count++;
-    uint32_t inner = plen >= WIRE_HEADER_BYTES ? wire_get_u32(plain) : 0;
-    if (plen < WIRE_HEADER_BYTES || inner == 0 || (size_t)inner + 4 != plen) {
-        free(plain);
-        snprintf(reason, sizeof reason, "sealed frame %llu does not hold one whole frame",
-                 (unsigned long long)(c->rx_count - 1));
-        goto bad;
+    uint8_t *plain;
+    size_t plen;
+    if (seal_open(&c->rx, kind, body, len, &plain, &plen, reason, sizeof reason)) {
+        c->malformed = 1;
+        conn_close(c, reason, 0);
+        return 1;
     }
     int rc = c->cb.on_frame(c, plain[4], plain + WIRE_HEADER_BYTES, plen - WIRE_HEADER_BYTES);
     free(plain);
     return rc;
-bad:
-    c->malformed = 1;
-    conn_close(c, reason, 0);
-    return 1;
 }
 int conn_is_closing(const conn *c) { return c->closing; }
 int conn_malformed(const conn *c) { return c->malformed; }
@@ -229,7 +176,7 @@ static int conn_write(conn *c, write_req *w, uint8_t *data, size_t len) {
 int conn_send(conn *c, uint8_t *frame, size_t len) {
     if (c->sealed && frame) {
         size_t slen = 0;
-        uint8_t *s = seal_frame(c, frame, len, &slen);
+        uint8_t *s = seal_wrap(&c->tx, frame, len, &slen);
         free(frame);
         if (!s) return -1;
         frame = s;
@@ -260,8 +207,8 @@ int conn_send_blob(conn *c, conn_blob *b) {
 
 static void on_closed(uv_handle_t *h) {
     conn *c = h->data;
-    sodium_memzero(c->tx_key, sizeof c->tx_key);
-    sodium_memzero(c->rx_key, sizeof c->rx_key);
+    seal_wipe(&c->tx);
+    seal_wipe(&c->rx);
     wire_decoder_free(&c->dec);
     memset(c, 0xdb, sizeof *c); /* poison: a use after free fails loudly */
     free(c);
