@@ -60,6 +60,9 @@ class Chromium:
                 msg, self.buf = self.buf.split(b"\0", 1)
                 r = json.loads(msg)
                 if r.get("id") == self.next_id:
+                    if "error" in r and method == "Runtime.evaluate" and \
+                            any(w in str(r["error"]) for w in ("navigated or closed", "context was destroyed")):
+                        raise Navigated(str(r["error"]))
                     if "error" in r:
                         fail(f"{method}: {r['error']}")
                     return r.get("result", {})
@@ -84,13 +87,23 @@ class Chromium:
         self.p.wait()
 
 
+class Navigated(Exception):
+    """An evaluation the page's own navigation (a form post, a link) cut
+    short."""
+
+
 class Page:
     def __init__(self, chromium, sid):
         self.c, self.sid = chromium, sid
 
     def js(self, expr):
-        r = self.c.call("Runtime.evaluate", {"expression": expr, "returnByValue": True, "awaitPromise": True},
-                        self.sid)
+        """The expression's value; None when the page navigated away while
+        it ran (callers poll, or wait for what the navigation brings)."""
+        try:
+            r = self.c.call("Runtime.evaluate", {"expression": expr, "returnByValue": True, "awaitPromise": True},
+                            self.sid)
+        except Navigated:
+            return None
         return r.get("result", {}).get("value")
 
     def wait(self, expr, what, timeout=90):
