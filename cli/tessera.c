@@ -30,6 +30,7 @@
 #include "client.h"
 #include "coordinator/local_farm.h"
 #include "coordinator/service.h"
+#include "coordinator/membudget.h"
 #include "limit.h"
 
 /* From this many primitives the default local farm is one worker with a
@@ -585,7 +586,16 @@ static void usage_coordinator(FILE *f) {
             "      --max-jobs N         queued and running jobs at once (default 100)\n"
             "      --keep-hours H       delete finished jobs after H hours (default 24)\n"
             "      --keep-jobs N        keep at most N finished jobs, oldest deleted first (default 1000)\n"
-            "      --client-timeout S   close a client that sends nothing for S s (default 30)\n"
+            "      --client-timeout S   close a client that sends nothing for S s (default 30), and a\n"
+            "                           connection without a hello after S s or 10 s if sooner\n"
+            "      --max-memory SIZE    memory for admitted jobs' frames and scenes, e.g. 12G; a job\n"
+            "                           waits until it fits, or is refused if it never can (default:\n"
+            "                           3/4 of the RAM or of the cgroup's limit if lower)\n"
+            "      --max-connections N  connections at once, workers and clients (default: the\n"
+            "                           descriptor limit less a reserve for files, at most 10000)\n"
+            "      --max-per-address N  connections from one address before a worker hello or as\n"
+            "                           clients (default: an eighth of the total, 16 to 256)\n"
+            "      --max-workers-per-address N  workers from one address (default: half the total)\n"
             "      --token-file F       workers and clients must prove they know this secret\n"
             "      --heartbeat S, --worker-timeout S, --lease S, --audit FRACTION, --insecure\n"
             "                           as for tessera render\n"
@@ -624,6 +634,10 @@ static int cmd_coordinator(int argc, char **argv) {
         {.name = "keep-hours", .kind = ARG_DOUBLE, .dest = &keep_hours, .lo = 0, .hi = 1e6},
         {.name = "keep-jobs", .kind = ARG_INT, .dest = &o.keep_jobs, .lo = 1, .hi = 10000000},
         {.name = "client-timeout", .kind = ARG_DOUBLE, .dest = &o.client_timeout_s, .lo = 0.1, .hi = 86400},
+        {.name = "max-memory", .kind = ARG_CUSTOM, .dest = &o.max_memory, .parse = membudget_parse},
+        {.name = "max-connections", .kind = ARG_INT, .dest = &o.farm.limits.max_total, .lo = 1, .hi = 1000000},
+        {.name = "max-per-address", .kind = ARG_INT, .dest = &o.farm.limits.max_open, .lo = 1, .hi = 1000000},
+        {.name = "max-workers-per-address", .kind = ARG_INT, .dest = &o.farm.limits.max_workers, .lo = 1, .hi = 1000000},
         {.name = "heartbeat", .kind = ARG_DOUBLE, .dest = &o.farm.heartbeat_s, .lo = 0.01, .hi = 3600},
         {.name = "worker-timeout", .kind = ARG_DOUBLE, .dest = &o.farm.timeout_s, .lo = 0.05, .hi = 86400},
         {.name = "lease", .kind = ARG_DOUBLE, .dest = &o.farm.lease_s, .lo = 0.1, .hi = 1e7},

@@ -22,6 +22,7 @@
 #include "net/auth.h"
 #include "job/job.h"
 #include "net/protocol.h"
+#include "connlimit.h"
 
 struct conn;
 
@@ -45,6 +46,10 @@ typedef struct {
     void *client_ctx;
     auth_key auth; /* enabled: every peer must prove it knows the token */
     double audit;  /* fraction of tiles (0 to 1) rendered by two workers and compared (farm_audit.c) */
+    /* Connection caps (connlimit.h), refused at accept or at a worker's
+     * hello with an "error" naming the cap; 0 fields: no cap. */
+    connlimit_caps limits;
+    double hello_timeout_s; /* a connection without a hello this long is closed (0: 10 s) */
 } farm_options;
 
 /* Fill o with the defaults (heartbeat 1 s, timeout 5 s, drop 30 s, lease
@@ -168,6 +173,10 @@ typedef struct {
     int queued, running_jobs;
 } farm_totals;
 void farm_get_totals(const farm *f, farm_totals *t);
+
+/* A client handed over by on_client (addr as given to it) closed: its
+ * connection no longer counts against the caps. Can't fail. */
+void farm_client_closed(farm *f, const char *addr);
 
 /* Add to welcome the coordinator's proof for the nonce the peer sent in
  * hello (when a token is configured and the peer asked). Can't fail. */

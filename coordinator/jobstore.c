@@ -309,18 +309,39 @@ static void load_job(service *s, const char *file) {
     if (d.id >= s->next_id) s->next_id = d.id + 1;
     j->tile_count = render_split_tiles(d.width, d.height, j->tile_size, NULL, 0);
     if (j->state != SJOB_RUNNING) return;
-    /* Resume: the scene from its hash, the tiles from the journal. */
+    struct stat sb;
+    snprintf(path, sizeof path, "%s/scenes/%s", s->o.data_dir, d.scene_hash);
+    j->need = membudget_job_bytes(d.width, d.height, j->tile_count, stat(path, &sb) == 0 ? (uint64_t)sb.st_size : 0);
+    int adm = svc_admit_check(s, j, err, sizeof err);
+    if (adm == 0) {
+        store_job_resume(s, j);
+        return;
+    }
+    j->state = adm < 0 ? SJOB_FAILED : SJOB_RUNNING;
+    j->waiting = adm > 0;
+    snprintf(j->error, sizeof j->error, "%s%.480s", adm < 0 ? "cannot resume: " : "", err);
+    svc_log("job %u: %s", d.id, j->error);
+    if (adm < 0) store_save_job(j, err, sizeof err);
+}
+
+int store_job_resume(service *s, sjob *j) {
+    char path[4096], err[600];
+    size_t len = 0;
+    const proto_job d = j->desc;
+    /* The scene from its hash, the tiles from the journal. */
     snprintf(path, sizeof path, "%s/scenes/%s", s->o.data_dir, d.scene_hash);
     char *bundle = file_read_all(path, s->o.max_upload, &len, err, sizeof err);
     tile_rect *rects = calloc((size_t)j->tile_count, sizeof *rects);
     j->rgb = calloc((size_t)d.width * (size_t)d.height * 3, sizeof(float));
     j->journaled = calloc((size_t)j->tile_count, 1);
+    int rc = 0;
     if (!bundle || !rects || !j->rgb || !j->journaled) {
         j->state = SJOB_FAILED;
         snprintf(j->error, sizeof j->error, "cannot resume: %.480s", bundle ? "out of memory" : err);
         svc_log("job %u: %s", d.id, j->error);
         store_save_job(j, err, sizeof err);
         store_job_release(j);
+        rc = -1;
     } else {
         render_split_tiles(d.width, d.height, j->tile_size, rects, j->tile_count);
         replay_tiles(s, j, rects);
@@ -330,10 +351,12 @@ static void load_job(service *s, const char *file) {
             snprintf(j->error, sizeof j->error, "%.500s", err);
             store_save_job(j, err, sizeof err);
             store_job_release(j);
+            rc = -1;
         }
     }
     free(rects);
     free(bundle);
+    return rc;
 }
 
 static int cmp_job_files(const void *a, const void *b) {

@@ -125,12 +125,20 @@ static void submit_checked(upload *u) {
     j->tile_size = (int)q->tile_size;
     j->submitted = svc_wall_now();
     j->tile_count = render_split_tiles(j->desc.width, j->desc.height, j->tile_size, NULL, 0);
-    j->rgb = calloc((size_t)j->desc.width * (size_t)j->desc.height * 3, sizeof(float));
-    int rc = j->rgb ? 0 : -1;
-    if (!j->rgb) snprintf(err, sizeof err, "out of memory for a %dx%d image", j->desc.width, j->desc.height);
+    j->need = membudget_job_bytes(j->desc.width, j->desc.height, j->tile_count, u->len);
+    int adm = svc_admit_check(s, j, err, sizeof err), rc = adm < 0 ? -1 : 0;
+    if (adm == 0) {
+        j->rgb = calloc((size_t)j->desc.width * (size_t)j->desc.height * 3, sizeof(float));
+        rc = j->rgb ? 0 : -1;
+        if (!j->rgb) snprintf(err, sizeof err, "out of memory for a %dx%d image", j->desc.width, j->desc.height);
+    } else if (adm > 0) { /* queued: admitted by svc_admit_waiting once it fits; its scene is on disk */
+        j->waiting = 1;
+        snprintf(j->error, sizeof j->error, "%.500s", err);
+    }
     if (rc == 0) rc = store_save_job(j, err, sizeof err);
-    if (rc == 0) rc = store_job_start(s, j, u->bundle ? u->bundle : cl->bundle, u->bundle ? u->len : cl->bundle_len,
-                                      err, sizeof err);
+    if (rc == 0 && adm == 0)
+        rc = store_job_start(s, j, u->bundle ? u->bundle : cl->bundle, u->bundle ? u->len : cl->bundle_len, err,
+                             sizeof err);
     upload_free(u);
     if (rc) {
         svc_log("submit from %s refused: %s", cl->addr, err);
@@ -139,13 +147,14 @@ static void submit_checked(upload *u) {
         store_job_unlink_free(s, j);
         return client_error(cl, "%s", err);
     }
-    svc_log("job %u submitted from %s: %s, %dx%d, %d spp, priority %d", j->desc.id, cl->addr, j->name, j->desc.width,
-            j->desc.height, j->desc.spp, j->priority);
+    svc_log("job %u submitted from %s: %s, %dx%d, %d spp, priority %d%s%s", j->desc.id, cl->addr, j->name,
+            j->desc.width, j->desc.height, j->desc.spp, j->priority, j->waiting ? "; " : "", j->waiting ? j->error : "");
     cJSON *r = cJSON_CreateObject();
     cJSON_AddStringToObject(r, "type", "submitted");
     cJSON_AddNumberToObject(r, "job", j->desc.id);
     cJSON_AddNumberToObject(r, "width", j->desc.width);
     cJSON_AddNumberToObject(r, "height", j->desc.height);
+    if (j->waiting) cJSON_AddStringToObject(r, "note", j->error);
     client_send_json(cl, r);
 }
 
@@ -291,7 +300,7 @@ static void on_cancel(client *cl, const cJSON *m) {
     sjob *j = request_job(cl, m, "cancel");
     if (!j) return;
     if (j->state != SJOB_RUNNING) return client_error(cl, "job %u is already %s", j->desc.id, state_names[j->state]);
-    farm_cancel(cl->svc->f, j->desc.id); /* store_on_job_event records the state */
+    svc_cancel_job(cl->svc, j);
     cJSON *r = cJSON_CreateObject();
     cJSON_AddStringToObject(r, "type", "cancelled");
     cJSON_AddNumberToObject(r, "job", j->desc.id);
@@ -413,6 +422,7 @@ static void client_on_close(conn *c, const char *reason) {
     free(cl->bundle);
     cl->bundle = NULL;
     TAILQ_REMOVE(&cl->svc->clients, cl, link);
+    farm_client_closed(cl->svc->f, cl->addr); /* no longer counts against --max-per-address */
     if (cl->validating) { /* its scene is being checked: freed by submit_checked */
         cl->closed = 1;
         return;
@@ -460,6 +470,7 @@ static void on_expiry(uv_timer_t *t) {
  * or in --client-timeout when that is shorter). Each close is logged once, naming the client. */
 static void on_sweep(uv_timer_t *t) {
     service *s = t->data;
+    svc_admit_waiting(s); /* memory freed by jobs that ended since */
     double now = svc_mono_now(), limit = s->o.client_timeout_s > 0 ? s->o.client_timeout_s : 30;
     client *cl, *next;
     TAILQ_FOREACH_SAFE(cl, &s->clients, link, next) {
@@ -544,6 +555,8 @@ int service_run(const service_options *o) {
     TAILQ_INIT(&s->clients);
     s->o = *o;
     s->next_id = 1;
+    char how[160] = "--max-memory";
+    if (!s->o.max_memory) s->o.max_memory = membudget_default(how, sizeof how);
     if (prepare_data_dir(o->data_dir, err, sizeof err) || data_dir_lock(o->data_dir, err, sizeof err) < 0) {
         fprintf(stderr, "tessera-coordinator: %s\n", err);
         free(s);
@@ -554,6 +567,13 @@ int service_run(const service_options *o) {
     if (loopstat_start(&s->loop, &s->stat)) svc_log("loop: cannot measure its iterations; stalls go unreported");
     s->o.farm.on_client = on_client;
     s->o.farm.client_ctx = s;
+    double idle = s->o.client_timeout_s > 0 ? s->o.client_timeout_s : 30;
+    if (s->o.farm.hello_timeout_s <= 0) s->o.farm.hello_timeout_s = idle < 10 ? idle : 10;
+    int reserve = 64 + 2 * s->o.max_jobs; /* stdio, listeners, data files, a journal per running job */
+    long nofile = connlimit_defaults(&s->o.farm.limits, reserve);
+    if (s->o.farm.limits.max_total > nofile - reserve)
+        svc_log("warning: --max-connections %d leaves under %d of the %ld descriptors (RLIMIT_NOFILE) for files; "
+                "raise `ulimit -n` or lower it", s->o.farm.limits.max_total, reserve, nofile);
     s->f = farm_new(&s->loop, &s->o.farm, err, sizeof err);
     if (!s->f) {
         fprintf(stderr, "tessera-coordinator: %s\n", err);
@@ -562,6 +582,13 @@ int service_run(const service_options *o) {
         return 1;
     }
     svc_log("listening on %s:%d, data in %s", o->farm.host, farm_port(s->f), o->data_dir);
+    svc_log("connections: at most %d in all (--max-connections), %d per address before a worker hello or as "
+            "clients (--max-per-address), %d workers per address (--max-workers-per-address); idle ones close after "
+            "%.1f s before a hello, %.1f s as clients", s->o.farm.limits.max_total, s->o.farm.limits.max_open,
+            s->o.farm.limits.max_workers, s->o.farm.hello_timeout_s, idle);
+    char budget[32];
+    membudget_format(s->o.max_memory, budget, sizeof budget);
+    svc_log("memory: jobs are admitted while their frames and scenes fit in %s (%s)", budget, how);
     if (service_web_start(s, err, sizeof err)) {
         fprintf(stderr, "tessera-coordinator: %s\n", err);
         farm_close(s->f, NULL, NULL);

@@ -3,7 +3,8 @@
  *   jobstore.c - the job store and journal: jobs on disk, tiles journaled as
  *                they land, restart from the journal;
  *   service.c  - the service: client requests (submit, status, workers,
- *                cancel, fetch), expiry, signals, start-up.
+ *                cancel, fetch), expiry, signals, start-up;
+ *   admission.c - jobs admitted within --max-memory, or waiting for it.
  *
  * Data dir layout (every file written whole to a temporary name, synced and
  * renamed, except the tile journal, which is appended and synced in batches
@@ -47,6 +48,7 @@
 #include "tjournal.h"
 #include "loopstat.h"
 #include "upload.h"
+#include "membudget.h"
 #include "service.h"
 
 #define WIRE_KIND_IMAGE 'I'
@@ -71,6 +73,8 @@ typedef struct sjob {
     double submitted, started, finished; /* wall clock, seconds */
     struct tjournal *journal; /* while running: tiles synced off the loop (tjournal.h) */
     uv_timer_t *save_timer;   /* rendered, waiting for space to save the image */
+    uint64_t need;            /* bytes it holds once admitted (membudget_job_bytes) */
+    int waiting;              /* running but not admitted: waits for --max-memory (admission.c) */
     TAILQ_ENTRY(sjob) link; /* on the service's jobs, oldest first */
 } sjob;
 
@@ -143,6 +147,28 @@ void store_job_unlink_free(service *s, sjob *j);
 
 /* How many jobs are running (queued or rendering). */
 int store_running_jobs(const service *s);
+
+/* Start a job that has no frame yet (resumed, or admitted after waiting):
+ * its scene read from scenes/HASH, its frame made, its journal replayed,
+ * handed to the farm. Returns 0, or -1 with the job failed and saved. */
+int store_job_resume(service *s, sjob *j);
+
+/* ---- admission.c ---- */
+
+/* Bytes held by admitted jobs (those with a frame), and how many (jobs may
+ * be NULL). */
+uint64_t svc_memory_in_use(const service *s, int *jobs);
+
+/* Whether j (its need set) may be admitted now: 0; 1 when it must wait
+ * (why: the note for status); -1 when it never fits (why: the refusal,
+ * with the figures). */
+int svc_admit_check(const service *s, const sjob *j, char *why, size_t why_len);
+
+/* Admit every waiting job that fits now, oldest first. */
+void svc_admit_waiting(service *s);
+
+/* Cancel a running job: a waiting one at once, else through the farm. */
+void svc_cancel_job(service *s, sjob *j);
 
 /* Resume every job in the data dir, oldest first. */
 void store_load_jobs(service *s);

@@ -64,7 +64,7 @@ static int web_cancel(void *ctx, uint32_t id, char *err, size_t err_len) {
         return -1;
     }
     svc_log("job %u cancelled from the dashboard", id);
-    farm_cancel(s->f, id); /* store_on_job_event records the state */
+    svc_cancel_job(s, j);
     return 0;
 }
 
