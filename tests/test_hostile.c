@@ -3,6 +3,7 @@
  * full disks. Each test runs a real tessera-coordinator on loopback and
  * checks what a user would see; each is bounded (a few seconds). */
 #include <arpa/inet.h>
+#include <errno.h>
 #include <netinet/in.h>
 #include <signal.h>
 #include <stdio.h>
@@ -246,24 +247,44 @@ static int raw_read(int fd, char *out, size_t cap, double timeout_s) {
     return 0;
 }
 
-/* Connect to c as a client (no token) and say hello. Returns the socket
- * after the welcome, or -1. */
-static int raw_open(const coord *c) {
+/* A TCP connection to c from the loopback address src (NULL: any; the
+ * whole of 127/8 is this machine, so "127.0.0.3" is another peer address
+ * to the coordinator), before any hello. Returns the socket, or -1. */
+static int raw_connect_from(const coord *c, const char *src) {
     int fd = socket(AF_INET, SOCK_STREAM, 0);
     struct sockaddr_in a = {.sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
     a.sin_port = htons((uint16_t)c->port);
+    struct sockaddr_in from = {.sin_family = AF_INET};
+    if (fd >= 0 && src && (inet_pton(AF_INET, src, &from.sin_addr) != 1 || bind(fd, (struct sockaddr *)&from, sizeof from))) {
+        close(fd);
+        return -1;
+    }
+    if (fd >= 0 && connect(fd, (struct sockaddr *)&a, sizeof a) != 0) {
+        close(fd);
+        return -1;
+    }
+    return fd;
+}
+
+/* Connect to c from src (NULL: any) and say hello as role ("client" or
+ * NULL: a worker). Returns the socket after the welcome, or -1. */
+static int raw_hello_from(const coord *c, const char *src, const char *role) {
+    int fd = raw_connect_from(c, src);
     char buf[4096], hello[512];
     snprintf(hello, sizeof hello,
-             "{\"type\":\"hello\",\"role\":\"client\",\"protocol\":%d,\"build\":\"%s\",\"name\":\"raw\",\"threads\":1}",
-             PROTOCOL_VERSION, protocol_build_id());
-    if (fd < 0 || connect(fd, (struct sockaddr *)&a, sizeof a) != 0 || raw_read(fd, buf, sizeof buf, 5) ||
-        raw_send_text(fd, hello) ||
-        raw_read(fd, buf, sizeof buf, 5) || !strstr(buf, "welcome")) {
+             "{\"type\":\"hello\",%s%s%s\"protocol\":%d,\"build\":\"%s\",\"name\":\"raw\",\"threads\":1}",
+             role ? "\"role\":\"" : "", role ? role : "", role ? "\"," : "", PROTOCOL_VERSION, protocol_build_id());
+    if (fd < 0 || raw_read(fd, buf, sizeof buf, 5) || raw_send_text(fd, hello) || raw_read(fd, buf, sizeof buf, 5) ||
+        !strstr(buf, "welcome")) {
         if (fd >= 0) close(fd);
         return -1;
     }
     return fd;
 }
+
+/* Connect to c as a client (no token) and say hello. Returns the socket
+ * after the welcome, or -1. */
+static int raw_open(const coord *c) { return raw_hello_from(c, NULL, "client"); }
 
 /* Upload the bundle of scene path on fd; its hash in hash. Returns 0/-1. */
 static int raw_upload(int fd, const char *path, char hash[SCENE_BUNDLE_HASH_HEX]) {
@@ -775,4 +796,282 @@ TEST(hostile_absurd_mesh_scale_is_refused) {
     int st = util_run(cmd, out, sizeof out);
     CHECK(st != 0 && strstr(out, "scale"), "a mesh scaled by 1e30 was not refused (%d): %s", st, out);
     (void)err;
+}
+
+/* ---- an honest job beside each hostile case ---- */
+
+/* The honest job's image rendered in one process (cornell-small, 8 spp),
+ * made once per run; its path, or NULL. */
+static const char *honest_reference(void) {
+    static char ref[300];
+    if (ref[0]) return ref;
+    char cmd[1024], out[4096];
+    snprintf(ref, sizeof ref, "%s", util_temp_path("hostile-honest-ref.pfm"));
+    snprintf(cmd, sizeof cmd, "%s render tests/scenes/cornell-small.json --spp 8 --workers 0 -o %s", harness_tessera(),
+             ref);
+    if (util_run(cmd, out, sizeof out) != 0) {
+        ref[0] = 0;
+        return NULL;
+    }
+    return ref;
+}
+
+/* Submit the honest job (cornell-small, 8 spp, tiles of 8, priority 10)
+ * from 127.0.0.1. Returns its number, or -1. */
+static int honest_submit(const coord *c) {
+    char out[4096];
+    int job = -1;
+    if (cli(c, out, sizeof out, "submit tests/scenes/cornell-small.json --spp 8 --tile-size 8 --priority 10") != 0)
+        return -1;
+    const char *p = strstr(out, "job ");
+    if (p) sscanf(p, "job %d", &job);
+    return job;
+}
+
+/* Wait for the honest job to end (60 s) and check that its image is the
+ * same bytes as a single-process render. */
+static void honest_check(const coord *c, int job, const char *tag) {
+    char text[64], img[300], args[600], out[8192];
+    snprintf(text, sizeof text, "job %d done (", job);
+    CHECK(job > 0 && util_wait_for_text(c->log, text, 60 * slack()) == 0, "%s: the honest job %d never finished; log %s",
+          tag, job, c->log);
+    snprintf(img, sizeof img, "%s-%s.pfm", util_temp_path("hostile-honest"), tag);
+    snprintf(args, sizeof args, "fetch %d -o %s", job, img);
+    const char *ref = honest_reference();
+    CHECK(ref && cli(c, out, sizeof out, args) == 0 && util_same_file(img, ref),
+          "%s: the honest job's image differs from a single-process render: %s", tag, out);
+}
+
+/* The first frame on a fresh connection: 1 for a challenge, 0 for an
+ * error (its text in out), -1 for nothing within 5 s. */
+static int first_frame(int fd, char *out, size_t cap) {
+    if (raw_read(fd, out, cap, 5)) return -1;
+    return strstr(out, "challenge") ? 1 : strstr(out, "\"error\"") ? 0 : -1;
+}
+
+/* Connection caps (Redis maxclients, nginx limit_conn): past
+ * --max-per-address, connections from one address are refused with an
+ * error naming the address and the cap; past --max-connections, any; each
+ * cap's refusals are logged once (not per attempt); meanwhile a status
+ * from another address answers fast, a connected worker keeps rendering,
+ * and the honest job beside it finishes byte-identical. Closed connections
+ * stop counting. */
+TEST(hostile_connections_past_the_caps_are_refused) {
+    coord c = {0};
+    const char *extra[] = {"--max-connections", "24", "--max-per-address", "8", NULL};
+    if (coord_start(&c, "hostile-caps", extra)) {
+        CHECK(0, "coordinator did not start; log %s", c.log);
+        return;
+    }
+    pid_t w = worker_start(&c, "cap1");
+    int job = honest_submit(&c);
+    CHECK(job > 0, "the honest job was not submitted");
+    enum { N = 40 };
+    int fds[N], n = 0, kept3 = 0, refused3 = 0, kept_more = 0, refused_total = 0;
+    char ans[4096], why3[4096] = "", why_total[4096] = "";
+    for (int i = 0; i < 12; i++) { /* one address: 8 in, 4 refused */
+        int fd = raw_connect_from(&c, "127.0.0.3"), k = fd >= 0 ? first_frame(fd, ans, sizeof ans) : -1;
+        if (k == 0) snprintf(why3, sizeof why3, "%s", ans);
+        kept3 += k == 1;
+        refused3 += k == 0;
+        if (k == 1) fds[n++] = fd;
+        else if (fd >= 0) close(fd);
+    }
+    CHECK(kept3 == 8 && refused3 == 4, "from 127.0.0.3: %d let in, %d refused (want 8 and 4 with --max-per-address 8)",
+          kept3, refused3);
+    CHECK(strstr(why3, "127.0.0.3") && strstr(why3, "--max-per-address 8"), "the refusal does not name the address "
+          "and the cap: %s", why3);
+    double t0 = now_s();
+    int st = raw_hello_from(&c, "127.0.0.2", "client");
+    int ok = st >= 0 && raw_send_text(st, "{\"type\":\"status\"}") == 0 && raw_read(st, ans, sizeof ans, 10) == 0 &&
+             strstr(ans, "\"jobs\"");
+    double t = now_s() - t0;
+    if (st >= 0) close(st);
+    CHECK(ok, "status from 127.0.0.2 beside a capped 127.0.0.3 failed: %s", ans);
+    CHECK(t < 1.0 * slack(), "status from 127.0.0.2 took %.0f ms (connect, hello and answer; want well under 1 s)", t * 1e3);
+    fprintf(stderr, "  (status from another address while one is capped: %.1f ms)\n", t * 1e3);
+    const char *more[] = {"127.0.0.4", "127.0.0.5", "127.0.0.6"};
+    for (int a = 0; a < 3; a++)
+        for (int i = 0; i < 8 && n < N; i++) { /* fill the total: 1 worker + 8 + up to 24 more > 24 */
+            int fd = raw_connect_from(&c, more[a]), k = fd >= 0 ? first_frame(fd, ans, sizeof ans) : -1;
+            if (k == 0 && strstr(ans, "--max-connections")) snprintf(why_total, sizeof why_total, "%s", ans);
+            kept_more += k == 1;
+            refused_total += k == 0 && strstr(ans, "--max-connections");
+            if (k == 1) fds[n++] = fd;
+            else if (fd >= 0) close(fd);
+        }
+    CHECK(refused_total > 0 && kept3 + kept_more <= 23, "past --max-connections 24: %d more let in, %d refused",
+          kept_more, refused_total);
+    CHECK(strstr(why_total, "--max-connections 24"), "the total's refusal does not name the cap: %s", why_total);
+    char out[4096];
+    CHECK(cli(&c, out, sizeof out, "status") != 0 && strstr(out, "--max-connections 24"),
+          "a status while every connection is taken must be refused naming the cap: %s", out);
+    CHECK(count_in(c.log, "refused a connection from 127.0.0.3") == 1,
+          "the per-address refusals were logged %d times (want once for 4 refusals)",
+          count_in(c.log, "refused a connection from 127.0.0.3"));
+    CHECK(count_in(c.log, "(--max-connections 24); further") == 1, "the total's refusals were logged %d times (want once)",
+          count_in(c.log, "(--max-connections 24); further"));
+    for (int i = 0; i < n; i++) close(fds[i]);
+    int again = 0; /* closed connections stop counting */
+    for (int i = 0; i < 100 && !again; i++) {
+        int fd = raw_connect_from(&c, "127.0.0.3");
+        again = fd >= 0 && first_frame(fd, ans, sizeof ans) == 1;
+        if (fd >= 0) close(fd);
+        if (!again) util_sleep(0.05);
+    }
+    CHECK(again, "127.0.0.3 is still refused after its connections closed: %s", ans);
+    honest_check(&c, job, "caps");
+    CHECK(!util_file_count(c.log, "silent for"), "the worker was found silent during the flood; log %s", c.log);
+    kill(w, SIGTERM);
+    util_wait(w, 10, NULL);
+    coord_stop(&c);
+}
+
+/* Read and drop what fd has; 1 when the peer has closed it. */
+static int drained_to_eof(int fd) {
+    char buf[4096];
+    for (;;) {
+        struct pollfd pf = {fd, POLLIN, 0};
+        if (poll(&pf, 1, 0) <= 0) return 0;
+        ssize_t r = recv(fd, buf, sizeof buf, MSG_DONTWAIT);
+        if (r == 0 || (r < 0 && errno != EAGAIN && errno != EWOULDBLOCK)) return 1;
+        if (r < 0) return 0;
+    }
+}
+
+/* An idle connection is closed at every stage: silent and trickling
+ * before its hello (within --client-timeout, 10 s at most), a client
+ * silent after its hello (--client-timeout), a worker silent or trickling
+ * a frame after its hello (--worker-drop). The honest job beside them
+ * finishes byte-identical. */
+TEST(hostile_idle_connections_are_closed_at_every_stage) {
+    coord c = {0};
+    const char *extra[] = {"--client-timeout", "1", "--worker-drop", "3", NULL};
+    if (coord_start(&c, "hostile-stages", extra)) {
+        CHECK(0, "coordinator did not start; log %s", c.log);
+        return;
+    }
+    pid_t w = worker_start(&c, "st1");
+    int job = honest_submit(&c);
+    CHECK(job > 0, "the honest job was not submitted");
+    enum { PRE_SILENT, PRE_TRICKLE, CLIENT_IDLE, WORKER_SILENT, WORKER_TRICKLE, STAGES };
+    static const char *const names[] = {"silent before its hello", "trickling before its hello",
+                                        "a client idle after its hello", "a worker silent after its hello",
+                                        "a worker trickling a frame"};
+    const double limit[] = {1, 1, 1, 3, 3};
+    char buf[4096];
+    int fd[STAGES];
+    fd[PRE_SILENT] = raw_connect_from(&c, NULL);
+    fd[PRE_TRICKLE] = raw_connect_from(&c, NULL);
+    fd[CLIENT_IDLE] = raw_hello_from(&c, NULL, "client");
+    fd[WORKER_SILENT] = raw_hello_from(&c, NULL, NULL);
+    fd[WORKER_TRICKLE] = raw_hello_from(&c, NULL, NULL);
+    double t0 = now_s(), closed_at[STAGES] = {0};
+    for (int i = 0; i < STAGES; i++) CHECK(fd[i] >= 0, "cannot open the connection %s", names[i]);
+    uint8_t hdr[WIRE_HEADER_BYTES];
+    wire_put_u32(hdr, 1001); /* a JSON frame of 1000 bytes that never completes */
+    hdr[4] = WIRE_KIND_JSON;
+    if (fd[WORKER_TRICKLE] >= 0) send(fd[WORKER_TRICKLE], hdr, sizeof hdr, MSG_NOSIGNAL);
+    if (fd[PRE_TRICKLE] >= 0) send(fd[PRE_TRICKLE], hdr, 2, MSG_NOSIGNAL);
+    int open_left = STAGES;
+    for (int tick = 0; open_left > 0 && now_s() - t0 < 15 * slack(); tick++) {
+        for (int i = 0; i < STAGES; i++) {
+            if (fd[i] < 0 || closed_at[i] > 0) continue;
+            if ((i == PRE_TRICKLE || i == WORKER_TRICKLE) && tick % 4 == 0) send(fd[i], "x", 1, MSG_NOSIGNAL);
+            if (drained_to_eof(fd[i])) {
+                closed_at[i] = now_s() - t0;
+                open_left--;
+            }
+        }
+        util_sleep(0.05);
+    }
+    for (int i = 0; i < STAGES; i++) {
+        CHECK(closed_at[i] > 0, "a connection %s was not closed within %.0f s", names[i], 15 * slack());
+        CHECK(closed_at[i] == 0 || closed_at[i] > 0.8 * limit[i], "a connection %s was closed after %.2f s, before "
+              "its %.0f s", names[i], closed_at[i], limit[i]);
+        fprintf(stderr, "  (%s: closed after %.2f s; limit %.0f s)\n", names[i], closed_at[i], limit[i]);
+        if (fd[i] >= 0) close(fd[i]);
+    }
+    (void)buf;
+    honest_check(&c, job, "stages");
+    kill(w, SIGTERM);
+    util_wait(w, 10, NULL);
+    coord_stop(&c);
+}
+
+/* The number in "job N" of a CLI answer, or -1. */
+static int job_of(const char *out) {
+    int job = -1;
+    const char *p = strstr(out, "job ");
+    if (p) sscanf(p, "job %d", &job);
+    return job;
+}
+
+/* A memory budget: four 32768 x 32768 jobs (12 GiB of frame each) are not
+ * all admitted under --max-memory 30G: two wait, queued, with the reason
+ * in status; a small job still runs, byte-identical; when the admitted
+ * ones are cancelled the waiting ones are admitted. A frame that could
+ * never fit is refused at submit time naming the figures, and `tessera
+ * render` refuses one up front. */
+TEST(hostile_memory_budget_admits_what_fits) {
+    coord c = {0};
+    const char *extra[] = {"--max-memory", "30G", NULL};
+    if (coord_start(&c, "hostile-memory", extra)) {
+        CHECK(0, "coordinator did not start; log %s", c.log);
+        return;
+    }
+    pid_t w = worker_start(&c, "m1");
+    int honest = honest_submit(&c), big[4], waiting = 0;
+    char out[8192], args[600];
+    CHECK(honest > 0, "the honest job was not submitted");
+    for (int i = 0; i < 4; i++) {
+        int rc = cli(&c, out, sizeof out,
+                     "submit tests/scenes/cornell-small.json --width 32768 --height 32768 --tile-size 256 --priority -1");
+        big[i] = rc == 0 ? job_of(out) : -1;
+        CHECK(big[i] > 0, "a 32768x32768 job was refused under --max-memory 30G: %s", out);
+        waiting += strstr(out, "waiting for memory") != NULL;
+    }
+    CHECK(waiting == 2, "%d of four 32768x32768 jobs were told they wait for memory (want 2 of 4 under 30 GiB)", waiting);
+    int noted = 0;
+    for (int i = 0; i < 4; i++) {
+        snprintf(args, sizeof args, "status %d --json", big[i]);
+        noted += cli(&c, out, sizeof out, args) == 0 && strstr(out, "queued") &&
+                 strstr(out, "waiting for memory: needs 12.0 GiB for a 32768x32768 frame");
+    }
+    CHECK(noted == 2, "status shows %d jobs queued waiting for memory (want 2)", noted);
+    int small = honest_submit(&c);
+    CHECK(small > 0, "a small job was refused beside the waiting ones");
+    honest_check(&c, honest, "memory");
+    honest_check(&c, small, "memory-small");
+    for (int i = 0; i < 2; i++) {
+        snprintf(args, sizeof args, "cancel %d", big[i]);
+        CHECK(cli(&c, out, sizeof out, args) == 0, "cancel: %s", out);
+    }
+    CHECK(util_wait_for_text(c.log, "admitted: its 12.0 GiB fit", 10 * slack()) == 0,
+          "no waiting job was admitted once memory was freed; log %s", c.log);
+    for (int i = 2; i < 4; i++) {
+        snprintf(args, sizeof args, "cancel %d", big[i]);
+        cli(&c, out, sizeof out, args);
+    }
+    kill(w, SIGTERM);
+    util_wait(w, 10, NULL);
+    coord_stop(&c);
+
+    coord small_c = {0}; /* a budget a 32768x32768 frame can never fit */
+    const char *tight[] = {"--max-memory", "8G", NULL};
+    if (coord_start(&small_c, "hostile-memory-tight", tight)) {
+        CHECK(0, "coordinator did not start; log %s", small_c.log);
+        return;
+    }
+    int rc = cli(&small_c, out, sizeof out, "submit tests/scenes/cornell-small.json --width 32768 --height 32768");
+    CHECK(rc != 0 && strstr(out, "job needs 12.0 GiB for a 32768x32768 frame") && strstr(out, "--max-memory is 8.0 GiB"),
+          "a frame that can never fit was not refused at submit with the figures (%d): %s", rc, out);
+    coord_stop(&small_c);
+    char cmd[1024];
+    double t0 = now_s();
+    snprintf(cmd, sizeof cmd, "%s render tests/scenes/cornell-small.json --width 32768 --height 32768 --max-memory 8G "
+             "--workers 0 -o %s", harness_tessera(), util_temp_path("hostile-memory-render.pfm"));
+    rc = util_run(cmd, out, sizeof out);
+    CHECK(rc != 0 && strstr(out, "12.0 GiB") && strstr(out, "--max-memory is 8.0 GiB") && now_s() - t0 < 5 * slack(),
+          "render of a frame it cannot hold was not refused up front (%d, %.1f s): %s", rc, now_s() - t0, out);
 }
