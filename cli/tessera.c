@@ -429,9 +429,10 @@ static int save_samples_aov(const render_args *a, const scene *s, const float *s
     return rc ? -1 : 0;
 }
 
-/* Refuse up front a frame this process cannot hold: its frame (and the
- * per-pixel sample counts of an adaptive render) against --max-memory or
- * the default budget (membudget.h). Returns 0, or 1 (printed). */
+/* Refuse up front a frame this process cannot hold: its frame, the image
+ * encoder's copy (membudget_job_bytes) and the per-pixel sample counts of
+ * an adaptive render, against --max-memory or the default budget
+ * (membudget.h). Returns 0, or 1 (printed). */
 static int render_fits_memory(const render_args *a, const scene *s) {
     char how[160] = "--max-memory", need_s[32], budget_s[32];
     uint64_t budget = a->max_memory ? a->max_memory : membudget_default(how, sizeof how);
@@ -441,7 +442,8 @@ static int render_fits_memory(const render_args *a, const scene *s) {
     if (need <= budget) return 0;
     membudget_format(need, need_s, sizeof need_s);
     membudget_format(budget, budget_s, sizeof budget_s);
-    fprintf(stderr, "tessera: a %dx%d frame needs %s, --max-memory is %s%s%s%s; render a smaller frame or raise "
+    fprintf(stderr, "tessera: a %dx%d frame needs %s (with the saved image's copy), --max-memory is %s%s%s%s; render a "
+            "smaller frame or raise "
             "--max-memory\n", s->settings.width, s->settings.height, need_s, budget_s, a->max_memory ? "" : " (",
             a->max_memory ? "" : how, a->max_memory ? "" : ")");
     return 1;

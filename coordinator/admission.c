@@ -25,7 +25,7 @@ int svc_admit_check(const service *s, const sjob *j, char *why, size_t why_len) 
     membudget_format(j->need, need, sizeof need);
     membudget_format(s->o.max_memory, budget, sizeof budget);
     if (j->need > s->o.max_memory) {
-        snprintf(why, why_len, "job needs %s for a %dx%d frame and its scene, --max-memory is %s", need,
+        snprintf(why, why_len, "job needs %s for a %dx%d frame (with the saved image's copy) and its scene, --max-memory is %s", need,
                  j->desc.width, j->desc.height, budget);
         return -1;
     }

@@ -44,7 +44,7 @@ uint64_t membudget_default(char *how, size_t how_len) {
 }
 
 uint64_t membudget_job_bytes(int width, int height, int tiles, uint64_t scene_bytes) {
-    return (uint64_t)width * (uint64_t)height * 3 * sizeof(float) + (uint64_t)tiles * MEMBUDGET_TILE_BYTES +
+    return 2 * (uint64_t)width * (uint64_t)height * 3 * sizeof(float) + (uint64_t)tiles * MEMBUDGET_TILE_BYTES +
            scene_bytes;
 }
 

@@ -19,8 +19,10 @@
  * Can't fail (1 GiB when nothing can be read). */
 uint64_t membudget_default(char *how, size_t how_len);
 
-/* What a job holds while it renders: its frame (width * height * 3
- * floats), the farm's per-tile state and its scene bundle. */
+/* What a job holds at its peak: its frame (width * height * 3 floats) and
+ * the image encoder's copy of it when it is saved (image.h encodes whole
+ * files in memory: 24 bytes a pixel in all), the farm's per-tile state and
+ * its scene bundle. */
 uint64_t membudget_job_bytes(int width, int height, int tiles, uint64_t scene_bytes);
 
 /* "12.0 GiB", "640.0 MiB", "512 bytes" into out. Can't fail. */

@@ -670,6 +670,11 @@ TEST(hostile_submit_uploads_only_files_under_the_scene_folder) {
     if (f) fputs(text, f), fclose(f);
     snprintf(args, sizeof args, "submit %s", scene);
     CHECK(cli(&c, out, sizeof out, args) == 0, "a mesh inside the folder was refused: %s", out);
+    snprintf(args, sizeof args, "submit -v %s", scene); /* -v names every file sent, with its bytes */
+    struct stat sb;
+    snprintf(text, sizeof text, "sending %s (%lld bytes)", scene, stat(scene, &sb) == 0 ? (long long)sb.st_size : -1LL);
+    CHECK(cli(&c, out, sizeof out, args) == 0 && strstr(out, text) && strstr(out, "sending ok.obj (30 bytes)"),
+          "submit -v does not name each file sent with its bytes (want \"%s\" and ok.obj): %s", text, out);
     coord_stop(&c);
 }
 
@@ -972,7 +977,7 @@ TEST(hostile_idle_connections_are_closed_at_every_stage) {
     wire_put_u32(hdr, 1001); /* a JSON frame of 1000 bytes that never completes */
     hdr[4] = WIRE_KIND_JSON;
     if (fd[WORKER_TRICKLE] >= 0) send(fd[WORKER_TRICKLE], hdr, sizeof hdr, MSG_NOSIGNAL);
-    if (fd[PRE_TRICKLE] >= 0) send(fd[PRE_TRICKLE], hdr, 2, MSG_NOSIGNAL);
+    if (fd[PRE_TRICKLE] >= 0) send(fd[PRE_TRICKLE], hdr, sizeof hdr, MSG_NOSIGNAL);
     int open_left = STAGES;
     for (int tick = 0; open_left > 0 && now_s() - t0 < 15 * slack(); tick++) {
         for (int i = 0; i < STAGES; i++) {
@@ -1007,15 +1012,16 @@ static int job_of(const char *out) {
     return job;
 }
 
-/* A memory budget: four 32768 x 32768 jobs (12 GiB of frame each) are not
- * all admitted under --max-memory 30G: two wait, queued, with the reason
+/* A memory budget: four 32768 x 32768 jobs (24 GiB each: a 12 GiB frame
+ * and the saved image's copy) are not all admitted under --max-memory
+ * 60G: two wait, queued, with the reason
  * in status; a small job still runs, byte-identical; when the admitted
  * ones are cancelled the waiting ones are admitted. A frame that could
  * never fit is refused at submit time naming the figures, and `tessera
  * render` refuses one up front. */
 TEST(hostile_memory_budget_admits_what_fits) {
     coord c = {0};
-    const char *extra[] = {"--max-memory", "30G", NULL};
+    const char *extra[] = {"--max-memory", "60G", NULL};
     if (coord_start(&c, "hostile-memory", extra)) {
         CHECK(0, "coordinator did not start; log %s", c.log);
         return;
@@ -1028,15 +1034,15 @@ TEST(hostile_memory_budget_admits_what_fits) {
         int rc = cli(&c, out, sizeof out,
                      "submit tests/scenes/cornell-small.json --width 32768 --height 32768 --tile-size 256 --priority -1");
         big[i] = rc == 0 ? job_of(out) : -1;
-        CHECK(big[i] > 0, "a 32768x32768 job was refused under --max-memory 30G: %s", out);
+        CHECK(big[i] > 0, "a 32768x32768 job was refused under --max-memory 60G: %s", out);
         waiting += strstr(out, "waiting for memory") != NULL;
     }
-    CHECK(waiting == 2, "%d of four 32768x32768 jobs were told they wait for memory (want 2 of 4 under 30 GiB)", waiting);
+    CHECK(waiting == 2, "%d of four 32768x32768 jobs were told they wait for memory (want 2 of 4 under 60 GiB)", waiting);
     int noted = 0;
     for (int i = 0; i < 4; i++) {
         snprintf(args, sizeof args, "status %d --json", big[i]);
         noted += cli(&c, out, sizeof out, args) == 0 && strstr(out, "queued") &&
-                 strstr(out, "waiting for memory: needs 12.0 GiB for a 32768x32768 frame");
+                 strstr(out, "waiting for memory: needs 24.0 GiB for a 32768x32768 frame");
     }
     CHECK(noted == 2, "status shows %d jobs queued waiting for memory (want 2)", noted);
     int small = honest_submit(&c);
@@ -1047,7 +1053,7 @@ TEST(hostile_memory_budget_admits_what_fits) {
         snprintf(args, sizeof args, "cancel %d", big[i]);
         CHECK(cli(&c, out, sizeof out, args) == 0, "cancel: %s", out);
     }
-    CHECK(util_wait_for_text(c.log, "admitted: its 12.0 GiB fit", 10 * slack()) == 0,
+    CHECK(util_wait_for_text(c.log, "admitted: its 24.0 GiB fit", 10 * slack()) == 0,
           "no waiting job was admitted once memory was freed; log %s", c.log);
     for (int i = 2; i < 4; i++) {
         snprintf(args, sizeof args, "cancel %d", big[i]);
@@ -1058,13 +1064,13 @@ TEST(hostile_memory_budget_admits_what_fits) {
     coord_stop(&c);
 
     coord small_c = {0}; /* a budget a 32768x32768 frame can never fit */
-    const char *tight[] = {"--max-memory", "8G", NULL};
+    const char *tight[] = {"--max-memory", "16G", NULL};
     if (coord_start(&small_c, "hostile-memory-tight", tight)) {
         CHECK(0, "coordinator did not start; log %s", small_c.log);
         return;
     }
     int rc = cli(&small_c, out, sizeof out, "submit tests/scenes/cornell-small.json --width 32768 --height 32768");
-    CHECK(rc != 0 && strstr(out, "job needs 12.0 GiB for a 32768x32768 frame") && strstr(out, "--max-memory is 8.0 GiB"),
+    CHECK(rc != 0 && strstr(out, "job needs 24.0 GiB for a 32768x32768 frame") && strstr(out, "--max-memory is 16.0 GiB"),
           "a frame that can never fit was not refused at submit with the figures (%d): %s", rc, out);
     coord_stop(&small_c);
     char cmd[1024];
@@ -1072,6 +1078,6 @@ TEST(hostile_memory_budget_admits_what_fits) {
     snprintf(cmd, sizeof cmd, "%s render tests/scenes/cornell-small.json --width 32768 --height 32768 --max-memory 8G "
              "--workers 0 -o %s", harness_tessera(), util_temp_path("hostile-memory-render.pfm"));
     rc = util_run(cmd, out, sizeof out);
-    CHECK(rc != 0 && strstr(out, "12.0 GiB") && strstr(out, "--max-memory is 8.0 GiB") && now_s() - t0 < 5 * slack(),
+    CHECK(rc != 0 && strstr(out, "24.0 GiB") && strstr(out, "--max-memory is 8.0 GiB") && now_s() - t0 < 5 * slack(),
           "render of a frame it cannot hold was not refused up front (%d, %.1f s): %s", rc, now_s() - t0, out);
 }
