@@ -25,6 +25,7 @@
 #include "connlimit.h"
 
 struct conn;
+#include "net/conn.h"
 
 typedef struct farm farm;
 
@@ -106,6 +107,10 @@ typedef struct {
      * sample range; rgb then receives ADAPTIVE_CHANNELS sums per pixel. */
     const uint8_t *mask;
     uint32_t first, count;
+    /* The bundle already framed (a WIRE_KIND_SCENE frame of bundle_len
+     * bytes, e.g. built off the loop): the farm takes a reference instead
+     * of copying bundle. NULL: bundle is copied. */
+    conn_blob *scene;
 } farm_job_options;
 
 /* Render job desc over the farm: bundle (serialised scene bundle, copied)

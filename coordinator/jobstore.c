@@ -214,13 +214,15 @@ static void store_on_journal_pause(void *ctx, int error) {
 }
 
 /* Hand a job (new or resumed) to the farm, opening its tile journal. */
-int store_job_start(service *s, sjob *j, const uint8_t *bundle, size_t len, char *err, size_t err_len) {
+int store_job_start(service *s, sjob *j, const uint8_t *bundle, size_t len, conn_blob *framed, char *err,
+                    size_t err_len) {
     char path[4096];
     store_job_path(s, j->desc.id, "tiles", path, sizeof path);
     j->journal = tjournal_open(&s->loop, path, store_on_batch, store_on_journal_pause, j, err, err_len);
     if (!j->journal) return -1;
     farm_job_options fo = {.tile_size = j->tile_size, .priority = j->priority, .done = j->journaled,
-                           .on_tile = store_on_tile_done, .on_first_assign = store_on_first_assign};
+                           .on_tile = store_on_tile_done, .on_first_assign = store_on_first_assign,
+                           .scene = framed};
     j->started = svc_wall_now();
     j->first_tile = 0;
     if (farm_submit(s->f, &j->desc, bundle, len, &fo, j->rgb, store_on_job_event, j)) {
@@ -346,7 +348,7 @@ int store_job_resume(service *s, sjob *j) {
         render_split_tiles(d.width, d.height, j->tile_size, rects, j->tile_count);
         replay_tiles(s, j, rects);
         svc_log("job %u resumed: %d of %d tiles from the journal", d.id, j->tiles_resumed, j->tile_count);
-        if (store_job_start(s, j, (const uint8_t *)bundle, len, err, sizeof err)) {
+        if (store_job_start(s, j, (const uint8_t *)bundle, len, NULL, err, sizeof err)) {
             j->state = SJOB_FAILED;
             snprintf(j->error, sizeof j->error, "%.500s", err);
             store_save_job(j, err, sizeof err);

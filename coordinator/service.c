@@ -92,15 +92,16 @@ static void submit_checked(upload *u) {
     char err[1024], path[4096];
     cl->validating = 0;
     if (cl->closed) {
-        free(cl->bundle);
+        free(cl->bundle_mem);
         free(cl);
         upload_free(u);
         return;
     }
     if (!cl->bundle) { /* give the bundle back for the next submit, unless a new one came */
         cl->bundle = u->bundle;
+        cl->bundle_mem = u->bundle_mem;
         cl->bundle_len = u->len;
-        u->bundle = NULL;
+        u->bundle = u->bundle_mem = NULL;
     }
     if (u->rc) {
         client_error(cl, "%s", u->err); /* the scene's own message: file, line, field */
@@ -137,8 +138,8 @@ static void submit_checked(upload *u) {
     }
     if (rc == 0) rc = store_save_job(j, err, sizeof err);
     if (rc == 0 && adm == 0)
-        rc = store_job_start(s, j, u->bundle ? u->bundle : cl->bundle, u->bundle ? u->len : cl->bundle_len, err,
-                             sizeof err);
+        rc = store_job_start(s, j, u->bundle ? u->bundle : cl->bundle, u->bundle ? u->len : cl->bundle_len, u->blob,
+                             err, sizeof err);
     upload_free(u);
     if (rc) {
         svc_log("submit from %s refused: %s", cl->addr, err);
@@ -197,8 +198,9 @@ static void on_submit(client *cl, const cJSON *m) {
     upload *u = calloc(1, sizeof *u);
     if (!u) return client_error(cl, "out of memory");
     u->bundle = cl->bundle; /* the upload's now; given back when it ends */
+    u->bundle_mem = cl->bundle_mem;
     u->len = cl->bundle_len;
-    cl->bundle = NULL;
+    cl->bundle = cl->bundle_mem = NULL;
     snprintf(u->claimed_hash, sizeof u->claimed_hash, "%s", h->valuestring);
     u->ov = ov;
     snprintf(u->store_path_dir, sizeof u->store_path_dir, "%s/scenes", s->o.data_dir);
@@ -376,15 +378,15 @@ static int client_on_frame(conn *c, int kind, const uint8_t *body, size_t len) {
     client *cl = conn_data(c);
     cl->last_frame = svc_mono_now();
     if (kind == WIRE_KIND_SCENE) {
-        free(cl->bundle);
-        /* Keep the frame's own memory (already faulted in): a move within
-         * it, not a copy into fresh pages, on the loop thread. */
+        free(cl->bundle_mem);
+        /* Keep the frame's own memory as it is: the bundle lies inside it,
+         * so the loop thread neither copies nor moves its bytes. */
         uint8_t *mem = conn_take_frame(c);
         if (mem && body == mem + WIRE_HEADER_BYTES) {
-            memmove(mem, body, len);
-            cl->bundle = mem;
+            cl->bundle_mem = mem;
+            cl->bundle = mem + WIRE_HEADER_BYTES;
         } else {
-            cl->bundle = malloc(len ? len : 1);
+            cl->bundle = cl->bundle_mem = malloc(len ? len : 1);
             if (cl->bundle) memcpy(cl->bundle, body, len);
             free(mem); /* after the copy: body may lie in it */
         }
@@ -419,8 +421,8 @@ static int client_on_frame(conn *c, int kind, const uint8_t *body, size_t len) {
 static void client_on_close(conn *c, const char *reason) {
     client *cl = conn_data(c);
     if (conn_malformed(c)) svc_log("client %s: %s; disconnecting", cl->addr, reason);
-    free(cl->bundle);
-    cl->bundle = NULL;
+    free(cl->bundle_mem);
+    cl->bundle = cl->bundle_mem = NULL;
     TAILQ_REMOVE(&cl->svc->clients, cl, link);
     farm_client_closed(cl->svc->f, cl->addr); /* no longer counts against --max-per-address */
     if (cl->validating) { /* its scene is being checked: freed by submit_checked */
@@ -526,6 +528,11 @@ static void on_signal(uv_signal_t *h, int signum) {
     if (s->stopping) return;
     s->stopping = 1;
     svc_log("%s: stopping; running jobs resume at the next start", signum == SIGINT ? "SIGINT" : "SIGTERM");
+    client *cl, *next; /* a connected client must not keep the process alive */
+    TAILQ_FOREACH_SAFE(cl, &s->clients, link, next) {
+        client_error(cl, "the coordinator is stopping (%s)", signum == SIGINT ? "SIGINT" : "SIGTERM");
+        conn_close(cl->c, "the coordinator is stopping", 1);
+    }
     service_web_stop(s);
     farm_close(s->f, on_farm_closed, s);
 }

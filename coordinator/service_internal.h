@@ -108,7 +108,8 @@ typedef struct client {
     service *svc;
     conn *c;
     char addr[64];
-    uint8_t *bundle; /* the last scene uploaded */
+    uint8_t *bundle; /* the last scene uploaded, inside bundle_mem */
+    uint8_t *bundle_mem; /* owned: its frame's memory */
     size_t bundle_len;
     int validating;  /* a submit's scene is on the upload queue */
     int closed;      /* gone while validating: freed when the check ends */
@@ -135,8 +136,11 @@ sjob *store_find_job(service *s, uint32_t id);
  * the image saved, the journal closed and the state recorded. */
 void store_on_job_event(void *ctx, const farm_report *r, int done);
 
-/* Hand a job (new or resumed) to the farm, opening its tile journal. */
-int store_job_start(service *s, sjob *j, const uint8_t *bundle, size_t len, char *err, size_t err_len);
+/* Hand a job (new or resumed) to the farm, opening its tile journal;
+ * framed (may be NULL): the bundle already framed for the farm
+ * (farm_job_options.scene), shared instead of copied. */
+int store_job_start(service *s, sjob *j, const uint8_t *bundle, size_t len, conn_blob *framed, char *err,
+                    size_t err_len);
 
 /* A new job with the next id, linked into s->jobs, or NULL when out of
  * memory. */
