@@ -95,7 +95,10 @@ def one_round(r, json_mib, mesh_mib):
             break
         time.sleep(0.05)
     perf = None
-    if os.environ.get("PERF"):  # the loop thread only (its tid is the pid)
+    if os.environ.get("STRACE"):  # the loop thread's slow system calls
+        perf = subprocess.Popen(["strace", "-T", "-o", os.environ["STRACE"], "-p", str(coord.pid)],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    elif os.environ.get("PERF"):  # the loop thread only (its tid is the pid)
         perf = subprocess.Popen(["perf", "record", "-g", "-t", str(coord.pid), "-o", os.environ["PERF"]],
                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     build = subprocess.run([BIN + "/tessera", "version"], capture_output=True, text=True).stdout.split("build ")[1].split(",")[0]

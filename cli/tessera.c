@@ -621,7 +621,7 @@ static void usage_coordinator(FILE *f) {
             "      --max-connections N  connections at once, workers and clients (default: the\n"
             "                           descriptor limit less a reserve for files, at most 10000)\n"
             "      --max-per-address N  connections from one address before a worker hello or as\n"
-            "                           clients (default: an eighth of the total, 16 to 256)\n"
+            "                           clients (default: an eighth of the total, 16 to 1024)\n"
             "      --max-workers-per-address N  workers from one address (default: half the total)\n"
             "      --token-file F       workers and clients must prove they know this secret\n"
             "      --worker-drop S      disconnect a worker silent (or trickling a frame) for S s\n"

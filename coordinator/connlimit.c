@@ -185,7 +185,7 @@ long connlimit_defaults(connlimit_caps *caps, int reserve) {
     }
     if (caps->max_open <= 0) {
         int o = caps->max_total / 8;
-        caps->max_open = o < 16 ? 16 : o > 256 ? 256 : o;
+        caps->max_open = o < 16 ? 16 : o > 1024 ? 1024 : o;
     }
     if (caps->max_workers <= 0) caps->max_workers = caps->max_total / 2 > 1 ? caps->max_total / 2 : 1;
     return soft;

@@ -58,8 +58,9 @@ int connlimit_last_kind(const connlimit *l);
 /* Defaults from the descriptor limit: raise RLIMIT_NOFILE's soft limit
  * toward its hard limit (as Redis does), keep `reserve` descriptors for
  * files, and cap the total at 10,000; the open class at an eighth of the
- * total (16 to 256), workers at half of it. Fills caps (fields already
- * non-zero are kept) and returns the soft descriptor limit. */
+ * total (16 to 1,024: a load test's 1,000 simulated workers handshake at
+ * once from one address), workers at half of it. Fills caps (fields
+ * already non-zero are kept) and returns the soft descriptor limit. */
 long connlimit_defaults(connlimit_caps *caps, int reserve);
 
 /* The ip of "ADDRESS:PORT" (conn_peer_address) into out. Can't fail. */
