@@ -1034,7 +1034,8 @@ TEST(hostile_memory_budget_admits_what_fits) {
     CHECK(honest > 0, "the honest job was not submitted");
     for (int i = 0; i < 4; i++) {
         int rc = cli(&c, out, sizeof out,
-                     "submit tests/scenes/cornell-small.json --width 32768 --height 32768 --tile-size 256 --priority -1");
+                     "submit tests/scenes/cornell-small.json --width 32768 --height 32768 --tile-size 256 --spp 1 "
+                     "--priority -1");
         big[i] = rc == 0 ? job_of(out) : -1;
         CHECK(big[i] > 0, "a 32768x32768 job was refused under --max-memory 60G: %s", out);
         waiting += strstr(out, "waiting for memory") != NULL;
