@@ -499,10 +499,11 @@ TEST(hostile_large_upload_is_checked_off_the_loop) {
     /* The loop's own work per iteration (its thread's CPU time) is what the
      * coordinator controls; wall-clock figures also hold the time a loaded
      * host (load 20 on 2 cores while this was written) gave to others. */
-    /* Goal 100 ms; measured 58 to 110 ms of loop CPU for this 12 MB scene on
-     * the shared VM (page faults of the farm's copy of the bundle remain on
-     * the loop); checking it on the loop took seconds. */
-    CHECK(cpu >= 0 && cpu < 250 * slack(), "the loop worked %.1f ms in one iteration while a large scene was checked (want < 100)",
+    /* Goal 100 ms; measured 58 to 110 ms of loop CPU for this 12 MB scene
+     * while the farm's copy of the bundle was made on the loop, 15 ms since
+     * it is made on the upload's pool thread; checking the scene on the
+     * loop took seconds. */
+    CHECK(cpu >= 0 && cpu < 100 * slack(), "the loop worked %.1f ms in one iteration while a large scene was checked (want < 100)",
           cpu);
     fprintf(stderr, "  (loop: %.1f ms of CPU, %.1f ms wall in its longest iteration; slowest status %.0f ms)\n", cpu,
             stall, worst * 1e3);
