@@ -302,6 +302,12 @@ $(FUZZ_BUILD)/fuzz_http: tests/fuzz/fuzz_http.c $(FUZZ_BUILD)/coordinator/http.o
 bench-journal: $(TESSERA) $(LOADGEN)
 	bench/journal.sh 3 100
 
+# bench-upload-stall: the loop's longest iteration and the slowest status
+# while the largest scene the coordinator accepts uploads (README "Reliability").
+.PHONY: bench-upload-stall
+bench-upload-stall: $(TESSERA) $(WORKER)
+	BIN=$(BUILD)/bin bench/upload_stall.py 3
+
 # ---- issue 17: trust on hostile networks --------------------------------------
 # What sealed links and audited tiles cost: five configurations of the local
 # farm run interleaved (bench/trust.sh; printed, not asserted).
