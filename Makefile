@@ -117,7 +117,7 @@ $(WORKER): $(WORKER_OBJ) $(LIBS_WORKER)
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
-$(TEST_BIN): $(TEST_OBJ) $(LIBS_ALL)
+$(TEST_BIN): $(TEST_OBJ) $(BUILD)/coordinator/connlimit.o $(LIBS_ALL)
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
@@ -308,6 +308,12 @@ $(FUZZ_BUILD)/fuzz_http: tests/fuzz/fuzz_http.c $(FUZZ_BUILD)/coordinator/http.o
 .PHONY: bench-journal
 bench-journal: $(TESSERA) $(LOADGEN)
 	bench/journal.sh 3 100
+
+# bench-upload-stall: the loop's longest iteration and the slowest status
+# while the largest scene the coordinator accepts uploads (README "Reliability").
+.PHONY: bench-upload-stall
+bench-upload-stall: $(TESSERA) $(WORKER)
+	BIN=$(BUILD)/bin bench/upload_stall.py 3
 
 # ---- issue 17: trust on hostile networks --------------------------------------
 # What sealed links and audited tiles cost: five configurations of the local

@@ -587,6 +587,11 @@ static int do_submit(const cli_args *a, const char *scene_path) {
         scene_bundle_free(&b);
         return cli_fail("%s", err);
     }
+    for (size_t i = 0; a->verbose && i < b.count; i++) { /* -v: every file that leaves this machine */
+        char name[600];
+        log_escape(i == 0 ? scene_path : b.files[i].name, name, sizeof name);
+        fprintf(stderr, "sending %s (%zu bytes)\n", name, b.files[i].len);
+    }
     size_t len;
     uint8_t *bytes = scene_bundle_serialise(&b, &len);
     scene_bundle_free(&b);
@@ -639,6 +644,11 @@ static int do_submit(const cli_args *a, const char *scene_path) {
         return 1;
     }
     long job = (long)num(r, "job");
+    if (str(r, "note")[0] && !a->quiet) { /* e.g. queued until its frame fits the coordinator's --max-memory */
+        char note[600];
+        log_escape(str(r, "note"), note, sizeof note);
+        fprintf(stderr, "job %ld: %s\n", job, note);
+    }
     if (a->verbose && num(r, "width") > 0)
         fprintf(stderr, "job %ld: %gx%g%s\n", job, num(r, "width"), num(r, "height"),
                 (a->ov.width > 0) != (a->ov.height > 0) ? " (one side given: the other keeps the scene's aspect ratio)"
@@ -842,7 +852,7 @@ static void usage_submit(FILE *f) {
                "      --camera NAME        glTF: render from this camera (default: the first)\n"
                "      --wait               wait for the job and write its image\n"
                "  -q, --quiet              errors and the final line only (no progress, no notes)\n"
-               "  -v, --verbose            say the job's size as the coordinator set it\n"
+               "  -v, --verbose            name each file sent (path and bytes) and the job's size\n"
                IMAGE_OPTIONS_HELP COMMON_OPTIONS_HELP);
 }
 

@@ -30,6 +30,7 @@
 #include "client.h"
 #include "coordinator/local_farm.h"
 #include "coordinator/service.h"
+#include "coordinator/membudget.h"
 #include "limit.h"
 
 /* From this many primitives the default local farm is one worker with a
@@ -58,6 +59,7 @@ typedef struct {
     codec_exr_options exr;
     render_options ro;
     tonemap_options tm;
+    uint64_t max_memory; /* --max-memory; 0: membudget_default */
 } render_args;
 
 static void usage_render(FILE *f) {
@@ -79,6 +81,8 @@ static void usage_render(FILE *f) {
             "      --max-depth N      maximum bounces (overrides render.max_depth)\n"
             "      --seed N           random seed (overrides render.seed)\n"
             "      --camera NAME      glTF: render from this camera (node or camera name; default: the first)\n"
+            "      --max-memory SIZE  refuse up front a frame larger than this, e.g. 12G (default:\n"
+            "                         3/4 of the RAM or of the cgroup's limit if lower)\n"
             "      --workers N        local worker processes (default: one per core, or one\n"
             "                         with a thread per core for scenes of 2^19 primitives\n"
             "                         or more; with --listen, 0); 0 without --listen\n"
@@ -234,6 +238,7 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         {.name = "seed", .kind = ARG_U64, .dest = &a->ov.seed, .given = &a->ov.has_seed},
         {.name = "threads", .kind = ARG_INT, .dest = &a->threads, .lo = 1, .hi = 1024, .given = &a->threads_given},
         {.name = "workers", .kind = ARG_INT, .dest = &a->workers, .lo = 0, .hi = 4096},
+        {.name = "max-memory", .kind = ARG_CUSTOM, .dest = &a->max_memory, .parse = membudget_parse},
         {.name = "listen", .kind = ARG_STRING, .dest = &a->listen},
         {.name = "http", .kind = ARG_STRING, .dest = &a->http},
         {.name = "token-file", .kind = ARG_STRING, .dest = &a->token_file},
@@ -424,6 +429,26 @@ static int save_samples_aov(const render_args *a, const scene *s, const float *s
     return rc ? -1 : 0;
 }
 
+/* Refuse up front a frame this process cannot hold: its frame, the image
+ * encoder's copy (membudget_job_bytes) and the per-pixel sample counts of
+ * an adaptive render, against --max-memory or the default budget
+ * (membudget.h). Returns 0, or 1 (printed). */
+static int render_fits_memory(const render_args *a, const scene *s) {
+    char how[160] = "--max-memory", need_s[32], budget_s[32];
+    uint64_t budget = a->max_memory ? a->max_memory : membudget_default(how, sizeof how);
+    uint64_t px = (uint64_t)s->settings.width * (uint64_t)s->settings.height;
+    uint64_t need = membudget_job_bytes(s->settings.width, s->settings.height, 0, 0) +
+                    (a->ro.noise_threshold > 0 ? px * sizeof(float) : 0);
+    if (need <= budget) return 0;
+    membudget_format(need, need_s, sizeof need_s);
+    membudget_format(budget, budget_s, sizeof budget_s);
+    fprintf(stderr, "tessera: a %dx%d frame needs %s (with the saved image's copy), --max-memory is %s%s%s%s; render a "
+            "smaller frame or raise "
+            "--max-memory\n", s->settings.width, s->settings.height, need_s, budget_s, a->max_memory ? "" : " (",
+            a->max_memory ? "" : how, a->max_memory ? "" : ")");
+    return 1;
+}
+
 static int cmd_render(int argc, char **argv) {
     render_args a;
     char err[1024], out_default[512];
@@ -462,9 +487,12 @@ static int cmd_render(int argc, char **argv) {
             fprintf(stderr, "local farm: 1 worker with %d threads (%u primitives: loaded once, not per core)\n",
                     a.threads, s->triangle_count + s->sphere_count);
     }
-    image img;
-    int rc = image_alloc(&img, s->settings.width, s->settings.height);
-    if (rc) fprintf(stderr, "tessera: out of memory for a %dx%d image\n", s->settings.width, s->settings.height);
+    image img = {0};
+    int rc = render_fits_memory(&a, s);
+    if (rc == 0 && image_alloc(&img, s->settings.width, s->settings.height)) {
+        fprintf(stderr, "tessera: out of memory for a %dx%d image\n", s->settings.width, s->settings.height);
+        rc = -1;
+    }
     trace_stats st = {0};
     float *samples = NULL;
     if (rc == 0 && a.ro.noise_threshold > 0) {
@@ -585,13 +613,24 @@ static void usage_coordinator(FILE *f) {
             "      --max-jobs N         queued and running jobs at once (default 100)\n"
             "      --keep-hours H       delete finished jobs after H hours (default 24)\n"
             "      --keep-jobs N        keep at most N finished jobs, oldest deleted first (default 1000)\n"
-            "      --client-timeout S   close a client that sends nothing for S s (default 30)\n"
+            "      --client-timeout S   close a client that sends nothing for S s (default 30), and a\n"
+            "                           connection without a hello after S s or 10 s if sooner\n"
+            "      --max-memory SIZE    memory for admitted jobs' frames and scenes, e.g. 12G; a job\n"
+            "                           waits until it fits, or is refused if it never can (default:\n"
+            "                           3/4 of the RAM or of the cgroup's limit if lower)\n"
+            "      --max-connections N  connections at once, workers and clients (default: the\n"
+            "                           descriptor limit less a reserve for files, at most 10000)\n"
+            "      --max-per-address N  connections from one address before a worker hello or as\n"
+            "                           clients (default: an eighth of the total, 16 to 1024)\n"
+            "      --max-workers-per-address N  workers from one address (default: half the total)\n"
             "      --token-file F       workers and clients must prove they know this secret\n"
             "      --worker-token-file F, --client-token-file F\n"
             "                           separate secrets: a worker token only renders tiles, a client\n"
             "                           token only submits, watches, fetches and cancels its own jobs\n"
             "      --admin-token-file F a client with this one may cancel and fetch any job\n"
             "                           (SIGHUP re-reads every token file; docs/security.md)\n"
+            "      --worker-drop S      disconnect a worker silent (or trickling a frame) for S s\n"
+            "                           (default 30, or 6 x --worker-timeout if longer)\n"
             "      --heartbeat S, --worker-timeout S, --lease S, --audit FRACTION, --insecure\n"
             "                           as for tessera render\n"
             "      --http ADDR:PORT     serve the web dashboard and /metrics there (loopback unless\n"
@@ -614,7 +653,7 @@ static int cmd_coordinator(int argc, char **argv) {
     const char *listen = "127.0.0.1:7000", *token = NULL, *worker_token = NULL, *client_token = NULL,
                *admin_token = NULL;
     char host[256], err[300];
-    int upload_mib = LIMIT_UPLOAD_DEFAULT_MIB, version = 0, insecure = 0;
+    int upload_mib = LIMIT_UPLOAD_DEFAULT_MIB, version = 0, insecure = 0, drop_given = 0;
     double keep_hours = 24;
     const char *http = NULL; /* --http ADDR:PORT: the dashboard (coordinator/dashboard.h) */
     dashboard_options web = {0};
@@ -630,9 +669,14 @@ static int cmd_coordinator(int argc, char **argv) {
         {.name = "keep-hours", .kind = ARG_DOUBLE, .dest = &keep_hours, .lo = 0, .hi = 1e6},
         {.name = "keep-jobs", .kind = ARG_INT, .dest = &o.keep_jobs, .lo = 1, .hi = 10000000},
         {.name = "client-timeout", .kind = ARG_DOUBLE, .dest = &o.client_timeout_s, .lo = 0.1, .hi = 86400},
+        {.name = "max-memory", .kind = ARG_CUSTOM, .dest = &o.max_memory, .parse = membudget_parse},
+        {.name = "max-connections", .kind = ARG_INT, .dest = &o.farm.limits.max_total, .lo = 1, .hi = 1000000},
+        {.name = "max-per-address", .kind = ARG_INT, .dest = &o.farm.limits.max_open, .lo = 1, .hi = 1000000},
+        {.name = "max-workers-per-address", .kind = ARG_INT, .dest = &o.farm.limits.max_workers, .lo = 1, .hi = 1000000},
         {.name = "heartbeat", .kind = ARG_DOUBLE, .dest = &o.farm.heartbeat_s, .lo = 0.01, .hi = 3600},
         {.name = "worker-timeout", .kind = ARG_DOUBLE, .dest = &o.farm.timeout_s, .lo = 0.05, .hi = 86400},
         {.name = "lease", .kind = ARG_DOUBLE, .dest = &o.farm.lease_s, .lo = 0.1, .hi = 1e7},
+        {.name = "worker-drop", .kind = ARG_DOUBLE, .dest = &o.farm.drop_s, .lo = 0.1, .hi = 1e7, .given = &drop_given},
         {.name = "token-file", .kind = ARG_STRING, .dest = &token},
         {.name = "worker-token-file", .kind = ARG_STRING, .dest = &worker_token},
         {.name = "client-token-file", .kind = ARG_STRING, .dest = &client_token},
@@ -662,7 +706,9 @@ static int cmd_coordinator(int argc, char **argv) {
         args_usage_error("tessera-coordinator", "token file %s", err);
     if (!(o.farm.heartbeat_s < o.farm.timeout_s))
         args_usage_error("tessera-coordinator", "--worker-timeout must be longer than --heartbeat");
-    if (o.farm.drop_s < 6 * o.farm.timeout_s) o.farm.drop_s = 6 * o.farm.timeout_s;
+    if (drop_given && !(o.farm.drop_s > o.farm.timeout_s))
+        args_usage_error("tessera-coordinator", "--worker-drop must be longer than --worker-timeout");
+    if (!drop_given && o.farm.drop_s < 6 * o.farm.timeout_s) o.farm.drop_s = 6 * o.farm.timeout_s;
     if (o.tile_size > o.farm.max_tile_side) o.farm.max_tile_side = o.tile_size;
     if (http && dashboard_parse_address(http, &web, web_host, sizeof web_host, err, sizeof err))
         args_usage_error("tessera-coordinator", "--http %s", err);

@@ -29,11 +29,19 @@ farm *farm_new(uv_loop_t *loop, const farm_options *o, char *err, size_t err_len
     f->opt = *o;
     LIST_INIT(&f->peers);
     TAILQ_INIT(&f->jobs);
+    if (f->opt.hello_timeout_s <= 0) f->opt.hello_timeout_s = HELLO_TIMEOUT_S;
+    f->limits = connlimit_new(&o->limits);
+    if (!f->limits) {
+        snprintf(err, err_len, "out of memory");
+        free(f);
+        return NULL;
+    }
     struct sockaddr_storage addr;
     int rc = uv_ip4_addr(o->host, o->port, (struct sockaddr_in *)&addr);
     if (rc) rc = uv_ip6_addr(o->host, o->port, (struct sockaddr_in6 *)&addr);
     if (rc) {
         snprintf(err, err_len, "cannot listen on %s:%d: not a numeric IPv4 or IPv6 address", o->host, o->port);
+        connlimit_free(f->limits);
         free(f);
         return NULL;
     }
@@ -45,6 +53,7 @@ farm *farm_new(uv_loop_t *loop, const farm_options *o, char *err, size_t err_len
         snprintf(err, err_len, "cannot listen on %s:%d: %s", o->host, o->port, uv_strerror(rc));
         uv_close((uv_handle_t *)&f->listener, NULL);
         uv_run(loop, UV_RUN_NOWAIT); /* let the close finish before freeing */
+        connlimit_free(f->limits);
         free(f);
         return NULL;
     }
@@ -81,6 +90,7 @@ void farm_free(farm *f) {
     job *j, *next;
     TAILQ_FOREACH_SAFE(j, &f->jobs, link, next) farm_job_free(j);
     free(f->departed);
+    connlimit_free(f->limits);
     free(f);
 }
 

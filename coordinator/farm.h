@@ -22,8 +22,10 @@
 #include "net/auth.h"
 #include "job/job.h"
 #include "net/protocol.h"
+#include "connlimit.h"
 
 struct conn;
+#include "net/conn.h"
 
 typedef struct farm farm;
 
@@ -46,6 +48,10 @@ typedef struct {
     void *client_ctx;
     auth_keyring auth; /* any key enabled: every peer must prove the token of its class */
     double audit;  /* fraction of tiles (0 to 1) rendered by two workers and compared (farm_audit.c) */
+    /* Connection caps (connlimit.h), refused at accept or at a worker's
+     * hello with an "error" naming the cap; 0 fields: no cap. */
+    connlimit_caps limits;
+    double hello_timeout_s; /* a connection without a hello this long is closed (0: 10 s) */
 } farm_options;
 
 /* Fill o with the defaults (heartbeat 1 s, timeout 5 s, drop 30 s, lease
@@ -102,6 +108,10 @@ typedef struct {
      * sample range; rgb then receives ADAPTIVE_CHANNELS sums per pixel. */
     const uint8_t *mask;
     uint32_t first, count;
+    /* The bundle already framed (a WIRE_KIND_SCENE frame of bundle_len
+     * bytes, e.g. built off the loop): the farm takes a reference instead
+     * of copying bundle. NULL: bundle is copied. */
+    conn_blob *scene;
 } farm_job_options;
 
 /* Render job desc over the farm: bundle (serialised scene bundle, copied)
@@ -176,6 +186,10 @@ typedef struct {
     int queued, running_jobs;
 } farm_totals;
 void farm_get_totals(const farm *f, farm_totals *t);
+
+/* A client handed over by on_client (addr as given to it) closed: its
+ * connection no longer counts against the caps. Can't fail. */
+void farm_client_closed(farm *f, const char *addr);
 
 /* Add to welcome the coordinator's proof, with the key of class cls, for
  * the nonce the peer sent in hello (when a token is configured and the peer

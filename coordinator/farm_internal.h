@@ -33,7 +33,7 @@
 
 #define FARM_TICK_MS 100
 
-#define HELLO_TIMEOUT_S 10.0
+#define HELLO_TIMEOUT_S 10.0 /* default of farm_options.hello_timeout_s */
 #define FARM_DEPARTED_MAX 256 /* departed workers remembered: 312 bytes each, not one per hello for ever */
 
 #define MAX_CREDITS 4096
@@ -117,6 +117,7 @@ struct peer {
     peer_record rec;
     char nonce[AUTH_HEX]; /* the challenge this connection must answer */
     char label[200]; /* "worker NAME (ADDR)" */
+    int limit_class; /* counted by f->limits as CONNLIMIT_OPEN or _WORKER; -1: not counted */
     LIST_ENTRY(peer) link; /* on the farm's peers */
 };
 
@@ -140,6 +141,7 @@ struct farm {
     void *closed_ctx;
     void (*event_cb)(void *ctx, const farm_event *e); /* farm_set_event_cb */
     void *event_ctx;
+    connlimit *limits; /* connection counts and caps (connlimit.h) */
 };
 
 static inline double farm_now(const farm *f) { return (double)uv_now(f->loop) / 1e3; }

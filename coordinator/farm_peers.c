@@ -52,6 +52,39 @@ static void peer_unlink(farm *f, peer *p) {
     LIST_REMOVE(p, link);
 }
 
+/* Refuse p over a connection cap (why from connlimit.h): an "error" (a
+ * worker retries later; a client says why and exits), and a log line at
+ * most once per CONNLIMIT_LOG_S per cap. Returns 1 (for on_frame). */
+static int peer_refuse_cap(peer *p, const char *why) {
+    farm *f = p->f;
+    unsigned long more = 0;
+    if (connlimit_should_log(f->limits, connlimit_last_kind(f->limits), farm_now(f), &more)) {
+        char also[96] = "";
+        if (more) snprintf(also, sizeof also, " (%lu more refused over this cap since the last such line)", more);
+        farm_log(f, "refused a connection from %s: %s; further refusals over this cap are logged at most every %.0f s%s",
+                 p->rec.addr, why, CONNLIMIT_LOG_S, also);
+    }
+    char reason[400];
+    snprintf(reason, sizeof reason, "too many connections: %s; try again later", why);
+    return peer_refuse(p, "error", reason);
+}
+
+/* p stops counting against the caps (at its close, or as a client that
+ * the service now counts). */
+static void peer_uncount(farm *f, peer *p) {
+    if (p->limit_class < 0) return;
+    char ip[64];
+    connlimit_ip_of(p->rec.addr, ip, sizeof ip);
+    connlimit_release(f->limits, ip, (connlimit_class)p->limit_class);
+    p->limit_class = -1;
+}
+
+void farm_client_closed(farm *f, const char *addr) {
+    char ip[64];
+    connlimit_ip_of(addr, ip, sizeof ip);
+    connlimit_release(f->limits, ip, CONNLIMIT_OPEN);
+}
+
 /* Seal p's link with the keys of key (auth_link_keys) from the next frame
  * on: the welcome went in clear. */
 static void peer_seal(conn *c, const auth_key *key, const char *nonce, const char *peer_nonce) {
@@ -70,6 +103,7 @@ static void peer_hand_over(peer *p, const cJSON *hello, auth_class cls, const au
     char addr[64], nonce[AUTH_HEX];
     snprintf(addr, sizeof addr, "%s", p->rec.addr);
     snprintf(nonce, sizeof nonce, "%s", p->nonce);
+    p->limit_class = -1; /* still counted as open: farm_client_closed releases it */
     peer_unlink(f, p);
     free(p->scenes);
     free(p->jobs);
@@ -167,6 +201,12 @@ static int on_hello(peer *p, const cJSON *m) {
                  proto->valuedouble, build->valuestring, PROTOCOL_VERSION, protocol_build_id());
         farm_log(f, "%s refused: %s", p->label, reason);
         return peer_refuse(p, "refused", reason);
+    }
+    char ip[64], why[300];
+    connlimit_ip_of(p->rec.addr, ip, sizeof ip);
+    if (p->limit_class == CONNLIMIT_OPEN) {
+        if (connlimit_promote(f->limits, ip, why, sizeof why)) return peer_refuse_cap(p, why);
+        p->limit_class = CONNLIMIT_WORKER;
     }
     p->rec.threads = (int)threads->valuedouble;
     p->state = PEER_ACTIVE;
@@ -314,6 +354,7 @@ static void on_conn_close(conn *c, const char *reason) {
         farm_log(f, "%s left: %s (%llu tiles done%s)", p->label, reason, (unsigned long long)p->rec.tiles,
                  requeued ? ", its unfinished tiles go back to the queue" : "");
     peer_record_departure(f, p, reason);
+    peer_uncount(f, p);
     if (p->state != PEER_HELLO) farm_emit(f, FARM_EV_LEAVE, NULL, 0, p->rec.name, 0, 0, 0);
     peer_unlink(f, p);
     free(p->scenes);
@@ -343,6 +384,7 @@ void farm_on_connection(uv_stream_t *server, int status) {
     p->joined = p->last_heard = p->last_sent = farm_now(f);
     p->rec.joined = p->joined;
     p->rec.serial = ++f->next_serial;
+    p->limit_class = -1;
     if (uv_accept(server, (uv_stream_t *)conn_tcp(c)) != 0 || conn_start(c) != 0) {
         snprintf(p->label, sizeof p->label, "connection");
         LIST_INSERT_HEAD(&f->peers, p, link);
@@ -353,6 +395,13 @@ void farm_on_connection(uv_stream_t *server, int status) {
     conn_peer_address(c, p->rec.addr, sizeof p->rec.addr);
     snprintf(p->label, sizeof p->label, "peer %s", p->rec.addr);
     LIST_INSERT_HEAD(&f->peers, p, link);
+    char ip[64], why[300];
+    connlimit_ip_of(p->rec.addr, ip, sizeof ip);
+    if (connlimit_admit(f->limits, ip, why, sizeof why)) {
+        peer_refuse_cap(p, why);
+        return;
+    }
+    p->limit_class = CONNLIMIT_OPEN;
     auth_nonce(p->nonce);
     cJSON *ch = cJSON_CreateObject();
     cJSON_AddStringToObject(ch, "type", "challenge");
@@ -374,8 +423,10 @@ static void peer_stall(peer *p, double silent) {
 static void peer_check(peer *p, double now) {
     farm *f = p->f;
     double silent = now - p->last_heard;
-    if (p->state == PEER_HELLO && silent > HELLO_TIMEOUT_S) {
-        conn_close(p->c, "no hello within 10 s", 0);
+    if (p->state == PEER_HELLO && silent > f->opt.hello_timeout_s) {
+        char why[64];
+        snprintf(why, sizeof why, "no hello within %.1f s", f->opt.hello_timeout_s);
+        conn_close(p->c, why, 0);
         return;
     }
     if (p->state == PEER_HELLO) return;

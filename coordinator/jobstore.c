@@ -340,7 +340,8 @@ int store_job_cancel(service *s, sjob *j) {
 
 /* Hand a job (new or resumed) to the farm, opening its tile journal (or,
  * with a noise threshold, its first adaptive round). */
-int store_job_start(service *s, sjob *j, const uint8_t *bundle, size_t len, char *err, size_t err_len) {
+int store_job_start(service *s, sjob *j, const uint8_t *bundle, size_t len, conn_blob *framed, char *err,
+                    size_t err_len) {
     char path[4096];
     j->farm_id = j->desc.id;
     if (j->noise_threshold > 0) return store_adaptive_start(s, j, bundle, len, err, err_len);
@@ -348,7 +349,8 @@ int store_job_start(service *s, sjob *j, const uint8_t *bundle, size_t len, char
     j->journal = tjournal_open(&s->loop, path, store_on_batch, store_on_journal_pause, j, err, err_len);
     if (!j->journal) return -1;
     farm_job_options fo = {.tile_size = j->tile_size, .priority = j->priority, .done = j->journaled,
-                           .on_tile = store_on_tile_done, .on_first_assign = store_on_first_assign};
+                           .on_tile = store_on_tile_done, .on_first_assign = store_on_first_assign,
+                           .scene = framed};
     j->started = svc_wall_now();
     j->first_tile = 0;
     if (farm_submit(s->f, &j->desc, bundle, len, &fo, j->rgb, store_on_job_event, j)) {
@@ -468,33 +470,56 @@ static void load_job(service *s, const char *file) {
     if (d.id >= s->next_id) s->next_id = d.id + 1;
     j->tile_count = render_split_tiles(d.width, d.height, j->tile_size, NULL, 0);
     if (j->state != SJOB_RUNNING) return;
-    /* Resume: the scene from its hash, the tiles from the journal. */
+    struct stat sb;
+    snprintf(path, sizeof path, "%s/scenes/%s", s->o.data_dir, d.scene_hash);
+    j->need = membudget_job_bytes(d.width, d.height, j->tile_count, stat(path, &sb) == 0 ? (uint64_t)sb.st_size : 0);
+    int adm = svc_admit_check(s, j, err, sizeof err);
+    if (adm == 0) {
+        store_job_resume(s, j);
+        return;
+    }
+    j->state = adm < 0 ? SJOB_FAILED : SJOB_RUNNING;
+    j->waiting = adm > 0;
+    snprintf(j->error, sizeof j->error, "%s%.480s", adm < 0 ? "cannot resume: " : "", err);
+    svc_log("job %u: %s", d.id, j->error);
+    if (adm < 0) store_save_job(j, err, sizeof err);
+}
+
+int store_job_resume(service *s, sjob *j) {
+    char path[4096], err[600];
+    size_t len = 0;
+    const proto_job d = j->desc;
+    /* The scene from its hash, the tiles from the journal. */
     snprintf(path, sizeof path, "%s/scenes/%s", s->o.data_dir, d.scene_hash);
     char *bundle = file_read_all(path, s->o.max_upload, &len, err, sizeof err);
     tile_rect *rects = calloc((size_t)j->tile_count, sizeof *rects);
     j->rgb = calloc((size_t)d.width * (size_t)d.height * 3, sizeof(float));
     j->journaled = calloc((size_t)j->tile_count, 1);
+    int rc = 0;
     if (!bundle || !rects || !j->rgb || !j->journaled) {
         j->state = SJOB_FAILED;
         snprintf(j->error, sizeof j->error, "cannot resume: %.480s", bundle ? "out of memory" : err);
         svc_log("job %u: %s", d.id, j->error);
         store_save_job(j, err, sizeof err);
         store_job_release(j);
+        rc = -1;
     } else {
         render_split_tiles(d.width, d.height, j->tile_size, rects, j->tile_count);
         replay_tiles(s, j, rects);
         svc_log("job %u resumed: %d of %d tiles from the journal", d.id, j->tiles_resumed, j->tile_count);
         joblog_add(j->log, svc_wall_now(), "job resumed after a restart: %d of %d tiles from the journal",
                    j->tiles_resumed, j->tile_count);
-        if (store_job_start(s, j, (const uint8_t *)bundle, len, err, sizeof err)) {
+        if (store_job_start(s, j, (const uint8_t *)bundle, len, NULL, err, sizeof err)) {
             j->state = SJOB_FAILED;
             snprintf(j->error, sizeof j->error, "%.500s", err);
             store_save_job(j, err, sizeof err);
             store_job_release(j);
+            rc = -1;
         }
     }
     free(rects);
     free(bundle);
+    return rc;
 }
 
 static int cmp_job_files(const void *a, const void *b) {

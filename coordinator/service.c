@@ -94,15 +94,16 @@ static void submit_checked(upload *u) {
     char err[1024], path[4096];
     cl->validating = 0;
     if (cl->closed) {
-        free(cl->bundle);
+        free(cl->bundle_mem);
         free(cl);
         upload_free(u);
         return;
     }
     if (!cl->bundle) { /* give the bundle back for the next submit, unless a new one came */
         cl->bundle = u->bundle;
+        cl->bundle_mem = u->bundle_mem;
         cl->bundle_len = u->len;
-        u->bundle = NULL;
+        u->bundle = u->bundle_mem = NULL;
     }
     if (u->rc) {
         client_error(cl, "%s", u->err); /* the scene's own message: file, line, field */
@@ -131,12 +132,20 @@ static void submit_checked(upload *u) {
     j->submitted = svc_wall_now();
     snprintf(j->submitter, sizeof j->submitter, "%s%s%s", q->user, q->user[0] ? " at " : "", cl->addr);
     j->tile_count = render_split_tiles(j->desc.width, j->desc.height, j->tile_size, NULL, 0);
-    j->rgb = calloc((size_t)j->desc.width * (size_t)j->desc.height * 3, sizeof(float));
-    int rc = j->rgb ? 0 : -1;
-    if (!j->rgb) snprintf(err, sizeof err, "out of memory for a %dx%d image", j->desc.width, j->desc.height);
+    j->need = membudget_job_bytes(j->desc.width, j->desc.height, j->tile_count, u->len);
+    int adm = svc_admit_check(s, j, err, sizeof err), rc = adm < 0 ? -1 : 0;
+    if (adm == 0) {
+        j->rgb = calloc((size_t)j->desc.width * (size_t)j->desc.height * 3, sizeof(float));
+        rc = j->rgb ? 0 : -1;
+        if (!j->rgb) snprintf(err, sizeof err, "out of memory for a %dx%d image", j->desc.width, j->desc.height);
+    } else if (adm > 0) { /* queued: admitted by svc_admit_waiting once it fits; its scene is on disk */
+        j->waiting = 1;
+        snprintf(j->error, sizeof j->error, "%.500s", err);
+    }
     if (rc == 0) rc = store_save_job(j, err, sizeof err);
-    if (rc == 0) rc = store_job_start(s, j, u->bundle ? u->bundle : cl->bundle, u->bundle ? u->len : cl->bundle_len,
-                                      err, sizeof err);
+    if (rc == 0 && adm == 0)
+        rc = store_job_start(s, j, u->bundle ? u->bundle : cl->bundle, u->bundle ? u->len : cl->bundle_len, u->blob,
+                             err, sizeof err);
     upload_free(u);
     if (rc) {
         svc_log("submit from %s refused: %s", cl->addr, err);
@@ -145,8 +154,8 @@ static void submit_checked(upload *u) {
         store_job_unlink_free(s, j);
         return client_error(cl, "%s", err);
     }
-    svc_log("job %u submitted from %s: %s, %dx%d, %d spp, priority %d", j->desc.id, j->submitter, j->name,
-            j->desc.width, j->desc.height, j->desc.spp, j->priority);
+    svc_log("job %u submitted from %s: %s, %dx%d, %d spp, priority %d%s%s", j->desc.id, j->submitter, j->name,
+            j->desc.width, j->desc.height, j->desc.spp, j->priority, j->waiting ? "; " : "", j->waiting ? j->error : "");
     joblog_add(j->log, j->submitted, "job submitted by %.60s: %.40s, %dx%d, %d spp, %d tiles, priority %d",
                j->submitter, j->name, j->desc.width, j->desc.height, j->desc.spp, j->tile_count, j->priority);
     cJSON *r = cJSON_CreateObject();
@@ -154,6 +163,7 @@ static void submit_checked(upload *u) {
     cJSON_AddNumberToObject(r, "job", j->desc.id);
     cJSON_AddNumberToObject(r, "width", j->desc.width);
     cJSON_AddNumberToObject(r, "height", j->desc.height);
+    if (j->waiting) cJSON_AddStringToObject(r, "note", j->error);
     client_send_json(cl, r);
 }
 
@@ -199,8 +209,9 @@ static void on_submit(client *cl, const cJSON *m) {
     upload *u = calloc(1, sizeof *u);
     if (!u) return client_error(cl, "out of memory");
     u->bundle = cl->bundle; /* the upload's now; given back when it ends */
+    u->bundle_mem = cl->bundle_mem;
     u->len = cl->bundle_len;
-    cl->bundle = NULL;
+    cl->bundle = cl->bundle_mem = NULL;
     snprintf(u->claimed_hash, sizeof u->claimed_hash, "%s", h->valuestring);
     u->ov = ov;
     snprintf(u->store_path_dir, sizeof u->store_path_dir, "%s/scenes", s->o.data_dir);
@@ -319,7 +330,7 @@ static void on_cancel(client *cl, const cJSON *m) {
     if (!j || !owner_ok(cl, j, "cancel")) return;
     if (j->state != SJOB_RUNNING) return client_error(cl, "job %u is already %s", j->desc.id, state_names[j->state]);
     joblog_add(j->log, svc_wall_now(), "cancel asked by the client at %s", cl->addr);
-    store_job_cancel(cl->svc, j); /* store_on_job_event records the state */
+    svc_cancel_job(cl->svc, j);
     cJSON *r = cJSON_CreateObject();
     cJSON_AddStringToObject(r, "type", "cancelled");
     cJSON_AddNumberToObject(r, "job", j->desc.id);
@@ -424,15 +435,15 @@ static int client_on_frame(conn *c, int kind, const uint8_t *body, size_t len) {
     client *cl = conn_data(c);
     cl->last_frame = svc_mono_now();
     if (kind == WIRE_KIND_SCENE) {
-        free(cl->bundle);
-        /* Keep the frame's own memory (already faulted in): a move within
-         * it, not a copy into fresh pages, on the loop thread. */
+        free(cl->bundle_mem);
+        /* Keep the frame's own memory as it is: the bundle lies inside it,
+         * so the loop thread neither copies nor moves its bytes. */
         uint8_t *mem = conn_take_frame(c);
         if (mem && body == mem + WIRE_HEADER_BYTES) {
-            memmove(mem, body, len);
-            cl->bundle = mem;
+            cl->bundle_mem = mem;
+            cl->bundle = mem + WIRE_HEADER_BYTES;
         } else {
-            cl->bundle = malloc(len ? len : 1);
+            cl->bundle = cl->bundle_mem = malloc(len ? len : 1);
             if (cl->bundle) memcpy(cl->bundle, body, len);
             free(mem); /* after the copy: body may lie in it */
         }
@@ -470,9 +481,10 @@ static void client_on_close(conn *c, const char *reason) {
     client *cl = conn_data(c);
     fetch_detach(&cl->fetch);
     if (conn_malformed(c)) svc_log("client %s: %s; disconnecting", cl->addr, reason);
-    free(cl->bundle);
-    cl->bundle = NULL;
+    free(cl->bundle_mem);
+    cl->bundle = cl->bundle_mem = NULL;
     TAILQ_REMOVE(&cl->svc->clients, cl, link);
+    farm_client_closed(cl->svc->f, cl->addr); /* no longer counts against --max-per-address */
     if (cl->validating) { /* its scene is being checked: freed by submit_checked */
         cl->closed = 1;
         return;
@@ -524,6 +536,7 @@ static void on_expiry(uv_timer_t *t) {
  * or in --client-timeout when that is shorter). Each close is logged once, naming the client. */
 static void on_sweep(uv_timer_t *t) {
     service *s = t->data;
+    svc_admit_waiting(s); /* memory freed by jobs that ended since */
     double now = svc_mono_now(), limit = s->o.client_timeout_s > 0 ? s->o.client_timeout_s : 30;
     client *cl, *next;
     TAILQ_FOREACH_SAFE(cl, &s->clients, link, next) {
@@ -605,6 +618,11 @@ static void on_signal(uv_signal_t *h, int signum) {
     if (s->stopping) return;
     s->stopping = 1;
     svc_log("%s: stopping; running jobs resume at the next start", signum == SIGINT ? "SIGINT" : "SIGTERM");
+    client *cl, *next; /* a connected client must not keep the process alive */
+    TAILQ_FOREACH_SAFE(cl, &s->clients, link, next) {
+        client_error(cl, "the coordinator is stopping (%s)", signum == SIGINT ? "SIGINT" : "SIGTERM");
+        conn_close(cl->c, "the coordinator is stopping", 1);
+    }
     service_web_stop(s);
     farm_close(s->f, on_farm_closed, s);
 }
@@ -635,6 +653,8 @@ int service_run(const service_options *o) {
     s->o = *o;
     s->next_id = 1;
     s->fetch_chunk = fetch_chunk_size();
+    char how[160] = "--max-memory";
+    if (!s->o.max_memory) s->o.max_memory = membudget_default(how, sizeof how);
     if (prepare_data_dir(o->data_dir, err, sizeof err) || data_dir_lock(o->data_dir, err, sizeof err) < 0) {
         fprintf(stderr, "tessera-coordinator: %s\n", err);
         free(s);
@@ -645,6 +665,13 @@ int service_run(const service_options *o) {
     if (loopstat_start(&s->loop, &s->stat)) svc_log("loop: cannot measure its iterations; stalls go unreported");
     s->o.farm.on_client = on_client;
     s->o.farm.client_ctx = s;
+    double idle = s->o.client_timeout_s > 0 ? s->o.client_timeout_s : 30;
+    if (s->o.farm.hello_timeout_s <= 0) s->o.farm.hello_timeout_s = idle < 10 ? idle : 10;
+    int reserve = 64 + 2 * s->o.max_jobs; /* stdio, listeners, data files, a journal per running job */
+    long nofile = connlimit_defaults(&s->o.farm.limits, reserve);
+    if (s->o.farm.limits.max_total > nofile - reserve)
+        svc_log("warning: --max-connections %d leaves under %d of the %ld descriptors (RLIMIT_NOFILE) for files; "
+                "raise `ulimit -n` or lower it", s->o.farm.limits.max_total, reserve, nofile);
     s->f = farm_new(&s->loop, &s->o.farm, err, sizeof err);
     if (!s->f) {
         fprintf(stderr, "tessera-coordinator: %s\n", err);
@@ -656,6 +683,13 @@ int service_run(const service_options *o) {
     }
     svc_log("listening on %s:%d, data in %s", o->farm.host, farm_port(s->f), o->data_dir);
     farm_set_event_cb(s->f, service_on_farm_event, s); /* the jobs' logs, and the dashboard's events */
+    svc_log("connections: at most %d in all (--max-connections), %d per address before a worker hello or as "
+            "clients (--max-per-address), %d workers per address (--max-workers-per-address); idle ones close after "
+            "%.1f s before a hello, %.1f s as clients", s->o.farm.limits.max_total, s->o.farm.limits.max_open,
+            s->o.farm.limits.max_workers, s->o.farm.hello_timeout_s, idle);
+    char budget[32];
+    membudget_format(s->o.max_memory, budget, sizeof budget);
+    svc_log("memory: jobs are admitted while their frames and scenes fit in %s (%s)", budget, how);
     if (service_web_start(s, err, sizeof err)) {
         fprintf(stderr, "tessera-coordinator: %s\n", err);
         farm_close(s->f, NULL, NULL);

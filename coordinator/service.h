@@ -6,6 +6,7 @@
 #define TESSERA_SERVICE_H
 
 #include <stddef.h>
+#include <stdint.h>
 
 #include "farm.h"
 #include "dashboard.h"
@@ -20,6 +21,7 @@ typedef struct {
     const dashboard_options *http; /* --http: serve the dashboard (dashboard.h), or NULL */
     int keep_jobs;        /* at most this many finished jobs are kept (0: no cap) */
     double client_timeout_s; /* a client that sends nothing this long is closed (0: 30 s) */
+    uint64_t max_memory;  /* bytes admitted jobs may hold (0: membudget_default) */
 } service_options;
 
 /* Run the service until SIGINT or SIGTERM. Returns the exit status: 0

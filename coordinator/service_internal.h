@@ -3,7 +3,8 @@
  *   jobstore.c - the job store and journal: jobs on disk, tiles journaled as
  *                they land, restart from the journal;
  *   service.c  - the service: client requests (submit, status, workers,
- *                cancel, fetch), expiry, signals, start-up.
+ *                cancel, fetch), expiry, signals, start-up;
+ *   admission.c - jobs admitted within --max-memory, or waiting for it.
  *
  * Data dir layout (every file written whole to a temporary name, synced and
  * renamed, except the tile journal, which is appended and synced in batches
@@ -49,6 +50,7 @@
 #include "upload.h"
 #include "joblog.h"
 #include "fetch.h"
+#include "membudget.h"
 #include "service.h"
 
 #define WIRE_KIND_IMAGE 'I'
@@ -91,6 +93,8 @@ typedef struct sjob {
     size_t bundle_len;
     trace_stats round_stats; /* of the rounds before the current one */
     uv_timer_t *round_timer;
+    uint64_t need;            /* bytes it holds once admitted (membudget_job_bytes) */
+    int waiting;              /* running but not admitted: waits for --max-memory (admission.c) */
     TAILQ_ENTRY(sjob) link; /* on the service's jobs, oldest first */
 } sjob;
 
@@ -135,7 +139,8 @@ typedef struct client {
     char addr[64];
     char name[128];  /* from its hello (bound to its proof when there are tokens) */
     auth_class cls;  /* the credential it proved; AUTH_ADMIN without tokens */
-    uint8_t *bundle; /* the last scene uploaded */
+    uint8_t *bundle; /* the last scene uploaded, inside bundle_mem */
+    uint8_t *bundle_mem; /* owned: its frame's memory */
     size_t bundle_len;
     int validating;  /* a submit's scene is on the upload queue */
     int closed;      /* gone while validating: freed when the check ends */
@@ -167,8 +172,11 @@ sjob *store_find_farm_job(service *s, uint32_t farm_id);
  * the image saved, the journal closed and the state recorded. */
 void store_on_job_event(void *ctx, const farm_report *r, int done);
 
-/* Hand a job (new or resumed) to the farm, opening its tile journal. */
-int store_job_start(service *s, sjob *j, const uint8_t *bundle, size_t len, char *err, size_t err_len);
+/* Hand a job (new or resumed) to the farm, opening its tile journal;
+ * framed (may be NULL): the bundle already framed for the farm
+ * (farm_job_options.scene), shared instead of copied. */
+int store_job_start(service *s, sjob *j, const uint8_t *bundle, size_t len, conn_blob *framed, char *err,
+                    size_t err_len);
 
 /* Cancel a running job on the farm (its current round, if adaptive).
  * Returns 0, or -1 when the farm has no such running job. */
@@ -188,6 +196,28 @@ int store_set_priority(service *s, uint32_t id, long priority, const char *who, 
 
 /* How many jobs are running (queued or rendering). */
 int store_running_jobs(const service *s);
+
+/* Start a job that has no frame yet (resumed, or admitted after waiting):
+ * its scene read from scenes/HASH, its frame made, its journal replayed,
+ * handed to the farm. Returns 0, or -1 with the job failed and saved. */
+int store_job_resume(service *s, sjob *j);
+
+/* ---- admission.c ---- */
+
+/* Bytes held by admitted jobs (those with a frame), and how many (jobs may
+ * be NULL). */
+uint64_t svc_memory_in_use(const service *s, int *jobs);
+
+/* Whether j (its need set) may be admitted now: 0; 1 when it must wait
+ * (why: the note for status); -1 when it never fits (why: the refusal,
+ * with the figures). */
+int svc_admit_check(const service *s, const sjob *j, char *why, size_t why_len);
+
+/* Admit every waiting job that fits now, oldest first. */
+void svc_admit_waiting(service *s);
+
+/* Cancel a running job: a waiting one at once, else through the farm. */
+void svc_cancel_job(service *s, sjob *j);
 
 /* Resume every job in the data dir, oldest first. */
 void store_load_jobs(service *s);

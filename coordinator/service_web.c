@@ -76,7 +76,7 @@ static int web_cancel(void *ctx, uint32_t id, char *err, size_t err_len) {
     }
     svc_log("job %u cancelled from the dashboard", id);
     joblog_add(j->log, svc_wall_now(), "cancel asked from the dashboard");
-    store_job_cancel(s, j); /* store_on_job_event records the state */
+    svc_cancel_job(s, j);
     return 0;
 }
 

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "fileio.h"
+#include "net/wire.h"
 
 void upload_queue_init(upload_queue *q, uv_loop_t *loop) {
     q->loop = loop;
@@ -49,6 +50,11 @@ static void validate(uv_work_t *w) {
     char path[4200];
     snprintf(path, sizeof path, "%s/%s", u->store_path_dir, u->hash);
     u->rc = file_write_atomic(path, u->bundle, u->len, u->err, sizeof u->err);
+    if (u->rc == 0 && u->len < UINT32_MAX && (u->blob = conn_blob_new(WIRE_HEADER_BYTES + u->len)) != NULL) {
+        wire_put_u32(u->blob->data, (uint32_t)(u->len + 1));
+        u->blob->data[4] = WIRE_KIND_SCENE;
+        memcpy(u->blob->data + WIRE_HEADER_BYTES, u->bundle, u->len); /* fresh pages fault here, not on the loop */
+    }
 }
 
 static void start_next(upload_queue *q);
@@ -92,6 +98,7 @@ int upload_queue_length(const upload_queue *q) {
 
 void upload_free(upload *u) {
     if (!u) return;
-    free(u->bundle);
+    free(u->bundle_mem);
+    conn_blob_unref(u->blob);
     free(u);
 }

@@ -13,6 +13,7 @@
 #include <uv.h>
 
 #include "list.h"
+#include "net/conn.h"
 #include "render/scene.h"
 #include "render/scene_bundle.h"
 
@@ -26,7 +27,8 @@ typedef void (*upload_cb)(upload *u);
 struct upload {
     uv_work_t work;
     /* in (the loop's) */
-    uint8_t *bundle; /* owned */
+    uint8_t *bundle;     /* the bundle's bytes, inside bundle_mem */
+    uint8_t *bundle_mem; /* owned: the memory to free (the client's whole frame) */
     size_t len;
     char claimed_hash[SCENE_BUNDLE_HASH_HEX]; /* the submit's "scene" */
     scene_overrides ov;
@@ -38,6 +40,8 @@ struct upload {
     char err[1024];
     char hash[SCENE_BUNDLE_HASH_HEX];
     render_settings settings;   /* the loaded scene's, with the overrides */
+    conn_blob *blob;            /* the bundle framed for the farm (farm_job_options.scene), copied on
+                                 * the pool so that the loop copies nothing; NULL when out of memory */
     struct upload_queue *queue;
     TAILQ_ENTRY(upload) link;   /* on the queue while waiting its turn */
 };

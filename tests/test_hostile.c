@@ -3,6 +3,7 @@
  * full disks. Each test runs a real tessera-coordinator on loopback and
  * checks what a user would see; each is bounded (a few seconds). */
 #include <arpa/inet.h>
+#include <errno.h>
 #include <netinet/in.h>
 #include <signal.h>
 #include <stdio.h>
@@ -246,24 +247,44 @@ static int raw_read(int fd, char *out, size_t cap, double timeout_s) {
     return 0;
 }
 
-/* Connect to c as a client (no token) and say hello. Returns the socket
- * after the welcome, or -1. */
-static int raw_open(const coord *c) {
+/* A TCP connection to c from the loopback address src (NULL: any; the
+ * whole of 127/8 is this machine, so "127.0.0.3" is another peer address
+ * to the coordinator), before any hello. Returns the socket, or -1. */
+static int raw_connect_from(const coord *c, const char *src) {
     int fd = socket(AF_INET, SOCK_STREAM, 0);
     struct sockaddr_in a = {.sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
     a.sin_port = htons((uint16_t)c->port);
+    struct sockaddr_in from = {.sin_family = AF_INET};
+    if (fd >= 0 && src && (inet_pton(AF_INET, src, &from.sin_addr) != 1 || bind(fd, (struct sockaddr *)&from, sizeof from))) {
+        close(fd);
+        return -1;
+    }
+    if (fd >= 0 && connect(fd, (struct sockaddr *)&a, sizeof a) != 0) {
+        close(fd);
+        return -1;
+    }
+    return fd;
+}
+
+/* Connect to c from src (NULL: any) and say hello as role ("client" or
+ * NULL: a worker). Returns the socket after the welcome, or -1. */
+static int raw_hello_from(const coord *c, const char *src, const char *role) {
+    int fd = raw_connect_from(c, src);
     char buf[4096], hello[512];
     snprintf(hello, sizeof hello,
-             "{\"type\":\"hello\",\"role\":\"client\",\"protocol\":%d,\"build\":\"%s\",\"name\":\"raw\",\"threads\":1}",
-             PROTOCOL_VERSION, protocol_build_id());
-    if (fd < 0 || connect(fd, (struct sockaddr *)&a, sizeof a) != 0 || raw_read(fd, buf, sizeof buf, 5) ||
-        raw_send_text(fd, hello) ||
-        raw_read(fd, buf, sizeof buf, 5) || !strstr(buf, "welcome")) {
+             "{\"type\":\"hello\",%s%s%s\"protocol\":%d,\"build\":\"%s\",\"name\":\"raw\",\"threads\":1}",
+             role ? "\"role\":\"" : "", role ? role : "", role ? "\"," : "", PROTOCOL_VERSION, protocol_build_id());
+    if (fd < 0 || raw_read(fd, buf, sizeof buf, 5) || raw_send_text(fd, hello) || raw_read(fd, buf, sizeof buf, 5) ||
+        !strstr(buf, "welcome")) {
         if (fd >= 0) close(fd);
         return -1;
     }
     return fd;
 }
+
+/* Connect to c as a client (no token) and say hello. Returns the socket
+ * after the welcome, or -1. */
+static int raw_open(const coord *c) { return raw_hello_from(c, NULL, "client"); }
 
 /* Upload the bundle of scene path on fd; its hash in hash. Returns 0/-1. */
 static int raw_upload(int fd, const char *path, char hash[SCENE_BUNDLE_HASH_HEX]) {
@@ -478,10 +499,11 @@ TEST(hostile_large_upload_is_checked_off_the_loop) {
     /* The loop's own work per iteration (its thread's CPU time) is what the
      * coordinator controls; wall-clock figures also hold the time a loaded
      * host (load 20 on 2 cores while this was written) gave to others. */
-    /* Goal 100 ms; measured 58 to 110 ms of loop CPU for this 12 MB scene on
-     * the shared VM (page faults of the farm's copy of the bundle remain on
-     * the loop); checking it on the loop took seconds. */
-    CHECK(cpu >= 0 && cpu < 250 * slack(), "the loop worked %.1f ms in one iteration while a large scene was checked (want < 100)",
+    /* Goal 100 ms; measured 58 to 110 ms of loop CPU for this 12 MB scene
+     * while the farm's copy of the bundle was made on the loop, 15 ms since
+     * it is made on the upload's pool thread; checking the scene on the
+     * loop took seconds. */
+    CHECK(cpu >= 0 && cpu < 100 * slack(), "the loop worked %.1f ms in one iteration while a large scene was checked (want < 100)",
           cpu);
     fprintf(stderr, "  (loop: %.1f ms of CPU, %.1f ms wall in its longest iteration; slowest status %.0f ms)\n", cpu,
             stall, worst * 1e3);
@@ -649,6 +671,13 @@ TEST(hostile_submit_uploads_only_files_under_the_scene_folder) {
     if (f) fputs(text, f), fclose(f);
     snprintf(args, sizeof args, "submit %s", scene);
     CHECK(cli(&c, out, sizeof out, args) == 0, "a mesh inside the folder was refused: %s", out);
+    snprintf(args, sizeof args, "submit -v %s", scene); /* -v names every file sent, with its bytes */
+    struct stat sb;
+    snprintf(text, sizeof text, "sending %s (%lld bytes)", scene, stat(scene, &sb) == 0 ? (long long)sb.st_size : -1LL);
+    char mesh_line[64];
+    snprintf(mesh_line, sizeof mesh_line, "sending ok.obj (%d bytes)", (int)strlen("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"));
+    CHECK(cli(&c, out, sizeof out, args) == 0 && strstr(out, text) && strstr(out, mesh_line),
+          "submit -v does not name each file sent with its bytes (want \"%s\" and \"%s\"): %s", text, mesh_line, out);
     coord_stop(&c);
 }
 
@@ -914,4 +943,296 @@ out:
     kill(w, SIGTERM);
     util_wait(w, 30, NULL);
     coord_stop(&c);
+}
+/* ---- an honest job beside each hostile case ---- */
+
+/* The honest job's image rendered in one process (cornell-small, 8 spp),
+ * made once per run; its path, or NULL. */
+static const char *honest_reference(void) {
+    static char ref[300];
+    if (ref[0]) return ref;
+    char cmd[1024], out[4096];
+    snprintf(ref, sizeof ref, "%s", util_temp_path("hostile-honest-ref.pfm"));
+    snprintf(cmd, sizeof cmd, "%s render tests/scenes/cornell-small.json --spp 8 --workers 0 -o %s", harness_tessera(),
+             ref);
+    if (util_run(cmd, out, sizeof out) != 0) {
+        ref[0] = 0;
+        return NULL;
+    }
+    return ref;
+}
+
+/* Submit the honest job (cornell-small, 8 spp, tiles of 8, priority 10)
+ * from 127.0.0.1. Returns its number, or -1. */
+static int honest_submit(const coord *c) {
+    char out[4096];
+    int job = -1;
+    if (cli(c, out, sizeof out, "submit tests/scenes/cornell-small.json --spp 8 --tile-size 8 --priority 10") != 0)
+        return -1;
+    const char *p = strstr(out, "job ");
+    if (p) sscanf(p, "job %d", &job);
+    return job;
+}
+
+/* Wait for the honest job to end (60 s) and check that its image is the
+ * same bytes as a single-process render. */
+static void honest_check(const coord *c, int job, const char *tag) {
+    char text[64], img[300], args[600], out[8192];
+    snprintf(text, sizeof text, "job %d done (", job);
+    CHECK(job > 0 && util_wait_for_text(c->log, text, 60 * slack()) == 0, "%s: the honest job %d never finished; log %s",
+          tag, job, c->log);
+    snprintf(img, sizeof img, "%s-%s.pfm", util_temp_path("hostile-honest"), tag);
+    snprintf(args, sizeof args, "fetch %d -o %s", job, img);
+    const char *ref = honest_reference();
+    CHECK(ref && cli(c, out, sizeof out, args) == 0 && util_same_file(img, ref),
+          "%s: the honest job's image differs from a single-process render: %s", tag, out);
+}
+
+/* The first frame on a fresh connection: 1 for a challenge, 0 for an
+ * error (its text in out), -1 for nothing within 5 s. */
+static int first_frame(int fd, char *out, size_t cap) {
+    if (raw_read(fd, out, cap, 5)) return -1;
+    return strstr(out, "challenge") ? 1 : strstr(out, "\"error\"") ? 0 : -1;
+}
+
+/* Connection caps (Redis maxclients, nginx limit_conn): past
+ * --max-per-address, connections from one address are refused with an
+ * error naming the address and the cap; past --max-connections, any; each
+ * cap's refusals are logged once (not per attempt); meanwhile a status
+ * from another address answers fast, a connected worker keeps rendering,
+ * and the honest job beside it finishes byte-identical. Closed connections
+ * stop counting. */
+TEST(hostile_connections_past_the_caps_are_refused) {
+    coord c = {0};
+    const char *extra[] = {"--max-connections", "24", "--max-per-address", "8", NULL};
+    if (coord_start(&c, "hostile-caps", extra)) {
+        CHECK(0, "coordinator did not start; log %s", c.log);
+        return;
+    }
+    pid_t w = worker_start(&c, "cap1");
+    int job = honest_submit(&c);
+    CHECK(job > 0, "the honest job was not submitted");
+    enum { N = 40 };
+    int fds[N], n = 0, kept3 = 0, refused3 = 0, kept_more = 0, refused_total = 0;
+    char ans[4096], why3[4096] = "", why_total[4096] = "";
+    for (int i = 0; i < 12; i++) { /* one address: 8 in, 4 refused */
+        int fd = raw_connect_from(&c, "127.0.0.3"), k = fd >= 0 ? first_frame(fd, ans, sizeof ans) : -1;
+        if (k == 0) snprintf(why3, sizeof why3, "%s", ans);
+        kept3 += k == 1;
+        refused3 += k == 0;
+        if (k == 1) fds[n++] = fd;
+        else if (fd >= 0) close(fd);
+    }
+    CHECK(kept3 == 8 && refused3 == 4, "from 127.0.0.3: %d let in, %d refused (want 8 and 4 with --max-per-address 8)",
+          kept3, refused3);
+    CHECK(strstr(why3, "127.0.0.3") && strstr(why3, "--max-per-address 8"), "the refusal does not name the address "
+          "and the cap: %s", why3);
+    double t0 = now_s();
+    int st = raw_hello_from(&c, "127.0.0.2", "client");
+    int ok = st >= 0 && raw_send_text(st, "{\"type\":\"status\"}") == 0 && raw_read(st, ans, sizeof ans, 10) == 0 &&
+             strstr(ans, "\"jobs\"");
+    double t = now_s() - t0;
+    if (st >= 0) close(st);
+    CHECK(ok, "status from 127.0.0.2 beside a capped 127.0.0.3 failed: %s", ans);
+    CHECK(t < 1.0 * slack(), "status from 127.0.0.2 took %.0f ms (connect, hello and answer; want well under 1 s)", t * 1e3);
+    fprintf(stderr, "  (status from another address while one is capped: %.1f ms)\n", t * 1e3);
+    const char *more[] = {"127.0.0.4", "127.0.0.5", "127.0.0.6"};
+    for (int a = 0; a < 3; a++)
+        for (int i = 0; i < 8 && n < N; i++) { /* fill the total: 1 worker + 8 + up to 24 more > 24 */
+            int fd = raw_connect_from(&c, more[a]), k = fd >= 0 ? first_frame(fd, ans, sizeof ans) : -1;
+            if (k == 0 && strstr(ans, "--max-connections")) snprintf(why_total, sizeof why_total, "%s", ans);
+            kept_more += k == 1;
+            refused_total += k == 0 && strstr(ans, "--max-connections");
+            if (k == 1) fds[n++] = fd;
+            else if (fd >= 0) close(fd);
+        }
+    CHECK(refused_total > 0 && kept3 + kept_more <= 23, "past --max-connections 24: %d more let in, %d refused",
+          kept_more, refused_total);
+    CHECK(strstr(why_total, "--max-connections 24"), "the total's refusal does not name the cap: %s", why_total);
+    char out[4096];
+    CHECK(cli(&c, out, sizeof out, "status") != 0 && strstr(out, "--max-connections 24"),
+          "a status while every connection is taken must be refused naming the cap: %s", out);
+    CHECK(count_in(c.log, "refused a connection from 127.0.0.3") == 1,
+          "the per-address refusals were logged %d times (want once for 4 refusals)",
+          count_in(c.log, "refused a connection from 127.0.0.3"));
+    CHECK(count_in(c.log, "(--max-connections 24); further") == 1, "the total's refusals were logged %d times (want once)",
+          count_in(c.log, "(--max-connections 24); further"));
+    for (int i = 0; i < n; i++) close(fds[i]);
+    int again = 0; /* closed connections stop counting */
+    for (int i = 0; i < 100 && !again; i++) {
+        int fd = raw_connect_from(&c, "127.0.0.3");
+        again = fd >= 0 && first_frame(fd, ans, sizeof ans) == 1;
+        if (fd >= 0) close(fd);
+        if (!again) util_sleep(0.05);
+    }
+    CHECK(again, "127.0.0.3 is still refused after its connections closed: %s", ans);
+    honest_check(&c, job, "caps");
+    CHECK(!util_file_count(c.log, "silent for"), "the worker was found silent during the flood; log %s", c.log);
+    kill(w, SIGTERM);
+    util_wait(w, 10, NULL);
+    coord_stop(&c);
+}
+
+/* Read and drop what fd has; 1 when the peer has closed it. */
+static int drained_to_eof(int fd) {
+    char buf[4096];
+    for (;;) {
+        struct pollfd pf = {fd, POLLIN, 0};
+        if (poll(&pf, 1, 0) <= 0) return 0;
+        ssize_t r = recv(fd, buf, sizeof buf, MSG_DONTWAIT);
+        if (r == 0 || (r < 0 && errno != EAGAIN && errno != EWOULDBLOCK)) return 1;
+        if (r < 0) return 0;
+    }
+}
+
+/* An idle connection is closed at every stage: silent and trickling
+ * before its hello (within --client-timeout, 10 s at most), a client
+ * silent after its hello (--client-timeout), a worker silent or trickling
+ * a frame after its hello (--worker-drop). The honest job beside them
+ * finishes byte-identical. */
+TEST(hostile_idle_connections_are_closed_at_every_stage) {
+    coord c = {0};
+    const char *extra[] = {"--client-timeout", "1", "--worker-drop", "3", NULL};
+    if (coord_start(&c, "hostile-stages", extra)) {
+        CHECK(0, "coordinator did not start; log %s", c.log);
+        return;
+    }
+    pid_t w = worker_start(&c, "st1");
+    int job = honest_submit(&c);
+    CHECK(job > 0, "the honest job was not submitted");
+    enum { PRE_SILENT, PRE_TRICKLE, CLIENT_IDLE, WORKER_SILENT, WORKER_TRICKLE, STAGES };
+    static const char *const names[] = {"silent before its hello", "trickling before its hello",
+                                        "a client idle after its hello", "a worker silent after its hello",
+                                        "a worker trickling a frame"};
+    const double limit[] = {1, 1, 1, 3, 3};
+    char buf[4096];
+    int fd[STAGES];
+    fd[PRE_SILENT] = raw_connect_from(&c, NULL);
+    fd[PRE_TRICKLE] = raw_connect_from(&c, NULL);
+    fd[CLIENT_IDLE] = raw_hello_from(&c, NULL, "client");
+    fd[WORKER_SILENT] = raw_hello_from(&c, NULL, NULL);
+    fd[WORKER_TRICKLE] = raw_hello_from(&c, NULL, NULL);
+    double t0 = now_s(), closed_at[STAGES] = {0};
+    for (int i = 0; i < STAGES; i++) CHECK(fd[i] >= 0, "cannot open the connection %s", names[i]);
+    uint8_t hdr[WIRE_HEADER_BYTES];
+    wire_put_u32(hdr, 1001); /* a JSON frame of 1000 bytes that never completes */
+    hdr[4] = WIRE_KIND_JSON;
+    if (fd[WORKER_TRICKLE] >= 0) send(fd[WORKER_TRICKLE], hdr, sizeof hdr, MSG_NOSIGNAL);
+    if (fd[PRE_TRICKLE] >= 0) send(fd[PRE_TRICKLE], hdr, sizeof hdr, MSG_NOSIGNAL);
+    int open_left = STAGES;
+    for (int tick = 0; open_left > 0 && now_s() - t0 < 15 * slack(); tick++) {
+        for (int i = 0; i < STAGES; i++) {
+            if (fd[i] < 0 || closed_at[i] > 0) continue;
+            if ((i == PRE_TRICKLE || i == WORKER_TRICKLE) && tick % 4 == 0) send(fd[i], "x", 1, MSG_NOSIGNAL);
+            if (drained_to_eof(fd[i])) {
+                closed_at[i] = now_s() - t0;
+                open_left--;
+            }
+        }
+        util_sleep(0.05);
+    }
+    for (int i = 0; i < STAGES; i++) {
+        CHECK(closed_at[i] > 0, "a connection %s was not closed within %.0f s", names[i], 15 * slack());
+        CHECK(closed_at[i] == 0 || closed_at[i] > 0.8 * limit[i], "a connection %s was closed after %.2f s, before "
+              "its %.0f s", names[i], closed_at[i], limit[i]);
+        fprintf(stderr, "  (%s: closed after %.2f s; limit %.0f s)\n", names[i], closed_at[i], limit[i]);
+        if (fd[i] >= 0) close(fd[i]);
+    }
+    (void)buf;
+    honest_check(&c, job, "stages");
+    kill(w, SIGTERM);
+    util_wait(w, 10, NULL);
+    coord_stop(&c);
+}
+
+/* The number in "job N" of a CLI answer, or -1. */
+static int job_of(const char *out) {
+    int job = -1;
+    const char *p = strstr(out, "job ");
+    if (p) sscanf(p, "job %d", &job);
+    return job;
+}
+
+/* A memory budget: four 32768 x 32768 jobs (24 GiB each: a 12 GiB frame
+ * and the saved image's copy) are not all admitted under --max-memory
+ * 60G: two wait, queued, with the reason in status; a small job still
+ * runs, byte-identical; when the admitted ones are cancelled the waiting
+ * ones are admitted. A frame that could never fit is refused at submit
+ * time naming the figures, and `tessera render` refuses one up front.
+ * Under a sanitizer (whose shadow memory a 12 GiB frame would fill) the
+ * same at 8192 x 8192 (1.5 GiB each) under 3840M. */
+TEST(hostile_memory_budget_admits_what_fits) {
+    int big_side = slack() > 1 ? 8192 : 32768;
+    const char *budget = big_side == 32768 ? "60G" : "3840M", *tight_budget = big_side == 32768 ? "16G" : "1G";
+    const char *need = big_side == 32768 ? "24.0 GiB" : "1.5 GiB", *tight_s = big_side == 32768 ? "16.0 GiB" : "1.0 GiB";
+    char side_args[128], frame[64], want[160];
+    snprintf(side_args, sizeof side_args, "--width %d --height %d", big_side, big_side);
+    snprintf(frame, sizeof frame, "%dx%d frame", big_side, big_side);
+    coord c = {0};
+    const char *extra[] = {"--max-memory", budget, NULL};
+    if (coord_start(&c, "hostile-memory", extra)) {
+        CHECK(0, "coordinator did not start; log %s", c.log);
+        return;
+    }
+    pid_t w = worker_start(&c, "m1");
+    int honest = honest_submit(&c), big[4], waiting = 0;
+    char out[8192], args[600];
+    CHECK(honest > 0, "the honest job was not submitted");
+    for (int i = 0; i < 4; i++) {
+        snprintf(args, sizeof args, "submit tests/scenes/cornell-small.json %s --tile-size 256 --spp 1 --priority -1",
+                 side_args);
+        int rc = cli(&c, out, sizeof out, args);
+        big[i] = rc == 0 ? job_of(out) : -1;
+        CHECK(big[i] > 0, "a %s job was refused under --max-memory %s: %s", frame, budget, out);
+        waiting += strstr(out, "waiting for memory") != NULL;
+    }
+    CHECK(waiting == 2, "%d of four %s jobs were told they wait for memory (want 2 of 4 under %s)", waiting, frame,
+          budget);
+    int noted = 0;
+    snprintf(want, sizeof want, "waiting for memory: needs %s for a %s", need, frame);
+    for (int i = 0; i < 4; i++) {
+        snprintf(args, sizeof args, "status %d --json", big[i]);
+        noted += cli(&c, out, sizeof out, args) == 0 && strstr(out, "queued") && strstr(out, want);
+    }
+    CHECK(noted == 2, "status shows %d jobs queued with \"%s\" (want 2)", noted, want);
+    int small = honest_submit(&c);
+    CHECK(small > 0, "a small job was refused beside the waiting ones");
+    honest_check(&c, honest, "memory");
+    honest_check(&c, small, "memory-small");
+    for (int i = 0; i < 2; i++) {
+        snprintf(args, sizeof args, "cancel %d", big[i]);
+        CHECK(cli(&c, out, sizeof out, args) == 0, "cancel: %s", out);
+    }
+    snprintf(want, sizeof want, "admitted: its %s fit", need);
+    CHECK(util_wait_for_text(c.log, want, 10 * slack()) == 0, "no waiting job was admitted once memory was freed; log %s",
+          c.log);
+    for (int i = 2; i < 4; i++) {
+        snprintf(args, sizeof args, "cancel %d", big[i]);
+        cli(&c, out, sizeof out, args);
+    }
+    kill(w, SIGTERM);
+    util_wait(w, 10, NULL);
+    coord_stop(&c);
+
+    coord small_c = {0}; /* a budget such a frame can never fit */
+    const char *tight[] = {"--max-memory", tight_budget, NULL};
+    if (coord_start(&small_c, "hostile-memory-tight", tight)) {
+        CHECK(0, "coordinator did not start; log %s", small_c.log);
+        return;
+    }
+    snprintf(args, sizeof args, "submit tests/scenes/cornell-small.json %s", side_args);
+    int rc = cli(&small_c, out, sizeof out, args);
+    snprintf(want, sizeof want, "job needs %s for a %s", need, frame);
+    char is[64];
+    snprintf(is, sizeof is, "--max-memory is %s", tight_s);
+    CHECK(rc != 0 && strstr(out, want) && strstr(out, is),
+          "a frame that can never fit was not refused at submit with the figures (%d): %s", rc, out);
+    coord_stop(&small_c);
+    char cmd[1024];
+    double t0 = now_s();
+    snprintf(cmd, sizeof cmd, "%s render tests/scenes/cornell-small.json %s --max-memory %s --workers 0 -o %s",
+             harness_tessera(), side_args, tight_budget, util_temp_path("hostile-memory-render.pfm"));
+    rc = util_run(cmd, out, sizeof out);
+    CHECK(rc != 0 && strstr(out, need) && strstr(out, is) && now_s() - t0 < 5 * slack(),
+          "render of a frame it cannot hold was not refused up front (%d, %.1f s): %s", rc, now_s() - t0, out);
 }
