@@ -13,7 +13,8 @@
 #      Glossy 0, caustics, 1024 bounces; scene sync and BVH build included,
 #      Blender start-up and its Python OBJ reader excluded).
 # With more rounds the median of each figure is kept. Printed, and written
-# to bench/results/meshes.csv with a gnuplot plot bench/results/meshes.png.
+# to bench/results/meshes.csv with a gnuplot plot bench/results/meshes.png
+# (bench/meshes-plot.sh).
 # Not asserted. MESH_NO_CYCLES=1 skips Cycles (columns left empty).
 #
 # usage: bench/meshes.sh BIN_DIR [SCENES] [SPP] [ROUNDS]
@@ -75,20 +76,5 @@ for sc in $scenes; do
 done
 load1=$(cut -d' ' -f1-3 /proc/loadavg)
 echo "written: $csv (256x256, spp $spp, rounds $rounds; $(nproc) cores; load average $load0 at the start, $load1 at the end)"
-echo "# load average $load0 at the start, $load1 at the end; $(nproc) cores; 256x256, $spp spp; $(date -u +%F)" >> "$csv"
-if command -v gnuplot > /dev/null; then
-  gnuplot <<EOF
-set datafile separator ","
-set terminal pngcairo size 800,500
-set output "$here/results/meshes.png"
-set title "cornell-spheres with meshes, 256x256 ${spp} spp, 2 cores (load $load0)"
-set logscale x
-set xlabel "triangles"
-set ylabel "seconds"
-set key top left
-plot "$csv" every ::1 using 2:5 with linespoints title "tessera render (load + build included)", \
-     "$csv" every ::1 using 2:8 with linespoints title "Blender Cycles 2 threads", \
-     "$csv" every ::1 using 2:4 with linespoints title "tessera load + build"
-EOF
-  echo "plot: $here/results/meshes.png"
-fi
+echo "# load average $load0 to $load1; $(nproc) cores; 256x256, $spp spp; $(date -u +%F)" >> "$csv"
+if command -v gnuplot > /dev/null; then "$here/meshes-plot.sh" "$csv" "$here/results/meshes.png"; fi
