@@ -266,16 +266,17 @@ bench-cycles-seeds: $(TESSERA) $(WORKER) bench-deps
 	bench/cycles-seeds.sh $(TESSERA) "$(BENCH_CYCLES_SCENES)" "$(BENCH_CYCLES_SPP)"
 bench: bench-cycles
 # ---- big meshes (issue 13) ----------------------------------------------------
-# `make bench-meshes`: cornell-spheres with icosphere meshes of 41k to 10.5M
-# triangles (bench/meshes.sh; MESH_LEVELS, MESH_SPP, MESH_ROUNDS to change),
-# table printed, CSV in bench/results/meshes.csv (cycles_s column left for
-# bench/cycles/ to fill).
-MESH_LEVELS ?= 5 6 7 8 9
+# `make bench-meshes`: cornell-spheres with icosphere meshes of 41k to 2.6M
+# triangles and a subdivided Suzanne of 1M, Tessera and Blender Cycles
+# interleaved in the same run (bench/meshes.sh; MESH_SCENES, MESH_SPP,
+# MESH_ROUNDS to change; "9" adds 10.5M triangles), table printed, CSV and
+# plot in bench/results/meshes.{csv,png}.
+MESH_SCENES ?= 5 6 7 8 suzanne5
 MESH_SPP ?= 64
 MESH_ROUNDS ?= 1
 .PHONY: bench-meshes
-bench-meshes: $(TESSERA) $(WORKER)
-	bench/meshes.sh $(BUILD)/bin "$(MESH_LEVELS)" $(MESH_SPP) $(MESH_ROUNDS)
+bench-meshes: $(TESSERA) $(WORKER) bench-deps
+	bench/meshes.sh $(BUILD)/bin "$(MESH_SCENES)" $(MESH_SPP) $(MESH_ROUNDS)
 # ---- Containers (issue 12; docs/containers.md) ----
 #   make docker       build tessera:latest (first the debian:12 base images with
 #                     debootstrap when the engine has none; docker/token when missing)

@@ -1,56 +1,80 @@
 #!/usr/bin/env bash
-# meshes.sh - big meshes: cornell-spheres with each sphere an icosphere of
-# 20*4^L triangles (bench/icosphere.c, bench/mesh_scene.py), rendered by
-# `tessera render` with its defaults (local farm, one worker per core) and
-# in one process, 256x256 at SPP samples per pixel. Printed and written to
-# bench/results/meshes.csv; not asserted.
+# meshes.sh - big meshes against Blender Cycles in the same run: the
+# cornell-spheres scene with each sphere replaced by a mesh
+# (bench/mesh_scene.py): an icosphere of 20*4^L triangles
+# (bench/icosphere.c) for each level L, and Blender's Suzanne with K levels
+# of subdivision surface (bench/suzanne.py, "suzanneK"), a mesh a real user
+# would render. Each round runs, interleaved, per scene:
+#   1. `tessera render --workers 0` of one pixel: load + intersector build;
+#   2. `tessera render` with its defaults at 256x256, SPP samples: the wall
+#      time (loading and build included), its Msamples/s, peak RSS;
+#   3. Cycles on the same scene (bench/cycles/render.sh: 2 threads, box
+#      filter 1 px, no adaptive sampling / denoising / clamping, Filter
+#      Glossy 0, caustics, 1024 bounces; scene sync and BVH build included,
+#      Blender start-up and its Python OBJ reader excluded).
+# With more rounds the median of each figure is kept. Printed, and written
+# to bench/results/meshes.csv with a gnuplot plot bench/results/meshes.png
+# (bench/meshes-plot.sh).
+# Not asserted. MESH_NO_CYCLES=1 skips Cycles (columns left empty).
 #
-# Columns: level, triangles, the intersector auto chose, load_build_s (one
-# process: scene load and intersector build, measured as a 1-pixel render),
-# render_s (the "rendered" line of the default local-farm run: workers'
-# load and build included), wall_s (that run's wall time), msamples_s,
-# peak_rss_mb (the largest process of that run), inproc_s (wall time with
-# --workers 0), and cycles_s, left empty for bench/cycles/ to fill (same
-# scenes, same resolution and spp).
-#
-# usage: bench/meshes.sh BIN_DIR [LEVELS] [SPP] [ROUNDS]
-#   LEVELS default "5 6 7 8 9" (41k ... 10.5M triangles), SPP 64, ROUNDS 1
-#   (with more rounds the median of each figure is kept)
+# usage: bench/meshes.sh BIN_DIR [SCENES] [SPP] [ROUNDS]
+#   SCENES default "5 6 7 8 suzanne5" (icosphere levels 5-8: 41k ... 2.6M
+#   triangles; Suzanne 5: 2M), SPP 64, ROUNDS 1
 set -euo pipefail
-bin=$1 levels=${2:-5 6 7 8 9} spp=${3:-64} rounds=${4:-1}
+bin=$1 scenes=${2:-5 6 7 8 suzanne5} spp=${3:-64} rounds=${4:-1}
 here=$(cd "$(dirname "$0")" && pwd)
 dir=${MESH_BENCH_DIR:-/tmp/tessera-meshes}
 mkdir -p "$dir" "$here/results"
 cc -O2 -o "$dir/icosphere" "$here/icosphere.c" -lm
 csv="$here/results/meshes.csv"
-echo "level,triangles,accel,load_build_s,render_s,wall_s,msamples_s,peak_rss_mb,inproc_s,cycles_s" > "$csv"
+load0=$(cut -d' ' -f1-3 /proc/loadavg)
+echo "scene,triangles,accel,load_build_s,render_s,msamples_s,peak_rss_mb,cycles_s,ratio" > "$csv"
 med() { tr ' ' '\n' <<< "$1" | grep . | sort -g | awk '{v[NR] = $1} END {print v[int((NR + 1) / 2)]}'; }
-printf "%5s %10s %7s %13s %9s %8s %11s %12s %9s\n" level triangles accel load+build_s render_s wall_s Msamples/s \
-  peak_RSS_MB inproc_s
-for L in $levels; do
-  obj="$dir/ico$L.obj"
-  [ -s "$obj" ] || "$dir/icosphere" "$L" > "$obj"
-  python3 "$here/mesh_scene.py" "$here/../scenes/cornell-spheres.json" "$obj" > "$dir/spheres$L.json"
-  lb="" rs="" ws="" ms="" rss="" ip=""
+fmt="%10s %10s %7s %13s %9s %11s %12s %9s %14s\n"
+printf "$fmt" scene triangles accel load+build_s render_s Msamples/s peak_RSS_MB cycles_s tessera/cycles
+
+# The OBJ of mesh $1 (icoL or suzanneK; made once, cached in $dir).
+mesh_obj() {
+  local obj="$dir/$1.obj"
+  if [ ! -s "$obj" ]; then
+    case $1 in
+      suzanne*) "${BLENDER:-blender}" -b --factory-startup -noaudio --python-exit-code 1 --python "$here/suzanne.py" \
+                  -- "${1#suzanne}" "$obj.tmp" > "$dir/suzanne.log" 2>&1 || { cat "$dir/suzanne.log" >&2; exit 1; } ;;
+      *) "$dir/icosphere" "${1#ico}" > "$obj.tmp" ;;
+    esac
+    mv "$obj.tmp" "$obj"
+  fi
+  echo "$obj"
+}
+
+for sc in $scenes; do
+  case $sc in suzanne*) name=$sc ;; *) name=ico$sc ;; esac
+  obj=$(mesh_obj "$name")
+  json="$dir/$name.json"
+  python3 "$here/mesh_scene.py" "$here/../scenes/cornell-spheres.json" "$obj" > "$json"
+  lb="" rs="" ms="" rss="" cy=""
   for r in $(seq "$rounds"); do
-    info=$( { /usr/bin/time -f "wall %e" "$bin/tessera" render "$dir/spheres$L.json" --workers 0 --width 1 --height 1 \
-              --spp 1 -v --no-progress -o "$dir/x.pfm"; } 2>&1) || { echo "level $L: $info" >&2; exit 1; }
+    info=$( { /usr/bin/time -f "wall %e" "$bin/tessera" render "$json" --workers 0 --width 1 --height 1 \
+              --spp 1 -v --no-progress -o "$dir/x.pfm"; } 2>&1) || { echo "$name: $info" >&2; exit 1; }
     tris=$(awk '/^scene/ {print $3}' <<< "$info")
     accel=$(awk '/^intersector:/ {print $2}' <<< "$info" | tr -d ',')
     lb+="$(awk '/^wall/ {print $2}' <<< "$info") "
-    out=$( { /usr/bin/time -f "wall %e rss %M" "$bin/tessera" render "$dir/spheres$L.json" --width 256 --height 256 \
-             --spp "$spp" --no-progress -o "$dir/farm$L.pfm"; } 2>&1) || { echo "level $L: $out" >&2; exit 1; }
-    rs+="$(awk '/^rendered/ {print $3}' <<< "$out") "
+    out=$( { /usr/bin/time -f "wall %e rss %M" "$bin/tessera" render "$json" --width 256 --height 256 \
+             --spp "$spp" --no-progress -o "$dir/t-$name.pfm"; } 2>&1) || { echo "$name: $out" >&2; exit 1; }
+    rs+="$(awk '/^wall/ {print $2}' <<< "$out") "
     ms+="$(awk '/^rendered/ {print $5}' <<< "$out") "
-    ws+="$(awk '/^wall/ {print $2}' <<< "$out") "
     rss+="$(awk '/^wall/ {printf "%.0f", $4 / 1024}' <<< "$out") "
-    one=$( { /usr/bin/time -f "wall %e" "$bin/tessera" render "$dir/spheres$L.json" --workers 0 --width 256 --height 256 \
-             --spp "$spp" --no-progress -o "$dir/one$L.pfm"; } 2>&1) || { echo "level $L: $one" >&2; exit 1; }
-    ip+="$(awk '/^wall/ {print $2}' <<< "$one") "
-    cmp -s "$dir/farm$L.pfm" "$dir/one$L.pfm" || { echo "level $L: farm and in-process images differ" >&2; exit 1; }
+    if [ -z "${MESH_NO_CYCLES:-}" ]; then
+      line=$("$here/cycles/render.sh" "$json" -o "$dir/c-$name.exr" --width 256 --height 256 --spp "$spp" --seed 1)
+      cy+="$(sed -n 's/.*render_s=\([0-9.]*\).*/\1/p' <<< "$line") "
+    fi
   done
-  printf "%5s %10s %7s %13s %9s %8s %11s %12s %9s\n" "$L" "$tris" "$accel" "$(med "$lb")" "$(med "$rs")" "$(med "$ws")" \
-    "$(med "$ms")" "$(med "$rss")" "$(med "$ip")"
-  echo "$L,$tris,$accel,$(med "$lb"),$(med "$rs"),$(med "$ws"),$(med "$ms"),$(med "$rss"),$(med "$ip")," >> "$csv"
+  c=$(med "$cy") t=$(med "$rs")
+  ratio=$( [ -n "$c" ] && awk -v t="$t" -v c="$c" 'BEGIN {printf "%.2f", t / c}' || true)
+  printf "$fmt" "$name" "$tris" "$accel" "$(med "$lb")" "$t" "$(med "$ms")" "$(med "$rss")" "${c:--}" "${ratio:--}"
+  echo "$name,$tris,$accel,$(med "$lb"),$t,$(med "$ms"),$(med "$rss"),$c,$ratio" >> "$csv"
 done
-echo "written: $csv (spp $spp, rounds $rounds; $(nproc) cores; load average $(cut -d' ' -f1-3 /proc/loadavg))"
+load1=$(cut -d' ' -f1-3 /proc/loadavg)
+echo "written: $csv (256x256, spp $spp, rounds $rounds; $(nproc) cores; load average $load0 at the start, $load1 at the end)"
+echo "# load average $load0 to $load1; $(nproc) cores; 256x256, $spp spp; $(date -u +%F)" >> "$csv"
+if command -v gnuplot > /dev/null; then "$here/meshes-plot.sh" "$csv" "$here/results/meshes.png"; fi

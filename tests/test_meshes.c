@@ -443,3 +443,41 @@ TEST(mesh_normals_from_faces_follow_the_angle) {
     CHECK(flat == 0, "%d of %zu icosphere corners not smoothed", flat, m.triangle_count * 3);
     obj_mesh_free(&m);
 }
+
+/* A mesh's own vertex normals survive in a scene that also imports a model:
+ * an octahedron smoothed by "smooth_angle", lit directly by a point light,
+ * renders the same (to rounding: the scene's bounds differ) with and
+ * without an imported triangle far out of view (a "model" shape, so the
+ * scene gets corner normals). Before, the corner normal of a triangle that
+ * is not imported (its geometric normal) replaced the mesh's smooth normal
+ * and the octahedron came out faceted. */
+TEST(mesh_smooth_normals_survive_an_imported_model) {
+    util_write_temp("octa.obj", "v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n"
+                                "f 1 3 5\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf 3 1 6\nf 2 3 6\nf 4 2 6\nf 1 4 6\n");
+    util_write_temp("far.obj", "v -1 0 -1\nv 1 0 -1\nv 0 0 1\nvn 0 1 0\nf 1//1 3//1 2//1\n");
+    char json[2048], err[1024];
+    float *img[2] = {NULL, NULL};
+    for (int i = 0; i < 2; i++) {
+        snprintf(json, sizeof json,
+                 "{\"render\": {\"width\": 24, \"height\": 24, \"spp\": 4, \"max_depth\": 1, \"seed\": 1},"
+                 " \"camera\": {\"type\": \"perspective\", \"position\": [0.5, 1, 4], \"look_at\": [0, 0, 0], \"fov\": 40},"
+                 " \"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo\": [0.8, 0.8, 0.8]}},"
+                 " \"shapes\": [{\"type\": \"mesh\", \"file\": \"octa.obj\", \"material\": \"m\", \"smooth_angle\": 80}%s],"
+                 " \"lights\": [{\"type\": \"point\", \"position\": [3, 3, 3], \"intensity\": [20, 20, 20]}]}",
+                 i ? ", {\"type\": \"model\", \"file\": \"far.obj\", \"translate\": [0, -40, 0]}" : "");
+        scene *s = scene_load(util_write_temp("mixed.json", json), NULL, err, sizeof err);
+        CHECK(s && s->triangle_vertex_normals && (i == 0 || s->corner_normals), "%s", s ? "no normals" : err);
+        if (!s) return;
+        trace_stats st;
+        img[i] = util_render(s, 1, 24, 1, &st);
+        scene_free(s);
+    }
+    float worst = 0, top = 0;
+    for (int k = 0; img[0] && img[1] && k < 24 * 24 * 3; k++) {
+        worst = fmaxf(worst, fabsf(img[0][k] - img[1][k]));
+        top = fmaxf(top, img[0][k]);
+    }
+    CHECK(img[0] && img[1] && top > 0.05f && worst < 1e-3f * top, "images differ by up to %g (brightest %g)", worst, top);
+    free(img[0]);
+    free(img[1]);
+}

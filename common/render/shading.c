@@ -90,7 +90,11 @@ const material *shading_resolve(const scene *s, const hit *h, const material *m,
         if ((t = tex(s, m->tex_normal))) sn = normal_mapped(s, h, sn, texture_lookup(t, u, v).rgb, m->normal_scale);
         m = scratch;
     }
-    if (m->kind != MATERIAL_GLASS && vec3_dot(sn, wo) > 0.0f) *ns = sn;
+    /* A triangle with vertex normals of its own (a mesh shape's vn) was
+     * shaded by shading_normal.h already: its n stays, the corner normal
+     * (its geometric normal) must not flatten it. */
+    int own = s->triangle_vertex_normals && s->triangle_vertex_normals[3 * (size_t)h->prim] != SCENE_NONE;
+    if (!own && m->kind != MATERIAL_GLASS && vec3_dot(sn, wo) > 0.0f) *ns = sn;
     return m;
 }
 

@@ -11,7 +11,9 @@
 /* Resolve material m at hit h on a triangle (geometric normal n, already
  * facing wo). Returns m, or scratch filled with m's textures applied, and
  * sets *ns to the shading normal (facing wo; n itself when the shading
- * normal would put wo below its horizon, or for glass). Returns NULL when
+ * normal would put wo below its horizon, or for glass, or for a triangle
+ * with vertex normals of its own: then n is already its smooth normal,
+ * shading_normal.h's). Returns NULL when
  * the surface is cut out here: the ray should pass through. Can't fail. */
 const material *shading_resolve(const scene *s, const hit *h, const material *m, vec3 n, vec3 wo,
                                  material *scratch, vec3 *ns);
