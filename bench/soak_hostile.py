@@ -12,35 +12,16 @@ import struct
 import sys
 import time
 
+import wire
+
 HOST, PORT, BUILD, SECONDS = sys.argv[1], int(sys.argv[2]), sys.argv[3], float(sys.argv[4])
-
-
-def frame(kind, body):
-    return struct.pack("<I", len(body) + 1) + kind + body
-
-
-def jframe(obj):
-    return frame(b"J", json.dumps(obj).encode())
 
 
 def read_frame(s):
     """One frame (kind, body), or None on EOF, reset or timeout."""
     try:
-        hdr = b""
-        while len(hdr) < 5:
-            b = s.recv(5 - len(hdr))
-            if not b:
-                return None
-            hdr += b
-        n = struct.unpack("<I", hdr[:4])[0] - 1
-        body = b""
-        while len(body) < n:
-            b = s.recv(min(65536, n - len(body)))
-            if not b:
-                return None
-            body += b
-        return hdr[4:5], body
-    except OSError:
+        return wire.read_frame(s)
+    except (EOFError, OSError):
         return None
 
 
@@ -51,7 +32,7 @@ def client():
         if read_frame(s) is None:  # the coordinator speaks first
             s.close()
             return None
-        s.sendall(jframe({"type": "hello", "role": "client", "protocol": 1, "build": BUILD, "name": "hostile",
+        s.sendall(wire.json_frame({"type": "hello", "role": "client", "protocol": 1, "build": BUILD, "name": "hostile",
                           "threads": 1}))
         f = read_frame(s)
         if f is None or b"welcome" not in f[1]:
@@ -93,7 +74,7 @@ def main():
             continue
         m = {"type": "submit", "scene": "0" * 64}
         m.update(fields)
-        c.sendall(frame(b"S", b"not a bundle") + jframe(m))
+        c.sendall(wire.frame(b"S", b"not a bundle") + wire.json_frame(m))
         f = read_frame(c)
         bad += f is not None and b"error" in f[1]
         c.close()

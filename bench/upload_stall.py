@@ -11,29 +11,17 @@ the slowest status answer, and whether the worker was ever found silent.
 """
 import json, os, socket, struct, subprocess, sys, tempfile, threading, time
 
+import wire
+
 BIN = os.environ.get("BIN", "build/release/bin")
 
 
 def frame_read(s):
-    hdr = b""
-    while len(hdr) < 5:
-        c = s.recv(5 - len(hdr))
-        if not c:
-            raise EOFError
-        hdr += c
-    n = struct.unpack("<I", hdr[:4])[0] - 1
-    body = b""
-    while len(body) < n:
-        c = s.recv(min(1 << 20, n - len(body)))
-        if not c:
-            raise EOFError
-        body += c
-    return hdr[4], body
+    return wire.read_frame(s)
 
 
 def frame_send(s, obj):
-    b = json.dumps(obj).encode()
-    s.sendall(struct.pack("<I", len(b) + 1) + b"J" + b)
+    s.sendall(wire.json_frame(obj))
 
 
 def client(port, build):

@@ -10,6 +10,7 @@
 #include <string.h>
 #include <sys/resource.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
@@ -165,4 +166,27 @@ int util_same_file(const char *a, const char *b) {
     if (fa) fclose(fa);
     if (fb) fclose(fb);
     return same;
+}
+
+int util_have_qemu(void) {
+    struct stat sb;
+    if (stat("/usr/bin/qemu-x86_64", &sb) == 0) return 1;
+    fprintf(stderr, "  (skipped: no /usr/bin/qemu-x86_64)\n");
+    return 0;
+}
+
+int util_same_under_nehalem(const char *tessera, const char *args, const char *tag, char *out, size_t cap) {
+    char name[128], native[512], emulated[512], cmd[4096];
+    snprintf(name, sizeof name, "%s-native.pfm", tag);
+    snprintf(native, sizeof native, "%s", util_temp_path(name));
+    snprintf(name, sizeof name, "%s-nehalem.pfm", tag);
+    snprintf(emulated, sizeof emulated, "%s", util_temp_path(name));
+    snprintf(cmd, sizeof cmd, "%s %s -o %s", tessera, args, native);
+    if (util_run(cmd, out, cap) != 0) return -1;
+    snprintf(cmd, sizeof cmd, "/usr/bin/qemu-x86_64 -cpu Nehalem-v1 %s %s -o %s", tessera, args, emulated);
+    int rc = util_run(cmd, out, cap);
+    if (rc != 0) return -1;
+    if (util_same_file(native, emulated)) return 0;
+    snprintf(out, cap, "%s under qemu (Nehalem) differs from the native image %s", emulated, native);
+    return -1;
 }

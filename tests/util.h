@@ -71,6 +71,17 @@ int util_free_port(void);
 /* Whole-file comparison: 1 when both exist and are byte-identical. */
 int util_same_file(const char *a, const char *b);
 
+/* Whether /usr/bin/qemu-x86_64 is there to emulate an older CPU; prints a
+ * "skipped" line when not. */
+int util_have_qemu(void);
+
+/* Run `TESSERA ARGS -o NATIVE` on this CPU, then the same program under
+ * `qemu-x86_64 -cpu Nehalem-v1` (SSE4.2, no AVX or FMA) -o EMULATED (both
+ * temporary files named after tag). Returns 0 when both ran and wrote the
+ * same bytes, with the emulated run's output in out; else -1 with the
+ * command and its output, or the difference, in out. */
+int util_same_under_nehalem(const char *tessera, const char *args, const char *tag, char *out, size_t cap);
+
 /* Sleep for the given seconds. */
 void util_sleep(double s);
 
