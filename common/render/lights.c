@@ -3,11 +3,6 @@
 
 #include "intersect.h"
 #include "punctual.h"
-#include "spherical.h"
-
-#ifndef LIGHTS_RECT_BY_ANGLE
-#define LIGHTS_RECT_BY_ANGLE 1
-#endif
 #include "warp.h"
 
 /* Index i with cdf[i] <= u < cdf[i+1], skipping lights of zero weight. */
@@ -74,71 +69,6 @@ static int sample_sphere(const scene *s, const light *l, vec3 ref, float u1, flo
     return 1;
 }
 
-static int vec3_same(vec3 a, vec3 b) { return a.x == b.x && a.y == b.y && a.z == b.z; }
-
-/* A rectangular light made of two triangle lights: the quad v0 v1 v2 v3 of
- * load_quad, split into (v0 v1 v2) and (v0 v2 v3), with a right angle at v1
- * and v3 = v0 + v2 - v1. */
-typedef struct {
-    uint32_t first;     /* the lower light index; the other is first + 1 */
-    vec3 corner, ex, ey; /* corner v1, edges to v0 and to v2 */
-} light_rect;
-
-/* 1 when light i is half of such a rectangle (same emission on both
- * halves), filling *out; 0 otherwise. Geometry only. */
-static int find_rect(const scene *s, uint32_t i, light_rect *out) {
-    if (s->lights[i].kind != LIGHT_TRIANGLE) return 0;
-    for (uint32_t a = i > 0 ? i - 1 : 0; a <= i && a + 1 < s->light_count; a++) {
-        const light *la = &s->lights[a], *lb = &s->lights[a + 1];
-        if (lb->kind != LIGHT_TRIANGLE || lb->prim != la->prim + 1 || la->two_sided != lb->two_sided ||
-            !vec3_same(la->radiance, lb->radiance))
-            continue;
-        const triangle *ta = &s->triangles[la->prim], *tb = &s->triangles[lb->prim];
-        if (!vec3_same(ta->v0, tb->v0) || !vec3_same(ta->v2, tb->v1)) continue;
-        vec3 ex = vec3_sub(ta->v0, ta->v1), ey = vec3_sub(ta->v2, ta->v1);
-        float lx = vec3_dot(ex, ex), ly = vec3_dot(ey, ey);
-        vec3 off = vec3_sub(tb->v2, vec3_add(ta->v0, ey));
-        if (!(fabsf(vec3_dot(ex, ey)) <= 1e-5f * sqrtf(lx * ly)) || !(vec3_dot(off, off) <= 1e-10f * (lx + ly)))
-            continue;
-        out->first = a, out->corner = ta->v1, out->ex = ex, out->ey = ey;
-        return 1;
-    }
-    return 0;
-}
-
-/* 1 when ref samples rectangle r by solid angle (spherical.h): nearer its
- * plane than its longest edge (Cycles' rule for its triangle lights) and a
- * well-conditioned solid angle, with *sr set up; 0 for area sampling. The
- * same answer for the sampler and for lights_pdf. */
-static int rect_by_angle(const light_rect *r, vec3 ref, spherical_rect *sr) {
-    vec3 n = vec3_cross(r->ex, r->ey);
-    float h = vec3_dot(vec3_sub(ref, r->corner), n); /* distance times |n| */
-    float longest2 = max_f(vec3_dot(r->ex, r->ex), vec3_dot(r->ey, r->ey));
-    if (!(h * h < longest2 * vec3_dot(n, n))) return 0;
-    return spherical_rect_init(sr, r->corner, r->ex, r->ey, ref);
-}
-
-/* Solid-angle sample of the rectangle r (pdf = (select of both halves) /
- * Omega) with u1 over both halves' slice of the light CDF. */
-static int sample_rect(const scene *s, const light_rect *r, const spherical_rect *sr, float u1, float u2,
-                       light_sample *out) {
-    float lo = s->light_cdf[r->first], w = s->light_cdf[r->first + 2] - lo;
-    if (w > 0.0f) u1 = min_f((u1 - lo) / w, 0x1.fffffep-1f);
-    out->p = spherical_rect_sample(sr, u1, u2);
-    vec3 q = vec3_sub(out->p, r->corner);
-    float a = vec3_dot(q, r->ex) / vec3_dot(r->ex, r->ex), b = vec3_dot(q, r->ey) / vec3_dot(r->ey, r->ey);
-    const light *l = &s->lights[r->first + (a + b > 1.0f)];
-    out->prim = l->prim;
-    out->n = s->triangle_normals[l->prim];
-    vec3 d = vec3_sub(out->p, sr->p);
-    out->dist = vec3_length(d);
-    if (!(out->dist > 0.0f)) return 0;
-    out->wi = vec3_scale(d, 1.0f / out->dist);
-    out->pdf = (s->lights[r->first].select_pdf + s->lights[r->first + 1].select_pdf) / sr->omega;
-    out->radiance = lights_emitted(l, out->n, vec3_neg(out->wi));
-    return 1;
-}
-
 static int sample_triangle(const scene *s, const light *l, vec3 ref, float u1, float u2, light_sample *out) {
     const triangle *t = &s->triangles[l->prim];
     float b1, b2;
@@ -161,12 +91,6 @@ int lights_sample(const scene *s, vec3 ref, float u1, float u2, light_sample *ou
     uint32_t i = pick_light(s, u1);
     const light *l = &s->lights[i];
     if (!(l->select_pdf > 0.0f)) return 0;
-    light_rect rect;
-    spherical_rect sr;
-    out->is_delta = 0;
-    if (LIGHTS_RECT_BY_ANGLE && find_rect(s, i, &rect) && rect_by_angle(&rect, ref, &sr))
-        return sample_rect(s, &rect, &sr, u1, u2, out) && out->pdf > 0.0f && isfinite(out->pdf) &&
-               !vec3_is_zero(out->radiance);
     float width = s->light_cdf[i + 1] - s->light_cdf[i];
     if (width > 0.0f) u1 = min_f((u1 - s->light_cdf[i]) / width, 0x1.fffffep-1f);
     int ok;
@@ -194,10 +118,6 @@ float lights_pdf(const scene *s, const light *l, vec3 ref, vec3 p, vec3 n, float
         float dc, one_minus_cos = sphere_cone(&s->spheres[l->prim], ref, &dc);
         if (one_minus_cos > 0.0f) return l->select_pdf / (2.0f * TS_PI * one_minus_cos);
     }
-    light_rect rect;
-    spherical_rect sr;
-    if (LIGHTS_RECT_BY_ANGLE && find_rect(s, (uint32_t)(l - s->lights), &rect) && rect_by_angle(&rect, ref, &sr))
-        return (s->lights[rect.first].select_pdf + s->lights[rect.first + 1].select_pdf) / sr.omega;
     vec3 w = vec3_scale(vec3_sub(p, ref), 1.0f / dist);
     float cos_l = fabsf(vec3_dot(n, w));
     if (!(cos_l > 0.0f)) return 0.0f;
