@@ -26,7 +26,8 @@
 # A scene may be given as FILE@SPP to use a reference of SPP samples for it
 # (default REF_SPP, 8192). With BASE_BIN=OTHER_TESSERA_BIN in the environment
 # a second Tessera build (say, main before a change) is run in the same
-# interleaved loop and gets its own columns (base s, relMSE, ratio).
+# interleaved loop and gets its own columns (base s, relMSE, ratio). With
+# KEEP=DIR every image is kept there as SCENE-SPP-RENDERER-SEED.exr.
 set -euo pipefail
 bin=$1 scenes=$2 spps=$3 repeats=${4:-3} ref_spp=${5:-8192} suffix=${6:+-$6}
 size=256
@@ -83,6 +84,11 @@ for entry in $scenes; do
         br=$("$bin" compare "$tmp/b.exr" "$ref" | awk '{print $4}')
       fi
       echo "$name,$spp,$r,$cs,$cr,$ts,$tr,$bs,$br" >> "$runs"
+      if [[ -n ${KEEP:-} ]]; then # keep the images, e.g. to compare them with a reference made later
+        mkdir -p "$KEEP"
+        cp "$tmp/c$seed.exr" "$KEEP/$name-$spp-cycles-$seed.exr"
+        cp "$tmp/t$seed.exr" "$KEEP/$name-$spp-tessera-$seed.exr"
+      fi
     done
     cv="" tv=""
     if ((repeats >= 2)); then
@@ -150,4 +156,5 @@ if command -v gnuplot > /dev/null; then
   } > "$tmp/plot.gp"
   gnuplot "$tmp/plot.gp" && echo "plot: $png"
 fi
+cat "$md"
 echo "table: $md, data: $csv, every run: $runs"
