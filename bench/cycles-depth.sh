@@ -15,16 +15,18 @@
 # the scene's max_depth, Cycles 1024), its increment over the largest d.
 #
 # Writes bench/results/cycles-depth.csv and .md, prints the table.
-# usage: bench/cycles-depth.sh TESSERA_BIN "SCENES" "DEPTHS" SPP [REF_SPP]
+# usage: bench/cycles-depth.sh TESSERA_BIN "SCENES" "DEPTHS" SPP [REF_SPP [SUFFIX]]
+# (SUFFIX: write cycles-depth-SUFFIX.{csv,md}, e.g. a second sample count)
 set -euo pipefail
-bin=$1 scenes=$2 depths=$3 spp=$4 ref_spp=${5:-8192}
+bin=$1 scenes=$2 depths=$3 spp=$4 ref_spp=${5:-8192} suffix=${6:+-$6}
 size=256
 out=bench/results
 mkdir -p "$out"
 tmp=$(mktemp -d /tmp/tessera-cycles-depth.XXXXXX)
 trap 'rm -rf "$tmp"' EXIT
-csv=$out/cycles-depth.csv md=$out/cycles-depth.md
+csv=$out/cycles-depth$suffix.csv md=$out/cycles-depth$suffix.md
 here=$(dirname "$0")
+load0=$(cut -d' ' -f1-3 /proc/loadavg)
 
 # render RENDERER DEPTH SEED: $tmp/RENDERER-DEPTH-SEED.pfm
 render() {
@@ -83,6 +85,7 @@ done
   echo
   echo "${size}x$size, $spp spp, two seeds per cell; var = relative variance of the image, increment var = of the"
   echo "image minus the one with the depth limit one lower (the paths one segment longer), both normalised like relMSE"
-  echo "by the converged full Cycles image. Made by \`make bench-cycles-depth\` (bench/cycles-depth.sh) on $(date -u +%Y-%m-%d)."
+  echo "by the converged full Cycles image. Made by \`make bench-cycles-depth\` (bench/cycles-depth.sh) on $(date -u +%Y-%m-%d),"
+  echo "load average before: $load0, after: $(cut -d' ' -f1-3 /proc/loadavg)."
 } > "$md"
 echo "table: $md, data: $csv"

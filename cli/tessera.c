@@ -116,7 +116,9 @@ static void usage_render(FILE *f) {
             "      --exr-alpha        add an A channel of 1\n"
             "      --no-nee           no light sampling (for comparisons)\n"
             "      --no-mis           light sampling without MIS (for comparisons)\n"
-            "      --sampler S        sobol (Owen-scrambled, the default) or random\n"
+            "      --sampler S        sobol (Owen-scrambled, the default), random, or\n"
+            "                         sobol-global (experimental: jointly stratified\n"
+            "                         dimensions for the first two bounces)\n"
             "      --noise-threshold E  adaptive sampling: pixels stop once their estimated\n"
             "                         relative error (and their neighbours') is below E\n"
             "      --min-spp N        adaptive: samples every pixel takes first (default 16)\n"
@@ -141,7 +143,7 @@ static int parse_tonemap_arg(const char *v, void *dest, char *err, size_t n) {
 
 static int parse_sampler_arg(const char *v, void *dest, char *err, size_t n) {
     if (sampler_parse(v, dest) == 0) return 0;
-    snprintf(err, n, "expected sobol or random, got \"%s\"", v);
+    snprintf(err, n, "expected sobol, random or sobol-global, got \"%s\"", v);
     return -1;
 }
 

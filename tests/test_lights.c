@@ -202,3 +202,107 @@ TEST(lights_spherical_solid_angle) {
         }
     CHECK(off == 0, "%d samples fell off the triangle or failed", off);
 }
+
+/* Solid-angle sampling of the rectangle corner + a ex + b ey from p
+ * (spherical_rect_sample, Urena et al. 2013), chi-square test: n
+ * independent samples binned into an 8 x 8 grid of cells of the rectangle
+ * against the expected counts n Omega(cell) / Omega, each cell's solid angle
+ * from Van Oosterom and Strackee's formula (spherical_triangle_solid_angle,
+ * two triangles), independently of Urena's. Returns the statistic (63
+ * degrees of freedom); *sum_omega gets the cells' total solid angle. */
+static double rect_chi_square(const spherical_rect *r, vec3 corner, vec3 ex, vec3 ey, int n, double *sum_omega) {
+    enum { G = 8 };
+    double expect[G][G], count[G][G] = {{0}};
+    *sum_omega = 0;
+    for (int i = 0; i < G; i++)
+        for (int j = 0; j < G; j++) {
+            vec3 c00 = vec3_add(corner, vec3_add(vec3_scale(ex, (float)i / G), vec3_scale(ey, (float)j / G)));
+            vec3 c10 = vec3_add(c00, vec3_scale(ex, 1.0f / G)), c01 = vec3_add(c00, vec3_scale(ey, 1.0f / G));
+            vec3 c11 = vec3_add(c10, vec3_scale(ey, 1.0f / G));
+            double w = (double)spherical_triangle_solid_angle(c00, c10, c11, r->p) +
+                       spherical_triangle_solid_angle(c00, c11, c01, r->p);
+            expect[i][j] = w;
+            *sum_omega += w;
+        }
+    uint64_t st = 11;
+    for (int k = 0; k < n; k++) {
+        float u1 = next_u(&st), u2 = next_u(&st);
+        vec3 q = vec3_sub(spherical_rect_sample(r, u1, u2), corner);
+        double a = vec3_dot(q, ex) / vec3_dot(ex, ex), b = vec3_dot(q, ey) / vec3_dot(ey, ey);
+        int i = (int)(a * G), j = (int)(b * G);
+        i = i < 0 ? 0 : (i >= G ? G - 1 : i), j = j < 0 ? 0 : (j >= G ? G - 1 : j);
+        count[i][j] += 1;
+    }
+    double chi2 = 0;
+    for (int i = 0; i < G; i++)
+        for (int j = 0; j < G; j++) {
+            double e = n * expect[i][j] / *sum_omega;
+            chi2 += (count[i][j] - e) * (count[i][j] - e) / e;
+        }
+    return chi2;
+}
+
+/* Irradiance at ref (normal nr) from the light scene's rectangle by
+ * solid-angle sampling, N x N stratified samples: Omega * mean(L cos_r). */
+static estimate by_rect(const scene *s, const spherical_rect *r, vec3 nl, vec3 nr, int n) {
+    double sum = 0, sum2 = 0;
+    uint64_t st = 7;
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j < n; j++) {
+            vec3 q = spherical_rect_sample(r, (i + next_u(&st)) / n, (j + next_u(&st)) / n);
+            vec3 wi = vec3_normalize(vec3_sub(q, r->p));
+            double v = 0;
+            if (-vec3_dot(nl, wi) > 0) v = s->lights[0].radiance.x * fmax(0.0, vec3_dot(nr, wi)) * r->omega;
+            sum += v, sum2 += v * v;
+        }
+    return finish(sum, sum2, n * n);
+}
+
+TEST(lights_spherical_rect) {
+    char err[512];
+    scene *s = util_scene_from_text(light_scene, err, sizeof err);
+    CHECK(s != NULL, "%s", err);
+    if (!s) return;
+    CHECK(s->light_count == 2, "expected the quad light as 2 triangles, got %u lights", s->light_count);
+    if (s->light_count != 2) return;
+    /* The quad's corners v0 v1 v2 (first triangle) in internal units. */
+    const triangle *t0 = &s->triangles[s->lights[0].prim];
+    vec3 corner = t0->v1, ex = vec3_sub(t0->v0, t0->v1), ey = vec3_sub(t0->v2, t0->v1);
+    CHECK(fabsf(vec3_dot(ex, ey)) < 1e-6f * vec3_dot(ex, ex), "the light is not a rectangle");
+    vec3 nl = s->triangle_normals[s->lights[0].prim], c = vec3_add(corner, vec3_scale(vec3_add(ex, ey), 0.5f));
+    float size = vec3_length(ex);
+    vec3 side = vec3_normalize(ex);
+    struct {
+        const char *what;
+        vec3 ref, nr;
+        int usable;
+    } cases[] = {
+        {"below the light", vec3_add(c, vec3_scale(nl, 0.4f * size)), vec3_neg(nl), 1},
+        {"beside it, grazing", vec3_add(vec3_add(c, vec3_scale(side, 0.75f * size)), vec3_scale(nl, 0.02f * size)),
+         vec3_neg(side), 1},
+        {"off a corner", vec3_add(vec3_add(corner, vec3_scale(side, -0.3f * size)), vec3_scale(nl, 0.5f * size)),
+         vec3_normalize(vec3_sub(c, corner)), 1},
+        {"far below", vec3_add(c, vec3_scale(nl, 30.0f * size)), vec3_neg(nl), 1},
+        {"very far below", vec3_add(c, vec3_scale(nl, 1e4f * size)), vec3_neg(nl), 0},
+        {"on its plane", vec3_add(c, vec3_scale(side, 2.0f * size)), vec3_neg(side), 0},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        spherical_rect r;
+        int ok = spherical_rect_init(&r, corner, ex, ey, cases[i].ref);
+        CHECK(ok == cases[i].usable, "%s: spherical_rect_init gives %d (omega %g)", cases[i].what, ok, r.omega);
+        if (!ok) continue;
+        double sum_omega, chi2 = rect_chi_square(&r, corner, ex, ey, 1 << 17, &sum_omega);
+        estimate a = by_rect(s, &r, nl, cases[i].nr, 256), b = by_area(s, cases[i].ref, cases[i].nr, 256);
+        double ref = by_integral(s, cases[i].ref, cases[i].nr, 400);
+        printf("    %-20s omega %.6g (cells %.6g)  chi2 %.1f  irradiance: integral %.6g  rect %.6g +- %.2g  area "
+               "%.6g +- %.2g\n",
+               cases[i].what, r.omega, sum_omega, chi2, ref, a.mean, a.stderr_, b.mean, b.stderr_);
+        CHECK(fabs(r.omega - sum_omega) < 1e-3 * sum_omega, "%s: omega %g, the cells sum to %g", cases[i].what,
+              r.omega, sum_omega);
+        /* 63 degrees of freedom: P(chi2 > 130) < 1e-6. */
+        CHECK(chi2 < 130, "%s: chi-square %.1f over 64 cells: not uniform in solid angle", cases[i].what, chi2);
+        CHECK(fabs(a.mean - ref) < 4 * a.stderr_ + 2e-3 * ref, "%s: rectangle sampling gives %g, the integral %g",
+              cases[i].what, a.mean, ref);
+    }
+    scene_free(s);
+}

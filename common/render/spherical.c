@@ -1,5 +1,6 @@
 /* spherical.c - uniform sampling of a triangle's solid angle (Arvo 1995,
- * after pbrt-v4's SampleSphericalTriangle). See spherical.h. */
+ * after pbrt-v4's SampleSphericalTriangle) and of a rectangle's (Urena et
+ * al. 2013, after pbrt-v4's SampleSphericalRectangle). See spherical.h. */
 #include "spherical.h"
 
 static float clamp_f(float x, float lo, float hi) { return x < lo ? lo : (x > hi ? hi : x); }
@@ -93,4 +94,49 @@ int spherical_triangle_sample(vec3 v0, vec3 v1, vec3 v2, vec3 p, float u1, float
     if (!isfinite(b1) || !isfinite(b2)) return 0;
     *b1_out = b1, *b2_out = b2;
     return 1;
+}
+
+int spherical_rect_init(spherical_rect *r, vec3 corner, vec3 ex, vec3 ey, vec3 p) {
+    float exl = vec3_length(ex), eyl = vec3_length(ey);
+    r->omega = 0.0f;
+    if (!(exl > 0.0f && eyl > 0.0f)) return 0;
+    r->p = p;
+    r->x = vec3_scale(ex, 1.0f / exl), r->y = vec3_scale(ey, 1.0f / eyl);
+    r->z = vec3_cross(r->x, r->y);
+    vec3 d = vec3_sub(corner, p);
+    r->z0 = vec3_dot(d, r->z);
+    if (r->z0 > 0.0f) r->z = vec3_neg(r->z), r->z0 = -r->z0;
+    if (!(r->z0 < 0.0f)) return 0; /* on the plane */
+    r->x0 = vec3_dot(d, r->x), r->y0 = vec3_dot(d, r->y);
+    r->x1 = r->x0 + exl, r->y1 = r->y0 + eyl;
+    /* Normals of the planes through p and each edge, and the spherical
+     * rectangle's inner angles g0..g3; its area is their sum - 2 pi. */
+    vec3 v00 = vec3_make(r->x0, r->y0, r->z0), v01 = vec3_make(r->x0, r->y1, r->z0);
+    vec3 v10 = vec3_make(r->x1, r->y0, r->z0), v11 = vec3_make(r->x1, r->y1, r->z0);
+    vec3 n0 = vec3_normalize(vec3_cross(v00, v10)), n1 = vec3_normalize(vec3_cross(v10, v11));
+    vec3 n2 = vec3_normalize(vec3_cross(v11, v01)), n3 = vec3_normalize(vec3_cross(v01, v00));
+    float g0 = angle_between(vec3_neg(n0), n1), g1 = angle_between(vec3_neg(n1), n2);
+    float g2 = angle_between(vec3_neg(n2), n3), g3 = angle_between(vec3_neg(n3), n0);
+    r->b0 = n0.z, r->b1 = n2.z;
+    r->k = 2.0f * TS_PI - g2 - g3;
+    r->omega = g0 + g1 - r->k;
+    if (!isfinite(r->omega)) r->omega = 0.0f;
+    return r->omega >= SPHERICAL_MIN_SOLID_ANGLE && r->omega <= SPHERICAL_MAX_SOLID_ANGLE;
+}
+
+vec3 spherical_rect_sample(const spherical_rect *r, float u1, float u2) {
+    /* u1: the sub-rectangle [x0, xu] of solid angle u1 omega. */
+    float au = u1 * r->omega + r->k;
+    float fu = (cosf(au) * r->b0 - r->b1) / sinf(au);
+    float cu = 1.0f / sqrtf(fu * fu + r->b0 * r->b0);
+    if (!(fu > 0.0f)) cu = -cu;
+    cu = clamp_f(isfinite(cu) ? cu : 0.0f, -0x1.fffffep-1f, 0x1.fffffep-1f);
+    float xu = clamp_f(-(cu * r->z0) / safe_sqrt(1.0f - cu * cu), r->x0, r->x1);
+    /* u2: along y at xu, uniform in the solid angle's measure there. */
+    float dd = sqrtf(xu * xu + r->z0 * r->z0);
+    float h0 = r->y0 / sqrtf(dd * dd + r->y0 * r->y0), h1 = r->y1 / sqrtf(dd * dd + r->y1 * r->y1);
+    float hv = h0 + u2 * (h1 - h0), hv2 = hv * hv;
+    float yv = hv2 < 1.0f - 1e-6f ? hv * dd / sqrtf(1.0f - hv2) : r->y1;
+    yv = clamp_f(yv, r->y0, r->y1);
+    return vec3_add(r->p, vec3_add(vec3_add(vec3_scale(r->x, xu), vec3_scale(r->y, yv)), vec3_scale(r->z, r->z0)));
 }
