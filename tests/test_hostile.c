@@ -842,7 +842,7 @@ static int raw_frame(int fd, uint8_t **body, size_t *len, double timeout_s) {
  * *len) and the number of D frames, or NULL with why in err. */
 static uint8_t *raw_fetch_read(int fd, size_t *len, int *chunks, char *err, size_t err_len) {
     uint8_t *body, *img = NULL;
-    size_t n, want = 0;
+    size_t n = 0, want = 0;
     *len = 0;
     *chunks = 0;
     for (int kind; (kind = raw_frame(fd, &body, &n, 30 * slack())) >= 0; free(body)) {
