@@ -22,7 +22,15 @@
  *   recheck[t] - a quarantined worker's pixels for a tile it alone had
  *                delivered, until the tile is rendered again.
  * A pending tile is never in the job's queue: audit_pick hands it to a
- * worker that has not rendered it yet (job_enqueue leaves it out). */
+ * worker that has not rendered it yet (job_enqueue leaves it out).
+ *
+ * Nobody to compare with (audit_settle, on every tick): when everything
+ * else of a job is done and no connected worker in good standing may render
+ * a pending tile again (a farm of one worker, the others gone, quarantined
+ * or blocklisted), a single result is accepted unchecked, with a log line
+ * saying so; two results that disagree with no third worker to decide fail
+ * the job with a message saying that. Waiting for a worker that may never
+ * come would hang the render. */
 #include <sodium.h>
 
 #include "farm_internal.h"
@@ -34,7 +42,10 @@
 typedef struct {
     uint32_t serial; /* the worker's peer_record.serial */
     char who[200];   /* its label at the time */
+    char name[64];   /* its name, for the event if the tile is settled unchecked */
     float *px;
+    trace_stats stats; /* as it reported them */
+    double took;       /* seconds from assignment to result */
 } audit_result;
 
 typedef struct {
@@ -226,14 +237,16 @@ static void audit_quarantine(farm *f, job *j, uint32_t serial, const char *who) 
 }
 
 /* A result for tile t of job j from p, after the farm's checks (px: its
- * decoded values; the caller keeps ownership unless told). Returns:
+ * decoded values; the caller keeps ownership unless told; stats and took:
+ * what p reported and how long it took, kept with a held result). Returns:
  *   AUDIT_ACCEPT - stitch *px (possibly swapped for the agreed bytes; the
  *                  old buffer freed) and count the tile; *verified says
  *                  whether two workers agreed on it;
  *   AUDIT_HOLD   - kept for comparison (*px taken: set to NULL);
  *   AUDIT_DROP   - ignore it (a quarantined worker's, or a repeat);
  *   AUDIT_FAILED - the job failed (no two of AUDIT_MAX_RESULTS agreed). */
-int audit_on_result(farm *f, job *j, peer *p, uint32_t t, float **px, int *verified) {
+int audit_on_result(farm *f, job *j, peer *p, uint32_t t, float **px, const trace_stats *stats, double took,
+                    int *verified) {
     job_audit *a = j->audit;
     *verified = 0;
     if (!a) return AUDIT_ACCEPT;
@@ -261,6 +274,9 @@ int audit_on_result(farm *f, job *j, peer *p, uint32_t t, float **px, int *verif
     audit_result *r = &at->r[at->count++];
     r->serial = p->rec.serial;
     snprintf(r->who, sizeof r->who, "%s", p->label);
+    snprintf(r->name, sizeof r->name, "%s", p->rec.name);
+    r->stats = *stats;
+    r->took = took;
     r->px = *px;
     *px = NULL;
     /* Two results from workers in good standing that agree decide. */
@@ -308,4 +324,69 @@ int audit_on_result(farm *f, job *j, peer *p, uint32_t t, float **px, int *verif
     f->audited++;
     *verified = 1;
     return j->finished ? AUDIT_FAILED : AUDIT_ACCEPT;
+}
+
+/* Whether a connected worker in good standing could render tile t again. */
+static int audit_someone_may_take(const farm *f, job *j, uint32_t t) {
+    const peer *p;
+    LIST_FOREACH(p, &f->peers, link)
+        if (p->state == PEER_ACTIVE && !conn_is_closing(p->c) && !block_is_blocked(f, j, p) &&
+            audit_may_take(j, p->rec.serial, t))
+            return 1;
+    return 0;
+}
+
+/* The results of pending tile t from workers not quarantined: how many,
+ * and the first two (NULL when fewer). */
+static int audit_live_results(const job *j, const audit_tile *at, const audit_result **r0, const audit_result **r1) {
+    int live = 0;
+    *r0 = *r1 = NULL;
+    for (int i = 0; i < at->count; i++) {
+        if (audit_is_barred(j, at->r[i].serial)) continue;
+        if (live == 0) *r0 = &at->r[i];
+        else if (live == 1) *r1 = &at->r[i];
+        live++;
+    }
+    return live;
+}
+
+/* How many of j's pending tiles can be settled now (see the top of this
+ * file): 0 while anything else of the job is queued, running or could be
+ * rendered again by a connected worker. */
+static int audit_settleable(const farm *f, job *j) {
+    const job_audit *a = j->audit;
+    int n = 0;
+    if (!a || j->finished || j->q_len > 0) return 0;
+    for (int t = 0; t < j->tile_count; t++) {
+        if (j->done[t]) continue;
+        if (!a->pending[t] || j->holders[t] || audit_someone_may_take(f, j, (uint32_t)t)) return 0;
+        n++;
+    }
+    return n;
+}
+
+void audit_settle(farm *f, job *j) {
+    int n = audit_settleable(f, j);
+    if (n == 0) return;
+    uint32_t id = j->desc.id;
+    farm_log(f, "job %u: no other worker is connected to render %d audited tile%s again (the audit needs two "
+             "workers or more); accepted unchecked", id, n, n > 1 ? "s" : "");
+    for (int t = 0; t < j->tile_count; t++) {
+        audit_tile *at = j->audit->pending[t];
+        const audit_result *r0, *r1;
+        if (!at || j->done[t]) continue;
+        int live = audit_live_results(j, at, &r0, &r1);
+        if (live >= 2) {
+            farm_job_fail(f, j, "tile %d: %s and %s returned different pixels and no third worker is connected to "
+                          "decide (the audit needs three workers to settle a mismatch)", t, r0->who, r1->who);
+            return;
+        }
+        if (live == 0) continue; /* only quarantined workers' results: someone must render it */
+        j->audit->pending[t] = NULL;
+        peer *from = farm_find_serial(f, r0->serial);
+        farm_tile_land(f, j, from, r0->name, r0->serial, (uint32_t)t, r0->px, r0->took, &r0->stats, 0);
+        tile_free(at);
+        j = farm_find_job(f, id); /* landing the last tile may end the job, and its owner forget it */
+        if (!j || j->finished) return;
+    }
 }
