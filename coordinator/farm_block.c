@@ -86,8 +86,11 @@ void block_note_failure(farm *f, job *j, peer *p, const char *fmt, ...) {
     e->announced = 0;
     j->rep.blocklisted++;
     f->blocklisted++;
-    farm_log(f, "job %u: %s is blocklisted for this job for %.0f s (%d failures%s; last: %s)", j->desc.id, p->label,
-             wait, e->strikes == 1 ? MAX_PEER_FAILURES : 1, e->strikes == 1 ? "" : " after its last wait", what);
+    char count[48];
+    if (e->strikes == 1) snprintf(count, sizeof count, "%d failures", MAX_PEER_FAILURES);
+    else snprintf(count, sizeof count, "failed again after its wait");
+    farm_log(f, "job %u: %s is blocklisted for this job for %.0f s (%s; last: %s)", j->desc.id, p->label, wait, count,
+             what);
 }
 
 void block_note_lost_leases(farm *f, peer *p, const char *why) {
