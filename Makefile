@@ -309,3 +309,10 @@ bench-journal: $(TESSERA) $(LOADGEN)
 TRUST_BENCH_ROUNDS ?= 5
 bench-trust: $(TESSERA) $(WORKER)
 	bench/trust.sh $(BUILD)/bin scenes/cornell-box.json 16 $(TRUST_BENCH_ROUNDS) 32
+
+# An honest farm is never flagged by the audit, over many jobs (make test
+# runs 8; docs/audit.md).
+.PHONY: bench-audit-soak
+AUDIT_SOAK_JOBS ?= 100
+bench-audit-soak: $(TESSERA) $(WORKER)
+	bench/audit_soak.sh $(BUILD)/bin $(AUDIT_SOAK_JOBS)

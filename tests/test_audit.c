@@ -34,14 +34,22 @@ static const char *audit_reference(int spp) {
     return path;
 }
 
-static pid_t start_worker(const char *log, int port, const char *name, const char *fault) {
-    char connect[64], env[128];
+/* A tessera-worker NAME on 127.0.0.1:port with TESSERA_TEST_FAULT=fault
+ * (NULL: honest) and, if hold is not NULL, keeping its finished tiles
+ * while that file exists (util.h). */
+static pid_t start_worker_held(const char *log, int port, const char *name, const char *fault, const char *hold) {
+    char connect[64], env[128], hold_env[300];
     snprintf(connect, sizeof connect, "127.0.0.1:%d", port);
     snprintf(env, sizeof env, "TESSERA_TEST_FAULT=%s", fault ? fault : "");
+    snprintf(hold_env, sizeof hold_env, "TESSERA_TEST_HOLD_FILE=%s", hold ? hold : "");
     const char *argv[] = {util_bin("tessera-worker"), "--connect", connect, "--threads", "1", "--name", name,
                           "--retry-max", "1", NULL};
-    const char *envv[] = {env, NULL};
-    return util_spawn_env(argv, log, fault ? envv : NULL);
+    const char *envv[] = {env, hold_env, NULL};
+    return util_spawn_env(argv, log, envv);
+}
+
+static pid_t start_worker(const char *log, int port, const char *name, const char *fault) {
+    return start_worker_held(log, port, name, fault, NULL);
 }
 
 /* The number in "; N tiles it alone delivered" on the quarantine line, or -1. */
@@ -81,11 +89,19 @@ static int run_faulty_farm(const char *tag, const char *fault, const char *fract
                           "--listen", listen, "--audit", fraction, NULL};
     pid_t coord = util_spawn(argv, clog);
     CHECK(util_wait_for_text(clog, "coordinator listening on", LONG) == 0, "coordinator did not start; log %s", clog);
-    /* The honest ones first: F's tiles can be checked from the start. */
-    pid_t a = start_worker(alog, port, "A", NULL), b = start_worker(blog, port, "B", NULL);
+    /* The honest ones first: F's tiles can be checked from the start. They
+     * keep their first tiles until F has joined (else, on a fast or a busy
+     * machine, they may finish the job before F is in). */
+    char hold[256];
+    snprintf(name, sizeof name, "audit-%s.hold", tag);
+    snprintf(hold, sizeof hold, "%s", util_temp_path(name));
+    util_touch(hold);
+    pid_t a = start_worker_held(alog, port, "A", NULL, hold), b = start_worker_held(blog, port, "B", NULL, hold);
     CHECK(util_wait_for_text(clog, "worker A (", LONG) == 0 && util_wait_for_text(clog, "worker B (", LONG) == 0,
           "A and B never joined; log %s", clog);
     pid_t f = start_worker(flog, port, "F", fault);
+    CHECK(util_wait_for_text(clog, "worker F (", LONG) == 0, "F never joined; log %s", clog);
+    unlink(hold);
     int st = util_wait(coord, LONG, NULL);
     CHECK(st == 0, "coordinator exited with %d; log %s", st, clog);
     CHECK(!util_file_count(clog, "Sanitizer") && !util_file_count(clog, "runtime error"), "sanitizer report in %s",
