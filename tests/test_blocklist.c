@@ -120,3 +120,49 @@ TEST(blocklist_crashing_worker_waits_then_retries_and_the_job_finishes) {
     kill(svc, SIGTERM);
     CHECK(util_wait(svc, LONG, NULL) == 0, "coordinator did not exit cleanly; log %s", log);
 }
+
+/* A worker that answers "failed" for every tile (TESSERA_TEST_FAULT=fail)
+ * is blocklisted after its third, with the reason as evidence, and the
+ * render (tessera render --listen) finishes on the honest one. */
+TEST(blocklist_failing_worker_and_the_render_finishes) {
+    char clog[256], alog[256], flog[256], hold[256], hold_env[300], listen[64], img[256], ref[256], cmd[1024],
+        out[4096];
+    snprintf(clog, sizeof clog, "%s", util_temp_path("block-fail-coord.log"));
+    snprintf(alog, sizeof alog, "%s", util_temp_path("block-fail-A.log"));
+    snprintf(flog, sizeof flog, "%s", util_temp_path("block-fail-F.log"));
+    snprintf(hold, sizeof hold, "%s", util_temp_path("block-fail.hold"));
+    snprintf(img, sizeof img, "%s", util_temp_path("block-fail.pfm"));
+    unlink(clog);
+    snprintf(listen, sizeof listen, "127.0.0.1:%d", util_free_port());
+    const char *argv[] = {harness_tessera(), "render", SCENE, "--tile-size", "8", "--no-progress", "-v", "-o", img,
+                          "--listen", listen, "--audit", "0", "--blocklist-retry", "1000", NULL};
+    pid_t coord = util_spawn(argv, clog);
+    CHECK(util_wait_for_text(clog, "coordinator listening on", LONG) == 0, "coordinator did not start; log %s", clog);
+    util_touch(hold); /* A keeps its first tile until F has failed three */
+    snprintf(hold_env, sizeof hold_env, "TESSERA_TEST_HOLD_FILE=%s", hold);
+    const char *aargv[] = {util_bin("tessera-worker"), "--connect", listen, "--threads", "1", "--name", "A",
+                           "--retry-max", "1", NULL};
+    const char *aenv[] = {hold_env, NULL};
+    pid_t a = util_spawn_env(aargv, alog, aenv);
+    const char *fargv[] = {util_bin("tessera-worker"), "--connect", listen, "--threads", "1", "--name", "F",
+                           "--retry-max", "1", NULL};
+    const char *fenv[] = {"TESSERA_TEST_FAULT=fail", NULL};
+    pid_t f = util_spawn_env(fargv, flog, fenv);
+    CHECK(util_wait_for_text(clog, "is blocklisted for this job for 1000 s (3 failures; last: tile ", LONG) == 0,
+          "F was not blocklisted after 3 failed tiles; log %s", clog);
+    unlink(hold);
+    int st = util_wait(coord, LONG, NULL);
+    CHECK(st == 0, "coordinator exited with %d; log %s", st, clog);
+    CHECK(only_f_blocklisted(clog) && util_file_count(clog, "test fault: tile ") >= 3 &&
+              util_file_count(clog, "blocklist: 1 times a worker was blocklisted"),
+          "blocklisting not logged as expected; log %s", clog);
+    snprintf(ref, sizeof ref, "%s", util_temp_path("block-ref.pfm"));
+    snprintf(cmd, sizeof cmd, "%s render " SCENE " --workers 0 -o %s", harness_tessera(), ref);
+    util_run(cmd, out, sizeof out);
+    CHECK(util_same_file(img, ref), "image differs from the single-process one; log %s", clog);
+    pid_t ws[] = {a, f};
+    for (int i = 0; i < 2; i++) {
+        kill(ws[i], SIGTERM);
+        util_wait(ws[i], LONG, NULL);
+    }
+}
