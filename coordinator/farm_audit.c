@@ -24,13 +24,15 @@
  * A pending tile is never in the job's queue: audit_pick hands it to a
  * worker that has not rendered it yet (job_enqueue leaves it out).
  *
- * Nobody to compare with (audit_settle, on every tick): when everything
- * else of a job is done and no connected worker in good standing may render
- * a pending tile again (a farm of one worker, the others gone, quarantined
- * or blocklisted), a single result is accepted unchecked, with a log line
- * saying so; two results that disagree with no third worker to decide fail
- * the job with a message saying that. Waiting for a worker that may never
- * come would hang the render. */
+ * Nobody to compare with (audit_settle, on every tick): when no connected
+ * worker in good standing may render a pending tile again (a farm of one
+ * worker, the others gone, stalled, quarantined or blocklisted), its single
+ * result is accepted unchecked (logged for the first such tile of a job,
+ * counted in the workers table), so a one-worker farm counts and journals
+ * its tiles as they come, as without the audit. Two results that disagree
+ * with no third worker to decide fail the job once nothing else of it is
+ * left, with a message saying so. Waiting for a worker that may never come
+ * would hang the render. */
 #include <sodium.h>
 
 #include "farm_internal.h"
@@ -62,6 +64,7 @@ struct job_audit {
     char (*recheck_who)[200];
     uint32_t *barred;
     int barred_count;
+    int unchecked; /* results accepted with nobody to compare them with */
 };
 
 static uint64_t splitmix64(uint64_t x) {
@@ -350,43 +353,48 @@ static int audit_live_results(const job *j, const audit_tile *at, const audit_re
     return live;
 }
 
-/* How many of j's pending tiles can be settled now (see the top of this
- * file): 0 while anything else of the job is queued, running or could be
- * rendered again by a connected worker. */
-static int audit_settleable(const farm *f, job *j) {
-    const job_audit *a = j->audit;
-    int n = 0;
-    if (!a || j->finished || j->q_len > 0) return 0;
-    for (int t = 0; t < j->tile_count; t++) {
-        if (j->done[t]) continue;
-        if (!a->pending[t] || j->holders[t] || audit_someone_may_take(f, j, (uint32_t)t)) return 0;
-        n++;
-    }
-    return n;
+/* Whether everything of j but its pending tiles is done, and none of those
+ * is running or could be rendered again by a connected worker. */
+static int audit_stuck(const farm *f, job *j) {
+    if (j->q_len > 0) return 0;
+    for (int t = 0; t < j->tile_count; t++)
+        if (!j->done[t] && (!j->audit->pending[t] || j->holders[t] || audit_someone_may_take(f, j, (uint32_t)t)))
+            return 0;
+    return 1;
+}
+
+/* Accept the one result of pending tile t unchecked (see the top of this
+ * file). Returns 0, or -1 when the job ended (and may have been freed). */
+static int audit_take_unchecked(farm *f, job *j, uint32_t t, const audit_result *r) {
+    job_audit *a = j->audit;
+    audit_tile *at = a->pending[t];
+    uint32_t id = j->desc.id;
+    if (!a->unchecked++)
+        farm_log(f, "job %u: no other worker is connected to render audited tile %u again (the audit needs two "
+                 "workers or more); accepted unchecked, as are any more such tiles of this job", id, t);
+    f->audit_unchecked++;
+    a->pending[t] = NULL;
+    farm_tile_land(f, j, farm_find_serial(f, r->serial), r->name, r->serial, t, r->px, r->took, &r->stats, 0);
+    tile_free(at);
+    j = farm_find_job(f, id); /* landing the last tile may end the job, and its owner forget it */
+    return j && !j->finished ? 0 : -1;
 }
 
 void audit_settle(farm *f, job *j) {
-    int n = audit_settleable(f, j);
-    if (n == 0) return;
-    uint32_t id = j->desc.id;
-    farm_log(f, "job %u: no other worker is connected to render %d audited tile%s again (the audit needs two "
-             "workers or more); accepted unchecked", id, n, n > 1 ? "s" : "");
+    if (!j->audit || j->finished) return;
+    int stuck = -1; /* not yet known */
     for (int t = 0; t < j->tile_count; t++) {
         audit_tile *at = j->audit->pending[t];
         const audit_result *r0, *r1;
-        if (!at || j->done[t]) continue;
+        if (!at || j->done[t] || j->holders[t] || audit_someone_may_take(f, j, (uint32_t)t)) continue;
         int live = audit_live_results(j, at, &r0, &r1);
-        if (live >= 2) {
+        if (live == 1 && audit_take_unchecked(f, j, (uint32_t)t, r0)) return;
+        if (live < 2) continue; /* 0: only quarantined workers' results: someone must render it */
+        if (stuck < 0) stuck = audit_stuck(f, j);
+        if (stuck) {
             farm_job_fail(f, j, "tile %d: %s and %s returned different pixels and no third worker is connected to "
                           "decide (the audit needs three workers to settle a mismatch)", t, r0->who, r1->who);
             return;
         }
-        if (live == 0) continue; /* only quarantined workers' results: someone must render it */
-        j->audit->pending[t] = NULL;
-        peer *from = farm_find_serial(f, r0->serial);
-        farm_tile_land(f, j, from, r0->name, r0->serial, (uint32_t)t, r0->px, r0->took, &r0->stats, 0);
-        tile_free(at);
-        j = farm_find_job(f, id); /* landing the last tile may end the job, and its owner forget it */
-        if (!j || j->finished) return;
     }
 }

@@ -143,6 +143,7 @@ struct farm {
     uint64_t closed_bytes_in, closed_bytes_out;
     uint32_t next_serial;
     uint64_t audited, audit_mismatches, quarantined; /* over all jobs, for the workers table */
+    uint64_t audit_unchecked;                        /* audited tiles nobody could check (farm_audit.c) */
     uint64_t blocklisted;                            /* blocklistings over all jobs (farm_block.c) */
     int closing, open_handles;
     void (*closed_cb)(void *);
@@ -239,8 +240,9 @@ void audit_accepted(job *j, uint32_t t, uint32_t serial, int verified);
 int audit_on_result(farm *f, job *j, peer *p, uint32_t t, float **px, const trace_stats *stats, double took,
                     int *verified);
 
-/* Accept the pending results of a job that nothing else can finish (see
- * farm_audit.c); called on every tick. */
+/* Accept the pending results no connected worker can check, or fail the
+ * job on a mismatch nobody can settle (see farm_audit.c); called on every
+ * tick. May end the job, and its owner free it. */
 void audit_settle(farm *f, job *j);
 
 /* ---- the per-job blocklist (farm_block.c) ------------------------------------- */

@@ -437,9 +437,10 @@ void farm_print_workers(const farm *f, FILE *out) {
     }
     if (f->opt.audit > 0)
         fprintf(out,
-                "  audit (%g of tiles): %llu tiles checked by two workers, %llu mismatches, %llu workers quarantined\n",
+                "  audit (%g of tiles): %llu tiles checked by two workers, %llu mismatches, %llu workers quarantined, "
+                "%llu accepted unchecked (no second worker)\n",
                 f->opt.audit, (unsigned long long)f->audited, (unsigned long long)f->audit_mismatches,
-                (unsigned long long)f->quarantined);
+                (unsigned long long)f->quarantined, (unsigned long long)f->audit_unchecked);
     if (f->blocklisted)
         fprintf(out, "  blocklist: %llu times a worker was blocklisted for a job (failed, crashed or timed out %d "
                 "times)\n", (unsigned long long)f->blocklisted, MAX_PEER_FAILURES);
