@@ -117,6 +117,7 @@ struct peer {
     conn *c;
     int state;
     int credits;
+    int failures; /* tiles it reported failed, over this connection (the blocklist counts per job) */
     double joined, last_heard, last_sent;
     LIST_HEAD(lease_list, lease) leases;
     char (*scenes)[SCENE_BUNDLE_HASH_HEX];

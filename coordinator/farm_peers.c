@@ -169,6 +169,7 @@ static int on_give_back(peer *p, const cJSON *m, int failed) {
         const cJSON *r = cJSON_GetObjectItemCaseSensitive(m, "reason");
         const char *why = cJSON_IsString(r) ? r->valuestring : "no reason given";
         farm_log(f, "%s: tile %u of job %u failed: %.300s", p->label, tile, job_id, why);
+        p->failures++;
         block_note_failure(f, j, p, "tile %u failed: %.200s", tile, why);
         if (!j->finished && ++j->failures[tile] >= MAX_TILE_FAILURES) {
             farm_lease_release(l);
