@@ -28,11 +28,13 @@
  * worker in good standing may render a pending tile again (a farm of one
  * worker, the others gone, stalled, quarantined or blocklisted), its single
  * result is accepted unchecked (logged for the first such tile of a job,
- * counted in the workers table), so a one-worker farm counts and journals
- * its tiles as they come, as without the audit. Two results that disagree
- * with no third worker to decide fail the job once nothing else of it is
- * left, with a message saying so. Waiting for a worker that may never come
- * would hang the render. */
+ * counted in the workers table) once it has waited the worker timeout
+ * (opt.timeout_s: time for the other workers of a farm that is starting to
+ * join), or at once when nothing else of the job is left. So a one-worker
+ * farm counts and journals its tiles a few seconds late, not at the end.
+ * Two results that disagree with no third worker to decide fail the job
+ * once nothing else of it is left, with a message saying so. Waiting for a
+ * worker that may never come would hang the render. */
 #include <sodium.h>
 
 #include "farm_internal.h"
@@ -48,6 +50,7 @@ typedef struct {
     float *px;
     trace_stats stats; /* as it reported them */
     double took;       /* seconds from assignment to result */
+    double arrived;    /* farm_now() when it came in */
 } audit_result;
 
 typedef struct {
@@ -280,6 +283,7 @@ int audit_on_result(farm *f, job *j, peer *p, uint32_t t, float **px, const trac
     snprintf(r->name, sizeof r->name, "%s", p->rec.name);
     r->stats = *stats;
     r->took = took;
+    r->arrived = farm_now(f);
     r->px = *px;
     *px = NULL;
     /* Two results from workers in good standing that agree decide. */
@@ -388,10 +392,11 @@ void audit_settle(farm *f, job *j) {
         const audit_result *r0, *r1;
         if (!at || j->done[t] || j->holders[t] || audit_someone_may_take(f, j, (uint32_t)t)) continue;
         int live = audit_live_results(j, at, &r0, &r1);
-        if (live == 1 && audit_take_unchecked(f, j, (uint32_t)t, r0)) return;
-        if (live < 2) continue; /* 0: only quarantined workers' results: someone must render it */
+        if (live == 0) continue; /* only quarantined workers' results: someone must render it */
         if (stuck < 0) stuck = audit_stuck(f, j);
-        if (stuck) {
+        if (live == 1 && (stuck || farm_now(f) - r0->arrived >= f->opt.timeout_s)) {
+            if (audit_take_unchecked(f, j, (uint32_t)t, r0)) return;
+        } else if (live >= 2 && stuck) {
             farm_job_fail(f, j, "tile %d: %s and %s returned different pixels and no third worker is connected to "
                           "decide (the audit needs three workers to settle a mismatch)", t, r0->who, r1->who);
             return;
