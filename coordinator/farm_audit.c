@@ -32,6 +32,11 @@
  * (opt.timeout_s: time for the other workers of a farm that is starting to
  * join), or at once when nothing else of the job is left. So a one-worker
  * farm counts and journals its tiles a few seconds late, not at the end.
+ * The same when the audit copy is running far longer than the job's tiles
+ * do and no third worker could back it up (a stuck verifier would
+ * otherwise hold the tile until its lease ends): the held result is
+ * accepted and the copy cancelled. A verifier can thus only get the other
+ * worker's result accepted unchecked, never its own.
  * Two results that disagree with no third worker to decide fail the job
  * once nothing else of it is left, with a message saying so. Waiting for a
  * worker that may never come would hang the render. */
@@ -343,6 +348,26 @@ static int audit_someone_may_take(const farm *f, job *j, uint32_t t) {
     return 0;
 }
 
+/* Pending tile t's audit copy is running far longer than the job's tiles
+ * do (the backup criterion of farm_sched.c: BACKUP_AGE_FACTOR times the
+ * mean, at least BACKUP_MIN_AGE_S), and no connected worker in good
+ * standing that does not hold it may render it: a stuck or very slow
+ * verifier in a farm with no third worker to back it up. */
+static int audit_copy_stalled(const farm *f, job *j, uint32_t t) {
+    if (!j->holders[t] || j->rep.tiles_done == 0) return 0;
+    double age = BACKUP_AGE_FACTOR * j->tile_seconds / j->rep.tiles_done;
+    if (age < BACKUP_MIN_AGE_S) age = BACKUP_MIN_AGE_S;
+    if (farm_now(f) - j->first_start[t] <= age) return 0;
+    peer *p;
+    LIST_FOREACH(p, &f->peers, link) {
+        lease *l = peer_find_lease(p, j->desc.id, t);
+        if (p->state == PEER_ACTIVE && !conn_is_closing(p->c) && !(l && l->live) && !block_is_blocked(f, j, p) &&
+            audit_may_take(j, p->rec.serial, t))
+            return 0;
+    }
+    return 1;
+}
+
 /* The results of pending tile t from workers not quarantined: how many,
  * and the first two (NULL when fewer). */
 static int audit_live_results(const job *j, const audit_tile *at, const audit_result **r0, const audit_result **r1) {
@@ -390,7 +415,9 @@ void audit_settle(farm *f, job *j) {
     for (int t = 0; t < j->tile_count; t++) {
         audit_tile *at = j->audit->pending[t];
         const audit_result *r0, *r1;
-        if (!at || j->done[t] || j->holders[t] || audit_someone_may_take(f, j, (uint32_t)t)) continue;
+        if (!at || j->done[t]) continue;
+        if (j->holders[t] ? !audit_copy_stalled(f, j, (uint32_t)t) : audit_someone_may_take(f, j, (uint32_t)t))
+            continue;
         int live = audit_live_results(j, at, &r0, &r1);
         if (live == 0) continue; /* only quarantined workers' results: someone must render it */
         if (stuck < 0) stuck = audit_stuck(f, j);

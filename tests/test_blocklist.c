@@ -37,6 +37,16 @@ static pid_t start_crasher(const char *addr, const char *flog) {
     return util_spawn_env(argv, flog, env);
 }
 
+/* Lines of the log saying worker F left. */
+static int count_departures(const char *log) {
+    FILE *f = fopen(log, "r");
+    char line[2048];
+    int n = 0;
+    while (f && fgets(line, sizeof line, f)) n += strstr(line, "worker F (") && strstr(line, ") left: ");
+    if (f) fclose(f);
+    return n;
+}
+
 /* Every "is blocklisted" line of the log names worker F. */
 static int only_f_blocklisted(const char *log) {
     FILE *f = fopen(log, "r");
@@ -93,6 +103,12 @@ TEST(blocklist_crashing_worker_waits_then_retries_and_the_job_finishes) {
             if (!exited) util_sleep(0.05);
         }
         if (!exited) util_wait(f, 0, NULL); /* stuck: killed, and the checks below fail */
+        /* F's exit can come before the coordinator has seen it: wait for
+         * its departure (logged after any blocklisting) before counting. */
+        for (int i = 0; i < (int)(LONG * 20) && util_file_count(log, "worker F (127.0.0.1:") &&
+                        count_departures(log) < starts;
+             i++)
+            util_sleep(0.05);
     }
     CHECK(util_file_count(log, "is blocklisted for this job") == 2, "F not blocklisted twice in %d starts; log %s",
           starts, log);
