@@ -364,3 +364,9 @@ soak: $(TESSERA) $(WORKER) $(LOADGEN)
 # The sealed frame layer and the handshake's check (tests/fuzz/fuzz_seal.c).
 FUZZ_TARGETS += seal
 fuzz: $(FUZZ_BUILD)/fuzz_seal
+# An honest farm is never flagged by the audit, over many jobs (make test
+# runs 8; docs/audit.md).
+.PHONY: bench-audit-soak
+AUDIT_SOAK_JOBS ?= 100
+bench-audit-soak: $(TESSERA) $(WORKER)
+	bench/audit_soak.sh $(BUILD)/bin $(AUDIT_SOAK_JOBS)

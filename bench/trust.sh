@@ -25,8 +25,8 @@ out=$(mktemp -d /tmp/tessera-trust-bench.XXXXXX)
 trap 'rm -rf "$out"' EXIT
 echo "bench token $$" > "$out/token"
 declare -A runs=(
-  [plain]=""
-  [sealed]="--token-file $out/token"
+  [plain]="--audit 0"
+  [sealed]="--audit 0 --token-file $out/token"
   [audit-0.02]="--audit 0.02"
   [audit-0.1]="--audit 0.1"
   [audit-1.0]="--audit 1.0"

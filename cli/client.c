@@ -740,12 +740,15 @@ static int do_workers(const cli_args *a) {
         printf("%-20s %-22s %7s %7s %10s %10s\n", "NAME", "ADDRESS", "THREADS", "TILES", "MSAMPLES/S", "LAST SEEN");
         const cJSON *w;
         cJSON_ArrayForEach(w, cJSON_GetObjectItemCaseSensitive(ws, "workers")) {
-            char seen[80], name[300], address[300]; /* peers' text, escaped (log.h) */
+            char seen[160], name[300], address[300]; /* peers' text, escaped (log.h) */
             snprintf(seen, sizeof seen, "%.1fs ago%s", num(w, "last_seen_s"),
                      cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(w, "stalled")) ? " (stalled)" : "");
             if (num(w, "quarantined") > 0) /* its tiles failed an audit (--audit) */
                 snprintf(seen + strlen(seen), sizeof seen - strlen(seen), " QUARANTINED in %d jobs",
                          (int)num(w, "quarantined"));
+            if (num(w, "blocklisted") > 0) /* it failed too often on a running job (farm_block.c) */
+                snprintf(seen + strlen(seen), sizeof seen - strlen(seen), " BLOCKLISTED in %d jobs (retry in %.0fs)",
+                         (int)num(w, "blocklisted"), num(w, "retry_s"));
             log_escape(str(w, "name"), name, sizeof name);
             log_escape(str(w, "address"), address, sizeof address);
             printf("%-20s %-22s %7d %7d %10.3f %10s\n", name, address, (int)num(w, "threads"),

@@ -43,6 +43,7 @@ typedef struct {
     const char *out_path;
     scene_overrides ov;
     int threads, threads_given, workers, tile_size, verbose, progress, jpeg_quality, png16;
+    int audit_given; /* --audit was on the command line (else the farm's default) */
     int aov_samples; /* --aov samples: also write the per-pixel sample counts */
     int quiet;       /* -q: errors and the summary line only */
     int interrupted; /* the signal that stopped a farm render, or 0 */
@@ -98,9 +99,13 @@ static void usage_render(FILE *f) {
             "      --lease S          longest a worker may hold one tile (default 300)\n"
             "      --token-file F     workers must prove they know this secret (local ones get it)\n"
             "      --insecure         allow --listen beyond loopback without a token (frames in clear)\n"
-            "      --audit FRACTION   render this fraction of tiles (0 to 1, chosen at random) on\n"
-            "                         two workers and compare the bytes (needs 2 workers, 3 to\n"
-            "                         settle a mismatch); a worker that differs is quarantined\n"
+            "      --audit FRACTION   render this fraction of tiles (0 to 1, chosen at random;\n"
+            "                         default 0.02, 0: off) on two workers and compare the bytes\n"
+            "                         (needs 2 workers, 3 to settle a mismatch); a worker that\n"
+            "                         differs is quarantined for the job (docs/audit.md)\n"
+            "      --blocklist-retry S  a worker that fails, crashes or times out 3 times on a\n"
+            "                         job gets none of its tiles for S s (default 60, doubled\n"
+            "                         each time it is blocklisted again)\n"
             "      --tile-size N      tile side in pixels (default 32)\n"
             "      --passes N         render each tile's samples in N sequential passes\n"
             "                         (the image is bit-identical for every N)\n"
@@ -218,8 +223,13 @@ static void render_args_check(render_args *a) {
     if (a->listen && !a->token_file && !a->insecure && !address_is_loopback(a->listen_host))
         args_usage_error("tessera render", "--listen %s without --token-file: links would be in clear beyond "
                          "this machine; add --token-file F, or --insecure on a network you trust", a->listen);
-    if (a->farm.audit > 0 && !a->listen && a->workers < 2)
-        args_usage_error("tessera render", "--audit needs two workers or more (--workers N or --listen)");
+    if (a->farm.audit > 0 && !a->listen && a->workers < 2) { /* nothing to compare a tile with */
+        if (a->audit_given || a->verbose)
+            fprintf(stderr, "tessera render: no audit: %s (--audit needs two workers or more)\n",
+                    a->workers ? "one worker leaves no second one to render a tile again"
+                               : "--workers 0 renders in this process");
+        a->farm.audit = 0;
+    }
     render_args_check_output(a);
     if (a->farm.drop_s < 6 * a->farm.timeout_s) a->farm.drop_s = 6 * a->farm.timeout_s;
     if (a->tile_size > a->farm.max_tile_side) a->farm.max_tile_side = a->tile_size;
@@ -245,7 +255,8 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         {.name = "http", .kind = ARG_STRING, .dest = &a->http},
         {.name = "token-file", .kind = ARG_STRING, .dest = &a->token_file},
         {.name = "camera", .kind = ARG_STRING, .dest = &a->camera},
-        {.name = "audit", .kind = ARG_DOUBLE, .dest = &a->farm.audit, .lo = 0, .hi = 1},
+        {.name = "audit", .kind = ARG_DOUBLE, .dest = &a->farm.audit, .lo = 0, .hi = 1, .given = &a->audit_given},
+        {.name = "blocklist-retry", .kind = ARG_DOUBLE, .dest = &a->farm.blocklist_s, .lo = 0.1, .hi = 1e7},
         {.name = "insecure", .kind = ARG_FLAG, .dest = &a->insecure},
         {.name = "heartbeat", .kind = ARG_DOUBLE, .dest = &a->farm.heartbeat_s, .lo = 0.01, .hi = 3600},
         {.name = "worker-timeout", .kind = ARG_DOUBLE, .dest = &a->farm.timeout_s, .lo = 0.05, .hi = 86400},
@@ -633,7 +644,8 @@ static void usage_coordinator(FILE *f) {
             "                           (SIGHUP re-reads every token file; docs/security.md)\n"
             "      --worker-drop S      disconnect a worker silent (or trickling a frame) for S s\n"
             "                           (default 30, or 6 x --worker-timeout if longer)\n"
-            "      --heartbeat S, --worker-timeout S, --lease S, --audit FRACTION, --insecure\n"
+            "      --heartbeat S, --worker-timeout S, --lease S, --audit FRACTION (default 0.02),\n"
+            "      --blocklist-retry S, --insecure\n"
             "                           as for tessera render\n"
             "      --http ADDR:PORT     serve the web dashboard and /metrics there (loopback unless\n"
             "                           a token is set or --insecure); --http-read-only: no cancel\n"
@@ -684,6 +696,7 @@ static int cmd_coordinator(int argc, char **argv) {
         {.name = "client-token-file", .kind = ARG_STRING, .dest = &client_token},
         {.name = "admin-token-file", .kind = ARG_STRING, .dest = &admin_token},
         {.name = "audit", .kind = ARG_DOUBLE, .dest = &o.farm.audit, .lo = 0, .hi = 1},
+        {.name = "blocklist-retry", .kind = ARG_DOUBLE, .dest = &o.farm.blocklist_s, .lo = 0.1, .hi = 1e7},
         {.name = "insecure", .kind = ARG_FLAG, .dest = &insecure},
         {.name = "verbose", .short_name = 'v', .kind = ARG_FLAG, .dest = &o.farm.verbose},
         {.name = "version", .kind = ARG_FLAG, .dest = &version},

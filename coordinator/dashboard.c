@@ -230,6 +230,9 @@ static void route_workers(dashboard *d, http_conn *c) {
         cJSON_AddNumberToObject(o, "connected_s", w[i].connected_s);
         cJSON_AddNumberToObject(o, "silent_s", w[i].silent_s);
         cJSON_AddNumberToObject(o, "failures", w[i].failures);
+        cJSON_AddNumberToObject(o, "quarantined", w[i].quarantined); /* jobs whose audit it failed */
+        cJSON_AddNumberToObject(o, "blocklisted", w[i].blocklisted); /* running jobs it may not take now */
+        cJSON_AddNumberToObject(o, "retry_s", w[i].retry_s);
         cJSON_AddNumberToObject(o, "msamples_per_s",
                                 w[i].connected_s > 0 ? (double)w[i].samples / w[i].connected_s / 1e6 : 0);
         cJSON_AddItemToArray(arr, o);

@@ -17,6 +17,8 @@ void farm_options_default(farm_options *o) {
     o->drop_s = 30.0;
     o->lease_s = 300.0;
     o->max_tile_side = 256;
+    o->audit = FARM_AUDIT_DEFAULT;
+    o->blocklist_s = FARM_BLOCKLIST_DEFAULT;
 }
 
 farm *farm_new(uv_loop_t *loop, const farm_options *o, char *err, size_t err_len) {

@@ -52,10 +52,15 @@ typedef struct {
      * hello with an "error" naming the cap; 0 fields: no cap. */
     connlimit_caps limits;
     double hello_timeout_s; /* a connection without a hello this long is closed (0: 10 s) */
+    double blocklist_s; /* a worker that keeps failing on a job waits this long before it may retry (farm_block.c) */
 } farm_options;
 
+#define FARM_AUDIT_DEFAULT 0.02    /* --audit: 2% of the tiles are checked unless told otherwise */
+#define FARM_BLOCKLIST_DEFAULT 60.0 /* --blocklist-retry, seconds */
+
 /* Fill o with the defaults (heartbeat 1 s, timeout 5 s, drop 30 s, lease
- * 300 s, tiles up to 256 px, 127.0.0.1 port 0). Can't fail. */
+ * 300 s, tiles up to 256 px, 127.0.0.1 port 0, audit FARM_AUDIT_DEFAULT,
+ * blocklist wait FARM_BLOCKLIST_DEFAULT). Can't fail. */
 void farm_options_default(farm_options *o);
 
 /* Listen on o->host:o->port. Returns the farm, or NULL with the reason in
@@ -77,6 +82,7 @@ typedef struct {
     uint64_t audited;          /* tiles two workers agreed on (--audit) */
     uint64_t audit_mismatches; /* audited tiles on which two workers disagreed */
     int quarantined;           /* workers quarantined for this job */
+    int blocklisted;           /* times a worker was blocklisted for this job */
     int failed;             /* the job cannot finish (error says why) */
     int cancelled;          /* farm_cancel ended it */
     char error[512];
@@ -151,6 +157,8 @@ typedef struct {
     double connected_s, silent_s; /* since it joined; since it last spoke */
     int quarantined;              /* jobs it was quarantined in: its tiles failed an audit */
     int failures;                 /* tiles it reported as failed */
+    int blocklisted;              /* running jobs it is blocklisted in now (it failed too often) */
+    double retry_s;               /* ...and when it may try the first of them again */
 } farm_worker_info;
 
 /* Fill out with up to max connected workers; returns how many there are.

@@ -22,7 +22,24 @@
  *   recheck[t] - a quarantined worker's pixels for a tile it alone had
  *                delivered, until the tile is rendered again.
  * A pending tile is never in the job's queue: audit_pick hands it to a
- * worker that has not rendered it yet (job_enqueue leaves it out). */
+ * worker that has not rendered it yet (job_enqueue leaves it out).
+ *
+ * Nobody to compare with (audit_settle, on every tick): when no connected
+ * worker in good standing may render a pending tile again (a farm of one
+ * worker, the others gone, stalled, quarantined or blocklisted), its single
+ * result is accepted unchecked (logged for the first such tile of a job,
+ * counted in the workers table) once it has waited the worker timeout
+ * (opt.timeout_s: time for the other workers of a farm that is starting to
+ * join), or at once when nothing else of the job is left. So a one-worker
+ * farm counts and journals its tiles a few seconds late, not at the end.
+ * The same when the audit copy is running far longer than the job's tiles
+ * do and no third worker could back it up (a stuck verifier would
+ * otherwise hold the tile until its lease ends): the held result is
+ * accepted and the copy cancelled. A verifier can thus only get the other
+ * worker's result accepted unchecked, never its own.
+ * Two results that disagree with no third worker to decide fail the job
+ * once nothing else of it is left, with a message saying so. Waiting for a
+ * worker that may never come would hang the render. */
 #include <sodium.h>
 
 #include "farm_internal.h"
@@ -34,7 +51,11 @@
 typedef struct {
     uint32_t serial; /* the worker's peer_record.serial */
     char who[200];   /* its label at the time */
+    char name[64];   /* its name, for the event if the tile is settled unchecked */
     float *px;
+    trace_stats stats; /* as it reported them */
+    double took;       /* seconds from assignment to result */
+    double arrived;    /* farm_now() when it came in */
 } audit_result;
 
 typedef struct {
@@ -51,6 +72,7 @@ struct job_audit {
     char (*recheck_who)[200];
     uint32_t *barred;
     int barred_count;
+    int unchecked; /* results accepted with nobody to compare them with */
 };
 
 static uint64_t splitmix64(uint64_t x) {
@@ -226,14 +248,16 @@ static void audit_quarantine(farm *f, job *j, uint32_t serial, const char *who) 
 }
 
 /* A result for tile t of job j from p, after the farm's checks (px: its
- * decoded values; the caller keeps ownership unless told). Returns:
+ * decoded values; the caller keeps ownership unless told; stats and took:
+ * what p reported and how long it took, kept with a held result). Returns:
  *   AUDIT_ACCEPT - stitch *px (possibly swapped for the agreed bytes; the
  *                  old buffer freed) and count the tile; *verified says
  *                  whether two workers agreed on it;
  *   AUDIT_HOLD   - kept for comparison (*px taken: set to NULL);
  *   AUDIT_DROP   - ignore it (a quarantined worker's, or a repeat);
  *   AUDIT_FAILED - the job failed (no two of AUDIT_MAX_RESULTS agreed). */
-int audit_on_result(farm *f, job *j, peer *p, uint32_t t, float **px, int *verified) {
+int audit_on_result(farm *f, job *j, peer *p, uint32_t t, float **px, const trace_stats *stats, double took,
+                    int *verified) {
     job_audit *a = j->audit;
     *verified = 0;
     if (!a) return AUDIT_ACCEPT;
@@ -261,6 +285,10 @@ int audit_on_result(farm *f, job *j, peer *p, uint32_t t, float **px, int *verif
     audit_result *r = &at->r[at->count++];
     r->serial = p->rec.serial;
     snprintf(r->who, sizeof r->who, "%s", p->label);
+    snprintf(r->name, sizeof r->name, "%s", p->rec.name);
+    r->stats = *stats;
+    r->took = took;
+    r->arrived = farm_now(f);
     r->px = *px;
     *px = NULL;
     /* Two results from workers in good standing that agree decide. */
@@ -308,4 +336,97 @@ int audit_on_result(farm *f, job *j, peer *p, uint32_t t, float **px, int *verif
     f->audited++;
     *verified = 1;
     return j->finished ? AUDIT_FAILED : AUDIT_ACCEPT;
+}
+
+/* Whether a connected worker in good standing could render tile t again. */
+static int audit_someone_may_take(const farm *f, job *j, uint32_t t) {
+    const peer *p;
+    LIST_FOREACH(p, &f->peers, link)
+        if (p->state == PEER_ACTIVE && !conn_is_closing(p->c) && !block_is_blocked(f, j, p) &&
+            audit_may_take(j, p->rec.serial, t))
+            return 1;
+    return 0;
+}
+
+/* Pending tile t's audit copy is running far longer than the job's tiles
+ * do (the backup criterion of farm_sched.c: BACKUP_AGE_FACTOR times the
+ * mean, at least BACKUP_MIN_AGE_S), and no connected worker in good
+ * standing that does not hold it may render it: a stuck or very slow
+ * verifier in a farm with no third worker to back it up. */
+static int audit_copy_stalled(const farm *f, job *j, uint32_t t) {
+    if (!j->holders[t] || j->rep.tiles_done == 0) return 0;
+    double age = BACKUP_AGE_FACTOR * j->tile_seconds / j->rep.tiles_done;
+    if (age < BACKUP_MIN_AGE_S) age = BACKUP_MIN_AGE_S;
+    if (farm_now(f) - j->first_start[t] <= age) return 0;
+    peer *p;
+    LIST_FOREACH(p, &f->peers, link) {
+        lease *l = peer_find_lease(p, j->desc.id, t);
+        if (p->state == PEER_ACTIVE && !conn_is_closing(p->c) && !(l && l->live) && !block_is_blocked(f, j, p) &&
+            audit_may_take(j, p->rec.serial, t))
+            return 0;
+    }
+    return 1;
+}
+
+/* The results of pending tile t from workers not quarantined: how many,
+ * and the first two (NULL when fewer). */
+static int audit_live_results(const job *j, const audit_tile *at, const audit_result **r0, const audit_result **r1) {
+    int live = 0;
+    *r0 = *r1 = NULL;
+    for (int i = 0; i < at->count; i++) {
+        if (audit_is_barred(j, at->r[i].serial)) continue;
+        if (live == 0) *r0 = &at->r[i];
+        else if (live == 1) *r1 = &at->r[i];
+        live++;
+    }
+    return live;
+}
+
+/* Whether everything of j but its pending tiles is done, and none of those
+ * is running or could be rendered again by a connected worker. */
+static int audit_stuck(const farm *f, job *j) {
+    if (j->q_len > 0) return 0;
+    for (int t = 0; t < j->tile_count; t++)
+        if (!j->done[t] && (!j->audit->pending[t] || j->holders[t] || audit_someone_may_take(f, j, (uint32_t)t)))
+            return 0;
+    return 1;
+}
+
+/* Accept the one result of pending tile t unchecked (see the top of this
+ * file). Returns 0, or -1 when the job ended (and may have been freed). */
+static int audit_take_unchecked(farm *f, job *j, uint32_t t, const audit_result *r) {
+    job_audit *a = j->audit;
+    audit_tile *at = a->pending[t];
+    uint32_t id = j->desc.id;
+    if (!a->unchecked++)
+        farm_log(f, "job %u: no other worker is connected to render audited tile %u again (the audit needs two "
+                 "workers or more); accepted unchecked, as are any more such tiles of this job", id, t);
+    f->audit_unchecked++;
+    a->pending[t] = NULL;
+    farm_tile_land(f, j, farm_find_serial(f, r->serial), r->name, r->serial, t, r->px, r->took, &r->stats, 0);
+    tile_free(at);
+    j = farm_find_job(f, id); /* landing the last tile may end the job, and its owner forget it */
+    return j && !j->finished ? 0 : -1;
+}
+
+void audit_settle(farm *f, job *j) {
+    if (!j->audit || j->finished) return;
+    int stuck = -1; /* not yet known */
+    for (int t = 0; t < j->tile_count; t++) {
+        audit_tile *at = j->audit->pending[t];
+        const audit_result *r0, *r1;
+        if (!at || j->done[t]) continue;
+        if (j->holders[t] ? !audit_copy_stalled(f, j, (uint32_t)t) : audit_someone_may_take(f, j, (uint32_t)t))
+            continue;
+        int live = audit_live_results(j, at, &r0, &r1);
+        if (live == 0) continue; /* only quarantined workers' results: someone must render it */
+        if (stuck < 0) stuck = audit_stuck(f, j);
+        if (live == 1 && (stuck || farm_now(f) - r0->arrived >= f->opt.timeout_s)) {
+            if (audit_take_unchecked(f, j, (uint32_t)t, r0)) return;
+        } else if (live >= 2 && stuck) {
+            farm_job_fail(f, j, "tile %d: %s and %s returned different pixels and no third worker is connected to "
+                          "decide (the audit needs three workers to settle a mismatch)", t, r0->who, r1->who);
+            return;
+        }
+    }
 }

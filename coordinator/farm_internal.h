@@ -3,7 +3,9 @@
  *   farm.c        - the farm itself: create, listen, close, log;
  *   farm_peers.c  - connections, the handshake, control messages, heartbeats;
  *   farm_sched.c  - jobs, the tile queue, leases, assignment and backups;
- *   farm_tiles.c  - results: checked, stitched into the film, copies cancelled.
+ *   farm_tiles.c  - results: checked, stitched into the film, copies cancelled;
+ *   farm_audit.c  - audited tiles (--audit): compared, quarantine;
+ *   farm_block.c  - the per-job blocklist of workers that keep failing.
  *
  * State, all owned by the loop thread:
  *   job   - a render: its tiles, for each tile whether it is done, how many
@@ -40,7 +42,7 @@
 
 #define MAX_TILE_FAILURES 3   /* a tile that fails this often fails its job */
 
-#define MAX_PEER_FAILURES 3   /* a worker that fails this often gets no more work */
+#define MAX_PEER_FAILURES 3   /* a worker that fails this often in a job is blocklisted for it (farm_block.c) */
 
 #define BACKUP_AGE_FACTOR 1.5 /* back up tiles running this many times the mean */
 
@@ -51,6 +53,14 @@ typedef struct job job;
 typedef struct job_audit job_audit; /* farm_audit.c */
 
 typedef struct peer peer;
+
+typedef struct {
+    char key[136];  /* "name@host": the same worker after it reconnects */
+    int failures;   /* in this job, towards MAX_PEER_FAILURES */
+    int strikes;    /* times blocklisted: each doubles the wait */
+    double until;   /* farm_now() before which it gets none of the job's tiles (0: never blocklisted) */
+    int announced;  /* the end of its wait has been logged */
+} block_entry;
 
 typedef struct lease {
     job *job;
@@ -85,6 +95,8 @@ struct job {
     int finished;
     farm *owner;           /* for farm_emit */
     job_audit *audit;    /* farm_audit.c; NULL: no tile is audited */
+    block_entry *blocks; /* farm_block.c: workers that failed on this job */
+    int block_count;
     TAILQ_ENTRY(job) link; /* on the farm's jobs, by priority then age */
 };
 
@@ -105,9 +117,8 @@ struct peer {
     farm *f;
     conn *c;
     int state;
-    int blocked; /* failed too often: no more work */
     int credits;
-    int failures;
+    int failures; /* tiles it reported failed, over this connection (the blocklist counts per job) */
     double joined, last_heard, last_sent;
     LIST_HEAD(lease_list, lease) leases;
     char (*scenes)[SCENE_BUNDLE_HASH_HEX];
@@ -136,6 +147,8 @@ struct farm {
     uint32_t next_serial;
     uint64_t next_job_seq; /* job.seq of the last submission */
     uint64_t audited, audit_mismatches, quarantined; /* over all jobs, for the workers table */
+    uint64_t audit_unchecked;                        /* audited tiles nobody could check (farm_audit.c) */
+    uint64_t blocklisted;                            /* blocklistings over all jobs (farm_block.c) */
     int closing, open_handles;
     void (*closed_cb)(void *);
     void *closed_ctx;
@@ -229,6 +242,40 @@ int audit_pick(const job *j, const peer *p, uint32_t *out);
 void audit_accepted(job *j, uint32_t t, uint32_t serial, int verified);
 
 /* See farm_audit.c. */
-int audit_on_result(farm *f, job *j, peer *p, uint32_t t, float **px, int *verified);
+int audit_on_result(farm *f, job *j, peer *p, uint32_t t, float **px, const trace_stats *stats, double took,
+                    int *verified);
+
+/* Accept the pending results no connected worker can check, or fail the
+ * job on a mismatch nobody can settle (see farm_audit.c); called on every
+ * tick. May end the job, and its owner free it. */
+void audit_settle(farm *f, job *j);
+
+/* ---- the per-job blocklist (farm_block.c) ------------------------------------- */
+
+/* p is blocklisted for j now (an expired wait is logged once). */
+int block_is_blocked(const farm *f, job *j, const peer *p);
+
+/* Seconds until p may take j's tiles again (0: it may now). */
+double block_remaining(const farm *f, const job *j, const peer *p);
+
+/* Count one failure of p on j (what happened, printf-style, for the log);
+ * the MAX_PEER_FAILURES-th blocklists p for the job. Ignored once the job
+ * has ended or the farm is closing. */
+void block_note_failure(farm *f, job *j, peer *p, const char *fmt, ...) __attribute__((format(printf, 4, 5)));
+
+/* p loses its live leases (why: "left (reason)", "silent for 5.2 s"): one
+ * failure for each job it held tiles of. Call before releasing them. */
+void block_note_lost_leases(farm *f, peer *p, const char *why);
+
+/* The unfinished jobs p is blocklisted in now, and the soonest it may
+ * retry one of them (seconds). */
+void block_list_peer(const farm *f, const peer *p, int *jobs, double *retry_s);
+
+/* A tile result accepted by the audit (or not audited): into the film,
+ * counted, its other copies cancelled, the job finished if it was the last.
+ * from: the peer that sent it, or NULL when it has left (serial and name
+ * then say who). px stays the caller's. */
+void farm_tile_land(farm *f, job *j, peer *from, const char *name, uint32_t serial, uint32_t t, const float *px,
+                    double took, const trace_stats *stats, int verified);
 
 #endif

@@ -251,10 +251,8 @@ static int on_give_back(peer *p, const cJSON *m, int failed) {
         const cJSON *r = cJSON_GetObjectItemCaseSensitive(m, "reason");
         const char *why = cJSON_IsString(r) ? r->valuestring : "no reason given";
         farm_log(f, "%s: tile %u of job %u failed: %.300s", p->label, tile, job_id, why);
-        if (++p->failures >= MAX_PEER_FAILURES && !p->blocked) {
-            p->blocked = 1;
-            farm_log(f, "%s failed %d tiles; it gets no more work", p->label, p->failures);
-        }
+        p->failures++;
+        block_note_failure(f, j, p, "tile %u failed: %.200s", tile, why);
         if (!j->finished && ++j->failures[tile] >= MAX_TILE_FAILURES) {
             farm_lease_release(l);
             free(l);
@@ -341,6 +339,11 @@ static void on_conn_close(conn *c, const char *reason) {
     peer *p = conn_data(c);
     farm *f = p->f;
     int requeued = 0;
+    if (p->state != PEER_HELLO && strcmp(reason, "worker left") != 0) { /* not a bye: a crash, a kill, a fault */
+        char why[200];
+        snprintf(why, sizeof why, "left (%.150s)", reason);
+        block_note_lost_leases(f, p, why);
+    }
     while (!LIST_EMPTY(&p->leases)) {
         lease *l = LIST_FIRST(&p->leases);
         LIST_REMOVE(l, link);
@@ -411,6 +414,9 @@ void farm_on_connection(uv_stream_t *server, int status) {
 
 static void peer_stall(peer *p, double silent) {
     p->state = PEER_STALLED;
+    char why[64];
+    snprintf(why, sizeof why, "silent for %.1f s", silent);
+    block_note_lost_leases(p->f, p, why);
     int n = 0;
     lease *l;
     LIST_FOREACH(l, &p->leases, link) {
@@ -442,6 +448,7 @@ static void peer_check(peer *p, double now) {
         if (l->live && now - l->start > f->opt.lease_s) {
             farm_log(f, "%s held tile %u of job %u for %.0f s, past its lease; it goes back to the queue", p->label,
                      l->tile, l->job->desc.id, now - l->start);
+            block_note_failure(f, l->job, p, "held tile %u for %.0f s, past its lease", l->tile, now - l->start);
             farm_lease_release(l);
         }
     if (now - p->last_sent >= f->opt.heartbeat_s) {
@@ -458,7 +465,8 @@ void farm_on_tick(uv_timer_t *t) {
     LIST_FOREACH_SAFE(p, &f->peers, link, next) /* p may be closed (but is freed only later) */
         if (!conn_is_closing(p->c)) peer_check(p, now);
     farm_schedule_all(f);
-    job *j;
+    job *j, *jn;
+    TAILQ_FOREACH_SAFE(j, &f->jobs, link, jn) audit_settle(f, j); /* may end (and free) j */
     TAILQ_FOREACH(j, &f->jobs, link)
         if (!j->finished && j->cb && j->reported != j->rep.tiles_done) {
             farm_report r;
@@ -487,16 +495,23 @@ int farm_list_workers(const farm *f, farm_worker_info *out, int max) {
             w->silent_s = now - p->last_heard;
             w->quarantined = p->rec.quarantined;
             w->failures = p->failures;
+            block_list_peer(f, p, &w->blocklisted, &w->retry_s);
         }
         n++;
     }
     return n;
 }
 
-static void print_record(FILE *out, const peer_record *r, const char *state, uint64_t in, uint64_t out_b) {
-    char q[48] = "";
+/* One line of farm_print_workers; blocked: the running jobs it is
+ * blocklisted in, retry_s: when it may try the first again. */
+static void print_record(FILE *out, const peer_record *r, const char *state, uint64_t in, uint64_t out_b, int blocked,
+                         double retry_s) {
+    char q[128] = "";
     if (r->quarantined)
         snprintf(q, sizeof q, "  QUARANTINED in %d job%s", r->quarantined, r->quarantined > 1 ? "s" : "");
+    if (blocked)
+        snprintf(q + strlen(q), sizeof q - strlen(q), "  BLOCKLISTED in %d job%s (retry in %.0f s)", blocked,
+                 blocked > 1 ? "s" : "", retry_s);
     fprintf(out, "  %-20s %-22s %3d threads %6llu tiles %8.2f Msamples  in %8.1f KiB  out %8.1f KiB  %s%s\n",
             r->name, r->addr, r->threads, (unsigned long long)r->tiles, (double)r->samples / 1e6,
             (double)in / 1024.0, (double)out_b / 1024.0, state, q);
@@ -505,20 +520,28 @@ static void print_record(FILE *out, const peer_record *r, const char *state, uin
 void farm_print_workers(const farm *f, FILE *out) {
     peer *p;
     LIST_FOREACH(p, &f->peers, link)
-        if (p->state != PEER_HELLO)
+        if (p->state != PEER_HELLO) {
+            int blocked;
+            double retry_s;
+            block_list_peer(f, p, &blocked, &retry_s);
             print_record(out, &p->rec, p->state == PEER_STALLED ? "stalled" : "connected", conn_bytes_in(p->c),
-                         conn_bytes_out(p->c));
+                         conn_bytes_out(p->c), blocked, retry_s);
+        }
     if (f->departed_dropped)
         fprintf(out, "(%llu earlier departures not listed; the last %d follow)\n",
                 (unsigned long long)f->departed_dropped, FARM_DEPARTED_MAX);
     for (int i = 0; i < f->departed_count; i++) {
         char state[160];
         snprintf(state, sizeof state, "left: %s", f->departed[i].why);
-        print_record(out, &f->departed[i], state, f->departed[i].bytes_in, f->departed[i].bytes_out);
+        print_record(out, &f->departed[i], state, f->departed[i].bytes_in, f->departed[i].bytes_out, 0, 0);
     }
     if (f->opt.audit > 0)
         fprintf(out,
-                "  audit (%g of tiles): %llu tiles checked by two workers, %llu mismatches, %llu workers quarantined\n",
+                "  audit (%g of tiles): %llu tiles checked by two workers, %llu mismatches, %llu workers quarantined, "
+                "%llu accepted unchecked (no second worker)\n",
                 f->opt.audit, (unsigned long long)f->audited, (unsigned long long)f->audit_mismatches,
-                (unsigned long long)f->quarantined);
+                (unsigned long long)f->quarantined, (unsigned long long)f->audit_unchecked);
+    if (f->blocklisted)
+        fprintf(out, "  blocklist: %llu times a worker was blocklisted for a job (failed, crashed or timed out %d "
+                "times)\n", (unsigned long long)f->blocklisted, MAX_PEER_FAILURES);
 }

@@ -49,6 +49,7 @@ job *farm_find_job(const farm *f, uint32_t id) {
 
 void farm_job_free(job *j) {
     audit_free(j);
+    free(j->blocks);
     conn_blob_unref(j->scene);
     free(j->rects);
     free(j->done);
@@ -68,7 +69,7 @@ void farm_report_fill(const farm *f, const job *j, farm_report *r) {
     r->bytes_out = f->closed_bytes_out;
     peer *p;
     LIST_FOREACH(p, &f->peers, link) {
-        if (p->state == PEER_ACTIVE && !p->blocked) r->workers++;
+        if (p->state == PEER_ACTIVE) r->workers++;
         r->bytes_in += conn_bytes_in(p->c);
         r->bytes_out += conn_bytes_out(p->c);
     }
@@ -189,11 +190,11 @@ static int peer_assign(peer *p, job *j, uint32_t t, int backup) {
 /* Use p's credits on queued tiles, then on backups. */
 void peer_schedule(peer *p) {
     farm *f = p->f;
-    if (p->state != PEER_ACTIVE || p->blocked || conn_is_closing(p->c)) return;
+    if (p->state != PEER_ACTIVE || conn_is_closing(p->c)) return;
     job *j;
     TAILQ_FOREACH(j, &f->jobs, link) {
         if (p->credits <= 0) break;
-        if (audit_is_barred(j, p->rec.serial)) continue;
+        if (j->finished || audit_is_barred(j, p->rec.serial) || block_is_blocked(f, j, p)) continue;
         uint32_t t;
         while (!j->finished && p->credits > 0 && audit_pick(j, p, &t)) /* audit copies first */
             if (peer_assign(p, j, t, 0)) return;

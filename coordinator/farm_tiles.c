@@ -64,7 +64,7 @@ int farm_on_tile(peer *p, const uint8_t *body, size_t len) {
         if (f->opt.verbose) farm_log(f, "%s: tile %u of job %u was already done; dropped", p->label, h.tile, h.job);
         return 0;
     }
-    int verified = 0, verdict = audit_on_result(f, j, p, h.tile, &px, &verified);
+    int verified = 0, verdict = audit_on_result(f, j, p, h.tile, &px, &h.stats, took, &verified);
     if (verdict != AUDIT_ACCEPT) { /* held for comparison, dropped, or the job failed */
         free(px);
         if (verdict == AUDIT_HOLD) farm_schedule_all(f); /* someone else renders it again */
@@ -72,25 +72,33 @@ int farm_on_tile(peer *p, const uint8_t *body, size_t len) {
     }
     if (!was_live && f->opt.verbose)
         farm_log(f, "%s: late result for tile %u of job %u used (nobody had finished it)", p->label, h.tile, h.job);
-    film_put_tile(&j->film, r, px);
+    farm_tile_land(f, j, p, p->rec.name, p->rec.serial, h.tile, px, took, &h.stats, verified);
     free(px);
-    int rc = j->on_tile ? j->on_tile(j->ctx, h.tile, &j->rects[h.tile], err, sizeof err) : 0;
+    return 0;
+}
+
+void farm_tile_land(farm *f, job *j, peer *from, const char *name, uint32_t serial, uint32_t t, const float *px,
+                    double took, const trace_stats *stats, int verified) {
+    char err[256];
+    film_put_tile(&j->film, &j->rects[t], px);
+    int rc = j->on_tile ? j->on_tile(j->ctx, t, &j->rects[t], err, sizeof err) : 0;
     if (rc < 0) {
         farm_job_fail(f, j, "%s", err);
-        return 0;
+        return;
     }
     int pending = rc == FARM_TILE_PENDING;
-    j->done[h.tile] = pending ? 2 : 1; /* 2: landed, counted once durable (farm_tile_durable) */
-    audit_accepted(j, h.tile, p->rec.serial, verified);
+    j->done[t] = pending ? 2 : 1; /* 2: landed, counted once durable (farm_tile_durable) */
+    audit_accepted(j, t, serial, verified);
     j->rep.tiles_done += !pending;
     j->tile_seconds += took;
-    trace_stats_add(&j->rep.stats, &h.stats);
-    p->rec.tiles++;
-    p->rec.samples += h.stats.samples;
-    farm_emit(f, FARM_EV_DONE, j, h.tile, p->rec.name, took, h.stats.samples, 0);
-    if (j->holders[h.tile]) job_cancel_copies(f, j, h.tile, p);
+    trace_stats_add(&j->rep.stats, stats);
+    if (from) {
+        from->rec.tiles++;
+        from->rec.samples += stats->samples;
+    }
+    farm_emit(f, FARM_EV_DONE, j, t, name, took, stats->samples, 0);
+    if (j->holders[t]) job_cancel_copies(f, j, t, from);
     if (!pending && j->rep.tiles_done == j->tile_count) farm_job_finish(f, j);
-    return 0;
 }
 
 void farm_tile_durable(farm *f, uint32_t job_id, uint32_t tile, const char *error) {

@@ -298,6 +298,8 @@ static void on_workers(client *cl) {
         cJSON_AddNumberToObject(o, "last_seen_s", wi[i].silent_s);
         cJSON_AddBoolToObject(o, "stalled", wi[i].stalled);
         cJSON_AddNumberToObject(o, "quarantined", wi[i].quarantined); /* jobs whose audit it failed */
+        cJSON_AddNumberToObject(o, "blocklisted", wi[i].blocklisted); /* running jobs it may not take now */
+        cJSON_AddNumberToObject(o, "retry_s", wi[i].retry_s);
         cJSON_AddItemToArray(arr, o);
     }
     free(wi);

@@ -41,7 +41,7 @@ struct pool {
     int throttle_ms;
     const char *hold_path; /* test hook, see test_hold(); NULL unless set */
     long hold_after, hold_seen;
-    int fault_kind;       /* test hook, see test_fault(): 0 none, 1 scale, 2 flipbit */
+    int fault_kind;       /* test hook, see test_fault(): 0 none, 1 scale, 2 flipbit, 3 crash, 4 fail */
     double fault_scale;   /* scale: multiply every value by this */
     long fault_every, fault_seen; /* flipbit: one tile in fault_every, counting from the first */
     void (*wake)(void *);
@@ -125,6 +125,9 @@ static void test_hold(pool *p, pool_task *t) {
  *   flipbit:N  the lowest bit of one value is flipped in this process's 1st,
  *              (N+1)th, (2N+1)th... tile.
  * The values stay finite and non-negative, so only a comparison finds them.
+ * And for the blocklist tests (farm_block.c), test_fault_early:
+ *   crash      the process exits (status 70) as soon as it starts a tile;
+ *   fail       every tile is reported failed.
  * Called on a render thread with the tile's n values. */
 static void test_fault(pool *p, const pool_task *t, float *v, size_t n) {
     if (p->fault_kind == 1) {
@@ -142,6 +145,20 @@ static void test_fault(pool *p, const pool_task *t, float *v, size_t n) {
     memcpy(&v[i], &bits, sizeof bits);
 }
 
+/* The crash and fail faults (see test_fault), before tile t is rendered:
+ * 1 when t is failed on purpose, else 0. Called on a render thread. */
+static int test_fault_early(const pool *p, pool_task *t) {
+    if (p->fault_kind == 3) {
+        fprintf(stderr, "tessera-worker: test fault crash: exiting on tile %u of job %u\n", t->assign.tile,
+                t->assign.job);
+        _exit(70);
+    }
+    if (p->fault_kind != 4) return 0;
+    t->status = TASK_FAILED;
+    snprintf(t->error, sizeof t->error, "test fault: tile %u failed on purpose", t->assign.tile);
+    return 1;
+}
+
 /* Parse $TESSERA_TEST_FAULT into p (see test_fault); unset or malformed:
  * no fault (a malformed value is reported on stderr). */
 static void test_fault_init(pool *p) {
@@ -155,17 +172,22 @@ static void test_fault_init(pool *p) {
     } else if (sscanf(s, "flipbit:%ld", &every) == 1 && every >= 1) {
         p->fault_kind = 2;
         p->fault_every = every;
+    } else if (strcmp(s, "crash") == 0 || strcmp(s, "fail") == 0) {
+        p->fault_kind = s[0] == 'c' ? 3 : 4;
     } else {
-        fprintf(stderr, "tessera-worker: TESSERA_TEST_FAULT=%s not understood (scale:S or flipbit:N); ignored\n", s);
+        fprintf(stderr, "tessera-worker: TESSERA_TEST_FAULT=%s not understood (scale:S, flipbit:N, crash or fail); "
+                "ignored\n", s);
         return;
     }
-    fprintf(stderr, "tessera-worker: test fault %s: this worker returns wrong tiles on purpose\n", s);
+    fprintf(stderr, "tessera-worker: test fault %s: this worker %s on purpose\n", s,
+            p->fault_kind == 3 ? "crashes" : p->fault_kind == 4 ? "fails its tiles" : "returns wrong tiles");
 }
 
 /* Render one task, setting its status and frame or error. */
 static void task_render(pool *p, pool_task *t) {
     pool_job *j = t->job;
     const proto_assign *a = &t->assign;
+    if (p->fault_kind >= 3 && test_fault_early(p, t)) return;
     if (job_ensure_scene(j)) {
         t->status = TASK_FAILED;
         snprintf(t->error, sizeof t->error, "%s", j->load_error);
@@ -194,7 +216,7 @@ static void task_render(pool *p, pool_task *t) {
                                              &hdr.stats, &t->cancel)
                           : render_tile_means(j->s, &j->desc.integrator, &a->rect, j->desc.spp, 1, accum, rgb,
                                               &hdr.stats, &t->cancel);
-        if (rc == 0 && p->fault_kind) test_fault(p, t, rgb, (size_t)channels * (size_t)w * (size_t)h);
+        if (rc == 0 && (p->fault_kind == 1 || p->fault_kind == 2)) test_fault(p, t, rgb, (size_t)channels * (size_t)w * (size_t)h);
         if (rc != 0) {
             t->status = TASK_CANCELLED;
         } else if ((t->frame = proto_tile_frame(&hdr, rgb, &t->frame_len)) != NULL) {
