@@ -71,11 +71,26 @@ static inline uint32_t sampler_sobol_rev_col(uint32_t dim, uint32_t k) {
     return cols[dim][k];
 }
 
+/* sampler_global_nibbles[pair][j][v]: the XOR of the columns 4j to 4j + 3
+ * of Sobol dimensions 2 pair (low 32 bits) and 2 pair + 1 (high 32 bits)
+ * selected by the 4 bits of v (sampler_tables.c). */
+extern const uint64_t sampler_global_nibbles[SAMPLER_GLOBAL_PAIRS][8][16];
+
+/* Sobol dimensions 2 pair (low 32 bits) and 2 pair + 1 (high 32 bits) at
+ * index x, both reversed: x times the generator matrices over GF(2), by
+ * nibble tables. pair < SAMPLER_GLOBAL_PAIRS; can't fail. */
+static inline uint64_t sampler_global_point(uint32_t pair, uint32_t x) {
+    const uint64_t(*t)[16] = sampler_global_nibbles[pair];
+    return t[0][x & 15u] ^ t[1][x >> 4 & 15u] ^ t[2][x >> 8 & 15u] ^ t[3][x >> 12 & 15u] ^ t[4][x >> 16 & 15u] ^
+           t[5][x >> 20 & 15u] ^ t[6][x >> 24 & 15u] ^ t[7][x >> 28];
+}
+
 /* The numbers of one camera sample. Plain struct, owned by the caller,
  * usually on the stack. */
 typedef struct {
     uint64_t key;       /* SOBOL: hash of (seed, pixel); RANDOM: of (seed, pixel, sample) */
     uint32_t index_rev; /* the sample index with its bits reversed */
+    uint32_t global_index; /* SOBOL_GLOBAL: the index after the pixel's shuffle */
     sampler_kind kind;
 } sampler_stream;
 
@@ -117,6 +132,11 @@ static inline uint32_t sampler_sobol1_rev(uint32_t x) {
     return x;
 }
 
+/* 64 bits of a hash of (key, salt); can't fail. */
+static inline uint64_t sampler_hash(uint64_t key, uint32_t salt) {
+    return rng_mix64(key + (uint64_t)(salt + 1) * 0x9E3779B97F4A7C15ull);
+}
+
 /* Start the numbers of sample `sample` of pixel `pixel` under `seed`. */
 static inline sampler_stream sampler_start(sampler_kind kind, uint64_t seed, uint64_t pixel, uint32_t sample) {
     sampler_stream s;
@@ -124,12 +144,14 @@ static inline sampler_stream sampler_start(sampler_kind kind, uint64_t seed, uin
     s.index_rev = sampler_reverse_bits(sample);
     uint64_t pixel_key = rng_mix64(rng_mix64(seed) ^ pixel);
     s.key = kind != SAMPLER_RANDOM ? pixel_key : rng_mix64(pixel_key ^ ((uint64_t)sample * 0x9E3779B97F4A7C15ull));
+    s.global_index = 0;
+    if (kind == SAMPLER_SOBOL_GLOBAL) {
+        /* One index shuffle per pixel, shared by the first pairs: done once
+         * per sample here rather than once per pair. */
+        uint32_t si = (uint32_t)rng_mix64(sampler_hash(pixel_key, 0xfffffffeu));
+        s.global_index = sampler_reverse_bits(sampler_lk_hash(s.index_rev, si));
+    }
     return s;
-}
-
-/* 64 bits of a hash of (key, salt); can't fail. */
-static inline uint64_t sampler_hash(uint64_t key, uint32_t salt) {
-    return rng_mix64(key + (uint64_t)(salt + 1) * 0x9E3779B97F4A7C15ull);
 }
 
 /* A 32-bit fixed-point number as a float in [0, 1): its top 24 bits, so the
@@ -141,24 +163,21 @@ static inline float sampler_to_float(uint32_t x) { return (float)(x >> 8) * 0x1p
  * the index shuffle's and the two output scrambles'. */
 static inline void sampler_pair_bits(const sampler_stream *s, uint32_t pair, uint32_t *a, uint32_t *b) {
     uint64_t h = sampler_hash(s->key, pair);
+    if (s->kind == SAMPLER_SOBOL_GLOBAL && pair < SAMPLER_GLOBAL_PAIRS) {
+        /* Dimensions 2 pair and 2 pair + 1 of the Sobol point at the
+         * pixel's shuffled index, reversed (as dimension 0's index and
+         * sampler_sobol1_rev below), Owen-scrambled. */
+        uint64_t r = sampler_global_point(pair, s->global_index);
+        *a = sampler_reverse_bits(sampler_lk_hash((uint32_t)r, (uint32_t)h));
+        *b = sampler_reverse_bits(sampler_lk_hash((uint32_t)(r >> 32), (uint32_t)(h >> 32)));
+        return;
+    }
     if (s->kind == SAMPLER_RANDOM) {
         *a = (uint32_t)h;
         *b = (uint32_t)(h >> 32);
         return;
     }
     uint32_t seed_index = (uint32_t)rng_mix64(h), seed_a = (uint32_t)h, seed_b = (uint32_t)(h >> 32);
-    if (s->kind == SAMPLER_SOBOL_GLOBAL && pair < SAMPLER_GLOBAL_PAIRS) {
-        /* One index shuffle for the pixel, then dimensions 2 pair and
-         * 2 pair + 1 of the Sobol point, reversed (as dimension 0's index
-         * and sampler_sobol1_rev below), Owen-scrambled. */
-        uint32_t si = (uint32_t)rng_mix64(sampler_hash(s->key, 0xfffffffeu));
-        uint32_t sh = sampler_reverse_bits(sampler_lk_hash(s->index_rev, si)), ra = 0, rb = 0;
-        for (uint32_t k = 0; sh; k++, sh >>= 1)
-            if (sh & 1u) ra ^= sampler_sobol_rev_col(2 * pair, k), rb ^= sampler_sobol_rev_col(2 * pair + 1, k);
-        *a = sampler_reverse_bits(sampler_lk_hash(ra, seed_a));
-        *b = sampler_reverse_bits(sampler_lk_hash(rb, seed_b));
-        return;
-    }
     /* The index, Owen-scrambled as if it were a reversed fixed-point number
      * (Burley's nested uniform scramble): a permutation under which any 2^k
      * consecutive indices still cover every residue modulo 2^k, which is what
