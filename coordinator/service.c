@@ -192,9 +192,9 @@ static void on_submit(client *cl, const cJSON *m) {
     if (nt && (!cJSON_IsNumber(nt) || !(nt->valuedouble >= 1e-6 && nt->valuedouble <= 1e6)))
         return client_error(cl, "submit: noise_threshold must be a number from 1e-06 to 1e+06");
     const cJSON *sname = cJSON_GetObjectItemCaseSensitive(m, "sampler");
-    sampler_kind sampler = SAMPLER_SOBOL;
+    sampler_kind sampler = SAMPLER_SOBOL_GLOBAL; /* the default, as tessera render's */
     if (sname && (!cJSON_IsString(sname) || sampler_parse(sname->valuestring, &sampler) != 0))
-        return client_error(cl, "submit: sampler must be \"sobol\" or \"random\"");
+        return client_error(cl, "submit: sampler must be \"sobol-global\", \"sobol\" or \"random\"");
     scene_overrides ov = {(int)w, (int)ht, (int)spp, (int)depth, 0, 0, 1}; /* workers build the intersector */
     const cJSON *seed = cJSON_GetObjectItemCaseSensitive(m, "seed");
     if (seed) {

@@ -67,7 +67,7 @@ TEST(sampler_pairs_are_stratified) {
 /* Values stay in [0, 1), the 1D and 2D forms agree, and a stream is a pure
  * function of its arguments. */
 TEST(sampler_streams_are_pure_functions) {
-    for (int kind = 0; kind < 2; kind++) {
+    for (int kind = 0; kind < 3; kind++) {
         sampler_stream a = sampler_start((sampler_kind)kind, 9, 31, 77), b = sampler_start((sampler_kind)kind, 9, 31, 77);
         for (uint32_t d = 0; d < 64; d++) {
             float x = sampler_get_1d(&a, d), y = sampler_get_1d(&b, d), u, v;
@@ -120,9 +120,9 @@ TEST(sampler_sobol_beats_random_on_smooth_integrand) {
         double v = (k + 0.5) / m;
         exact += (sin(3 + 2 * v) - sin(2 * v)) / 3 * exp(v) / m;
     }
-    double mse[2] = {0, 0}, bias[2] = {0, 0};
+    double mse[3] = {0, 0, 0}, bias[3] = {0, 0, 0};
     const int pixels = 2000, spp = 64;
-    for (int kind = 0; kind < 2; kind++)
+    for (int kind = 0; kind < 3; kind++)
         for (int p = 0; p < pixels; p++) {
             double sum = 0;
             for (int i = 0; i < spp; i++) {
@@ -140,6 +140,10 @@ TEST(sampler_sobol_beats_random_on_smooth_integrand) {
     CHECK(fabs(bias[SAMPLER_SOBOL]) < 5 * sqrt(mse[SAMPLER_SOBOL] / pixels) + 1e-12, "sobol bias %g",
           bias[SAMPLER_SOBOL]);
     CHECK(fabs(bias[SAMPLER_RANDOM]) < 5 * sqrt(mse[SAMPLER_RANDOM] / pixels), "random bias %g", bias[SAMPLER_RANDOM]);
+    CHECK(mse[SAMPLER_SOBOL_GLOBAL] * 10 < mse[SAMPLER_RANDOM], "sobol-global mse %g, random %g",
+          mse[SAMPLER_SOBOL_GLOBAL], mse[SAMPLER_RANDOM]);
+    CHECK(fabs(bias[SAMPLER_SOBOL_GLOBAL]) < 5 * sqrt(mse[SAMPLER_SOBOL_GLOBAL] / pixels) + 1e-12, "sobol-global bias %g",
+          bias[SAMPLER_SOBOL_GLOBAL]);
 }
 
 /* What sobol-global is for: an integrand across two pairs, here the
@@ -152,7 +156,7 @@ TEST(sampler_sobol_beats_random_on_smooth_integrand) {
 TEST(sampler_global_stratifies_across_pairs) {
     double mse[3] = {0, 0, 0}, bias[3] = {0, 0, 0};
     const int pixels = 1000, spp = 256;
-    for (int kind = 0; kind < 3; kind += 2)
+    for (int kind = 0; kind < 3; kind++)
         for (int p = 0; p < pixels; p++) {
             double sum = 0;
             for (int i = 0; i < spp; i++) {

@@ -78,8 +78,10 @@ int proto_job_parse(const cJSON *msg, const char *peer, proto_job *out, char *er
         jf_bool(&c, msg, "job", "adaptive", 0, &adaptive))
         return -1;
     out->adaptive = adaptive;
-    if (sampler && sampler_parse(sampler, &out->integrator.sampler) != 0)
-        return jf_fail(&c, "job", "sampler", "expected \"sobol\" or \"random\", got \"%s\"", sampler);
+    if (!sampler) out->integrator.sampler = SAMPLER_SOBOL; /* journaled before samplers had names */
+    else if (sampler_parse(sampler, &out->integrator.sampler) != 0)
+        return jf_fail(&c, "job", "sampler", "expected \"sobol-global\", \"sobol\" or \"random\", got \"%s\"",
+                       sampler);
     if (strlen(hash) != SCENE_BUNDLE_HASH_HEX - 1 || strspn(hash, "0123456789abcdef") != strlen(hash))
         return jf_fail(&c, "job", "scene", "expected a 64-digit hex hash");
     char *end;

@@ -13,7 +13,12 @@
  * 2: the first 2^k samples put exactly one point in each of the 2^k
  * elementary intervals of any shape. Pairs are decorrelated from each other
  * and pixels from their neighbours by the scrambling seeds. Callers that want
- * two numbers to be stratified together must take them from one pair. */
+ * two numbers to be stratified together must take them from one pair.
+ *
+ * The default, "sobol-global", differs in the first six pairs (the camera's
+ * and the first two bounces'): they are dimensions 0 to 11 of one Sobol
+ * point per sample, so they are also stratified jointly (see
+ * SAMPLER_SOBOL_GLOBAL below). "sobol" is the padded sampler throughout. */
 #ifndef TESSERA_SAMPLER_H
 #define TESSERA_SAMPLER_H
 
@@ -22,7 +27,9 @@
 
 #include "rng.h"
 
-typedef enum { SAMPLER_SOBOL = 0, SAMPLER_RANDOM = 1, SAMPLER_SOBOL_GLOBAL = 2 } sampler_kind;
+/* SAMPLER_SOBOL_GLOBAL is the default (0: what a zeroed options struct
+ * holds), so `render`, `submit` and a job without a sampler field agree. */
+typedef enum { SAMPLER_SOBOL_GLOBAL = 0, SAMPLER_RANDOM = 1, SAMPLER_SOBOL = 2 } sampler_kind;
 
 /* "sobol", "random" or "sobol-global"; can't fail. */
 static inline const char *sampler_name(sampler_kind k) {
@@ -39,7 +46,7 @@ static inline int sampler_parse(const char *name, sampler_kind *out) {
     return 0;
 }
 
-/* SAMPLER_SOBOL_GLOBAL (experimental, issue 15): the first
+/* SAMPLER_SOBOL_GLOBAL (the default since issue 15): the first
  * SAMPLER_GLOBAL_PAIRS pairs, dimensions 0 to 11 (the camera's and the
  * first two bounces' light and BSDF numbers), are Sobol dimensions 0 to 11
  * of one Sobol point per sample, its index shuffled once per pixel, each
