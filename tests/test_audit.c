@@ -354,16 +354,8 @@ TEST(audit_service_restart_with_audits_pending) {
     unlink(hold);
     svc = util_spawn(argv, log);
     CHECK(util_wait_for_text(log, "job 1 done (", LONG) == 0, "resumed job never finished; log %s", log);
-    int resumed = -1, again = -1, rendered = -1;
-    FILE *f = fopen(log, "r");
-    char line[512];
-    while (f && fgets(line, sizeof line, f)) {
-        const char *msg = strstr(line, "job 1 ");
-        if (!msg) continue;
-        sscanf(msg, "job 1 resumed: %d of 64", &resumed);
-        sscanf(msg, "job 1 done (%d tiles from the journal, %d rendered", &again, &rendered);
-    }
-    if (f) fclose(f);
+    int resumed, again, rendered;
+    util_resume_counts(log, &resumed, &again, &rendered);
     CHECK(resumed >= 1 && again == resumed && resumed + rendered == 64,
           "resumed %d, then %d from the journal and %d rendered: 64 in all expected; log %s", resumed, again, rendered,
           log);

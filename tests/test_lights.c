@@ -133,13 +133,23 @@ static double by_integral(const scene *s, vec3 ref, vec3 nr, int m) {
     return total;
 }
 
-TEST(lights_solid_angle_matches_integral) {
+/* light_scene loaded, its quad light as 2 triangle lights; NULL after a
+ * failed check. The caller frees it (scene_free). */
+static scene *quad_light_scene(void) {
     char err[512];
     scene *s = util_scene_from_text(light_scene, err, sizeof err);
     CHECK(s != NULL, "%s", err);
+    if (s && s->light_count != 2) {
+        CHECK(0, "expected the quad light as 2 triangles, got %u lights", s->light_count);
+        scene_free(s);
+        return NULL;
+    }
+    return s;
+}
+
+TEST(lights_solid_angle_matches_integral) {
+    scene *s = quad_light_scene();
     if (!s) return;
-    CHECK(s->light_count == 2, "expected the quad light as 2 triangles, got %u lights", s->light_count);
-    if (s->light_count != 2) return;
     const triangle *t0 = &s->triangles[s->lights[0].prim];
     const triangle *t1 = &s->triangles[s->lights[1].prim];
     /* Light frame in internal units: centre, down normal, size. */
@@ -259,12 +269,8 @@ static estimate by_rect(const scene *s, const spherical_rect *r, vec3 nl, vec3 n
 }
 
 TEST(lights_spherical_rect) {
-    char err[512];
-    scene *s = util_scene_from_text(light_scene, err, sizeof err);
-    CHECK(s != NULL, "%s", err);
+    scene *s = quad_light_scene();
     if (!s) return;
-    CHECK(s->light_count == 2, "expected the quad light as 2 triangles, got %u lights", s->light_count);
-    if (s->light_count != 2) return;
     /* The quad's corners v0 v1 v2 (first triangle) in internal units. */
     const triangle *t0 = &s->triangles[s->lights[0].prim];
     vec3 corner = t0->v1, ex = vec3_sub(t0->v0, t0->v1), ey = vec3_sub(t0->v2, t0->v1);

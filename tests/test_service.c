@@ -215,15 +215,7 @@ TEST(service_restart_resumes_without_rerendering) {
     int resumed = -1, again = -1, rendered = -1;
     CHECK(util_wait_for_text(s.log, "job 1 resumed: ", LONG) == 0, "no resume; log %s", s.log);
     CHECK(util_wait_for_text(s.log, "job 1 done (", LONG) == 0, "resumed job never finished; log %s", s.log);
-    FILE *f = fopen(s.log, "r");
-    char line[512];
-    while (f && fgets(line, sizeof line, f)) {
-        const char *msg = strstr(line, "job 1 ");
-        if (!msg) continue;
-        sscanf(msg, "job 1 resumed: %d of 64", &resumed);
-        sscanf(msg, "job 1 done (%d tiles from the journal, %d rendered", &again, &rendered);
-    }
-    if (f) fclose(f);
+    util_resume_counts(s.log, &resumed, &again, &rendered);
     CHECK(resumed == 20 && again == resumed && resumed + rendered == 64,
           "resumed %d, then %d from the journal and %d rendered: finished tiles must not be rendered again", resumed,
           again, rendered);

@@ -190,3 +190,16 @@ int util_same_under_nehalem(const char *tessera, const char *args, const char *t
     snprintf(out, cap, "%s under qemu (Nehalem) differs from the native image %s", emulated, native);
     return -1;
 }
+
+void util_resume_counts(const char *log, int *resumed, int *from_journal, int *rendered) {
+    *resumed = *from_journal = *rendered = -1;
+    FILE *f = fopen(log, "r");
+    char line[512];
+    while (f && fgets(line, sizeof line, f)) {
+        const char *msg = strstr(line, "job 1 ");
+        if (!msg) continue;
+        sscanf(msg, "job 1 resumed: %d of 64", resumed);
+        sscanf(msg, "job 1 done (%d tiles from the journal, %d rendered", from_journal, rendered);
+    }
+    if (f) fclose(f);
+}

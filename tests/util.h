@@ -71,6 +71,12 @@ int util_free_port(void);
 /* Whole-file comparison: 1 when both exist and are byte-identical. */
 int util_same_file(const char *a, const char *b);
 
+/* From a job service's log: job 1's tiles resumed from its journal at the
+ * restart ("job 1 resumed: N of 64"), and then at its end the tiles from
+ * the journal and the ones rendered in that run ("job 1 done (N tiles from
+ * the journal, M rendered"). Each stays -1 when its line is missing. */
+void util_resume_counts(const char *log, int *resumed, int *from_journal, int *rendered);
+
 /* Whether /usr/bin/qemu-x86_64 is there to emulate an older CPU; prints a
  * "skipped" line when not. */
 int util_have_qemu(void);
