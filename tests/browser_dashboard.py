@@ -20,6 +20,14 @@ COORDINATOR TOKEN_FILE SCREENSHOT PROFILE_DIR"""
 import base64, json, os, select, subprocess, sys, time
 
 port, token, tessera, coordinator, token_file, shot, profile = sys.argv[1:8]
+# While this file exists the worker keeps its 17th tile (TESSERA_TEST_HOLD_FILE):
+# job 1 stays running with tiles outlined until the page has been seen so.
+hold = sys.argv[8] if len(sys.argv) > 8 else None
+
+
+def release():
+    if hold and os.path.exists(hold):
+        os.unlink(hold)
 base = f"http://127.0.0.1:{port}"
 env = dict(os.environ, TESSERA_COORDINATOR=coordinator, TESSERA_TOKEN_FILE=token_file)
 
@@ -151,6 +159,8 @@ try:
     print("ok: the token logs in (session cookie)", flush=True)
 
     job_page = chromium.page(base + "/job/1")  # open before the job exists: it picks it up
+    if hold:
+        open(hold, "w").close()
     job = submit("scenes/cornell-box.json", "--width", "128", "--height", "128", "--spp", "64", "--tile-size", "16")
     if job != 1:
         fail(f"expected job 1, got {job}")
@@ -173,6 +183,10 @@ try:
                         break
                     time.sleep(0.05)
                 job_page.screenshot(shot.replace(".png", "-live.png"))
+            if outlined:
+                release()
+        if time.monotonic() > deadline - 150:  # 30 s held without an outline seen: let it finish (and fail below)
+            release()
         if row and row[0].startswith("done"):
             break
         time.sleep(0.2)
@@ -233,5 +247,6 @@ try:
                            "the workers page plots the throughput", 30)
     print(f"ok: the workers page lists the worker and plots its throughput ({plotted} plot pixels)", flush=True)
 finally:
+    release()
     chromium.close()
 print("all browser checks passed", flush=True)

@@ -485,14 +485,23 @@ TEST(http_dashboard_browser) {
     snprintf(wlog, sizeof wlog, "%s.worker", w.log);
     const char *wargv[] = {path, "--connect", w.addr, "--threads", "1", "--name", "webworker", "--token-file", token,
                            "--retry-max", "1", NULL};
+    /* The worker keeps its 17th tile while the script's hold file exists:
+     * job 1 stays running, tiles outlined, however fast this machine is. */
+    char hold[300];
+    snprintf(hold, sizeof hold, "%s", util_temp_path("browser-hold"));
+    unlink(hold);
+    setenv("TESSERA_TEST_HOLD_FILE", hold, 1);
+    setenv("TESSERA_TEST_HOLD_AFTER", "16", 1);
     w.worker = util_spawn(wargv, wlog);
+    unsetenv("TESSERA_TEST_HOLD_FILE");
+    unsetenv("TESSERA_TEST_HOLD_AFTER");
     char shot[300], profile[300], cmd[4096];
     static char out[1 << 16];
     snprintf(shot, sizeof shot, "%s", util_temp_path("dashboard-browser.png"));
     snprintf(profile, sizeof profile, "%s", util_temp_path("chromium-profile"));
     unlink(shot);
-    snprintf(cmd, sizeof cmd, "timeout 300 python3 tests/browser_dashboard.py %d sesame-browser-7 %s %s %s %s %s 2>&1",
-             w.http, harness_tessera(), w.addr, token, shot, profile);
+    snprintf(cmd, sizeof cmd, "timeout 300 python3 tests/browser_dashboard.py %d sesame-browser-7 %s %s %s %s %s %s 2>&1",
+             w.http, harness_tessera(), w.addr, token, shot, profile, hold);
     int st = util_run(cmd, out, sizeof out);
     printf("%s", out);
     CHECK(st == 0, "the browser checks failed (%d); coordinator log %s", st, w.log);
