@@ -39,11 +39,13 @@ static estimate finish(double sum, double sum2, int n) {
     return e;
 }
 
-/* Irradiance (red channel) at ref with normal nr by solid-angle sampling
- * (spherical.h) where spherical_triangle_use picks it, else by area, with
- * N x N stratified samples; light picked by select_pdf as lights_sample
- * does. *used counts the solid-angle samples. */
-static estimate by_solid_angle(const scene *s, vec3 ref, vec3 nr, int n, int *used) {
+/* Irradiance (red channel) at ref with normal nr, with N x N stratified
+ * samples, the light picked by select_pdf as lights_sample does. With
+ * angle, by solid-angle sampling (spherical.h) where
+ * spherical_triangle_use picks it, *used counting those samples; else (and
+ * without angle) by area: point uniform on the light, pdf = select d^2 /
+ * (|cos_l| A). */
+static estimate estimate_irradiance(const scene *s, vec3 ref, vec3 nr, int n, int angle, int *used) {
     double sum = 0, sum2 = 0;
     uint64_t st = 7;
     for (int i = 0; i < n; i++)
@@ -55,7 +57,7 @@ static estimate by_solid_angle(const scene *s, vec3 ref, vec3 nr, int n, int *us
             u1 = fminf((u1 - s->light_cdf[k]) / w, 0x1.fffffep-1f);
             const triangle *t = &s->triangles[l->prim];
             float b1, b2, omega;
-            int by_angle = spherical_triangle_use(t->v0, t->v1, t->v2, ref, &omega);
+            int by_angle = angle && spherical_triangle_use(t->v0, t->v1, t->v2, ref, &omega);
             double v = 0;
             if (by_angle ? spherical_triangle_sample(t->v0, t->v1, t->v2, ref, u1, u2, &b1, &b2)
                          : (warp_uniform_triangle(u1, u2, &b1, &b2), 1)) {
@@ -70,40 +72,18 @@ static estimate by_solid_angle(const scene *s, vec3 ref, vec3 nr, int n, int *us
                     v = l->radiance.x * fmax(0.0, vec3_dot(nr, wi)) / pdf;
                 }
             }
-            *used += by_angle;
+            if (used) *used += by_angle;
             sum += v, sum2 += v * v;
         }
     return finish(sum, sum2, n * n);
 }
 
-/* The same by area sampling: light picked by select_pdf, point uniform on
- * it, pdf = select d^2 / (|cos_l| A). */
+static estimate by_solid_angle(const scene *s, vec3 ref, vec3 nr, int n, int *used) {
+    return estimate_irradiance(s, ref, nr, n, 1, used);
+}
+
 static estimate by_area(const scene *s, vec3 ref, vec3 nr, int n) {
-    double sum = 0, sum2 = 0;
-    uint64_t st = 7;
-    for (int i = 0; i < n; i++)
-        for (int j = 0; j < n; j++) {
-            float u1 = (i + next_u(&st)) / n, u2 = (j + next_u(&st)) / n;
-            uint32_t k = u1 < s->light_cdf[1] ? 0 : 1;
-            const light *l = &s->lights[k];
-            float w = s->light_cdf[k + 1] - s->light_cdf[k];
-            u1 = fminf((u1 - s->light_cdf[k]) / w, 0x1.fffffep-1f);
-            const triangle *t = &s->triangles[l->prim];
-            float b1, b2;
-            warp_uniform_triangle(u1, u2, &b1, &b2);
-            vec3 p = vec3_add(vec3_add(vec3_scale(t->v0, 1 - b1 - b2), vec3_scale(t->v1, b1)), vec3_scale(t->v2, b2));
-            vec3 d = vec3_sub(p, ref);
-            double dist = vec3_length(d);
-            vec3 wi = vec3_scale(d, 1.0f / (float)dist);
-            vec3 nl = s->triangle_normals[l->prim];
-            double v = 0, cos_l = -vec3_dot(nl, wi);
-            if (cos_l > 0) {
-                double pdf = l->select_pdf * dist * dist / (cos_l * l->area);
-                v = l->radiance.x * fmax(0.0, vec3_dot(nr, wi)) / pdf;
-            }
-            sum += v, sum2 += v * v;
-        }
-    return finish(sum, sum2, n * n);
+    return estimate_irradiance(s, ref, nr, n, 0, NULL);
 }
 
 /* Midpoint rule over m^2 sub-triangles of each light triangle, in double. */
