@@ -343,6 +343,22 @@ TEST(gltf_spot_and_directional_lights) {
           "directional: E = 3 from above");
 }
 
+/* The end of a glTF document: one buffer holding a unit quad in z = 0
+ * facing +z (positions -1..1, normals +z, texture coordinates 0..1, two
+ * triangles) with its buffer views and accessors 0 to 3 (POSITION,
+ * NORMAL, TEXCOORD_0, indices). */
+#define UNIT_QUAD_GLTF_DATA                                                                                               \
+    " \"buffers\": [{\"byteLength\": 140, \"uri\": \"data:application/octet-stream;base64,"                                    \
+    "AACAvwAAgL8AAAAAAACAPwAAgL8AAAAAAACAPwAAgD8AAAAAAACAvwAAgD8AAAAAAAAAAAAAAAAAAIA/AAAAAAAAAAAAAIA/AAAAAAAAAA"         \
+    "AAAIA/AAAAAAAAAAAAAIA/AAAAAAAAgD8AAIA/AACAPwAAgD8AAAAAAAAAAAAAAAAAAAEAAgAAAAIAAwA=\"}],"                               \
+    " \"bufferViews\": [{\"buffer\": 0, \"byteOffset\": 0, \"byteLength\": 48},"                                           \
+    "  {\"buffer\": 0, \"byteOffset\": 48, \"byteLength\": 48}, {\"buffer\": 0, \"byteOffset\": 96, \"byteLength\": 32},"  \
+    "  {\"buffer\": 0, \"byteOffset\": 128, \"byteLength\": 12}],"                                                       \
+    " \"accessors\": [{\"bufferView\": 0, \"componentType\": 5126, \"count\": 4, \"type\": \"VEC3\", \"min\": [-1, -1, 0], \"max\": [1, 1, 0]}," \
+    "  {\"bufferView\": 1, \"componentType\": 5126, \"count\": 4, \"type\": \"VEC3\"},"                                  \
+    "  {\"bufferView\": 2, \"componentType\": 5126, \"count\": 4, \"type\": \"VEC2\"},"                                  \
+    "  {\"bufferView\": 3, \"componentType\": 5123, \"count\": 6, \"type\": \"SCALAR\"}]}"
+
 /* A model placed with a scale of 1024 (and its camera and point light
  * scaled alike) renders the same picture: glTF is in metres, the scene may
  * be in millimetres. */
@@ -391,16 +407,7 @@ static double normal_map_mean(const char *map_b64, const char *light_rotation) {
              "  \"normalTexture\": {\"index\": 0}}],"
              " \"textures\": [{\"source\": 0, \"sampler\": 0}], \"samplers\": [{\"wrapS\": 33071, \"wrapT\": 33071}],"
              " \"images\": [{\"uri\": \"data:image/png;base64,%s\"}],"
-             " \"buffers\": [{\"byteLength\": 140, \"uri\": \"data:application/octet-stream;base64,"
-             "AACAvwAAgL8AAAAAAACAPwAAgL8AAAAAAACAPwAAgD8AAAAAAACAvwAAgD8AAAAAAAAAAAAAAAAAAIA/AAAAAAAAAAAAAIA/AAAAAAAAAA"
-             "AAAIA/AAAAAAAAAAAAAIA/AAAAAAAAgD8AAIA/AACAPwAAgD8AAAAAAAAAAAAAAAAAAAEAAgAAAAIAAwA=\"}],"
-             " \"bufferViews\": [{\"buffer\": 0, \"byteOffset\": 0, \"byteLength\": 48},"
-             "  {\"buffer\": 0, \"byteOffset\": 48, \"byteLength\": 48}, {\"buffer\": 0, \"byteOffset\": 96, \"byteLength\": 32},"
-             "  {\"buffer\": 0, \"byteOffset\": 128, \"byteLength\": 12}],"
-             " \"accessors\": [{\"bufferView\": 0, \"componentType\": 5126, \"count\": 4, \"type\": \"VEC3\", \"min\": [-1, -1, 0], \"max\": [1, 1, 0]},"
-             "  {\"bufferView\": 1, \"componentType\": 5126, \"count\": 4, \"type\": \"VEC3\"},"
-             "  {\"bufferView\": 2, \"componentType\": 5126, \"count\": 4, \"type\": \"VEC2\"},"
-             "  {\"bufferView\": 3, \"componentType\": 5123, \"count\": 6, \"type\": \"SCALAR\"}]}",
+             UNIT_QUAD_GLTF_DATA,
              light_rotation, map_b64);
     char err[1024];
     scene_overrides ov = {8, 8, 4, 1, 0, 0, 0}; /* direct light only */
@@ -448,16 +455,7 @@ static double quad_green_mean(const char *alpha_mode) {
              " \"textures\": [{\"source\": 0}],"
              " \"images\": [{\"uri\": \"data:image/png;base64,"
              "iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR4nGP4z8DAAAAEAQEARwbK3gAAAABJRU5ErkJggg==\"}],"
-             " \"buffers\": [{\"byteLength\": 140, \"uri\": \"data:application/octet-stream;base64,"
-             "AACAvwAAgL8AAAAAAACAPwAAgL8AAAAAAACAPwAAgD8AAAAAAACAvwAAgD8AAAAAAAAAAAAAAAAAAIA/AAAAAAAAAAAAAIA/AAAAAAAAAA"
-             "AAAIA/AAAAAAAAAAAAAIA/AAAAAAAAgD8AAIA/AACAPwAAgD8AAAAAAAAAAAAAAAAAAAEAAgAAAAIAAwA=\"}],"
-             " \"bufferViews\": [{\"buffer\": 0, \"byteOffset\": 0, \"byteLength\": 48},"
-             "  {\"buffer\": 0, \"byteOffset\": 48, \"byteLength\": 48}, {\"buffer\": 0, \"byteOffset\": 96, \"byteLength\": 32},"
-             "  {\"buffer\": 0, \"byteOffset\": 128, \"byteLength\": 12}],"
-             " \"accessors\": [{\"bufferView\": 0, \"componentType\": 5126, \"count\": 4, \"type\": \"VEC3\", \"min\": [-1, -1, 0], \"max\": [1, 1, 0]},"
-             "  {\"bufferView\": 1, \"componentType\": 5126, \"count\": 4, \"type\": \"VEC3\"},"
-             "  {\"bufferView\": 2, \"componentType\": 5126, \"count\": 4, \"type\": \"VEC2\"},"
-             "  {\"bufferView\": 3, \"componentType\": 5123, \"count\": 6, \"type\": \"SCALAR\"}]}",
+             UNIT_QUAD_GLTF_DATA,
              alpha_mode);
     char err[1024];
     scene_overrides ov = {8, 8, 4, 4, 0, 0, 0};
