@@ -436,10 +436,12 @@ TEST(mesh_normals_from_faces_follow_the_angle) {
 /* A mesh's own vertex normals survive in a scene that also imports a model:
  * an octahedron smoothed by "smooth_angle", lit directly by a point light,
  * renders the same (to rounding: the scene's bounds differ) with and
- * without an imported triangle far out of view (a "model" shape, so the
- * scene gets corner normals). Before, the corner normal of a triangle that
- * is not imported (its geometric normal) replaced the mesh's smooth normal
- * and the octahedron came out faceted. */
+ * without an imported triangle far out of view (a "model" shape with a
+ * normal: the scene gets the importer's shading data, corner uvs, and the
+ * model's normal joins the mesh's in vertex_normals). Once, a separate
+ * per-corner normal array gave triangles that were not imported their
+ * geometric normal, which replaced the mesh's smooth normal: the
+ * octahedron came out faceted. */
 TEST(mesh_smooth_normals_survive_an_imported_model) {
     util_write_temp("octa.obj", "v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n"
                                 "f 1 3 5\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf 3 1 6\nf 2 3 6\nf 4 2 6\nf 1 4 6\n");
@@ -455,7 +457,8 @@ TEST(mesh_smooth_normals_survive_an_imported_model) {
                  " \"lights\": [{\"type\": \"point\", \"position\": [3, 3, 3], \"intensity\": [20, 20, 20]}]}",
                  i ? ", {\"type\": \"model\", \"file\": \"far.obj\", \"translate\": [0, -40, 0]}" : "");
         scene *s = scene_load(util_write_temp("mixed.json", json), NULL, err, sizeof err);
-        CHECK(s && s->triangle_vertex_normals && (i == 0 || s->corner_normals), "%s", s ? "no normals" : err);
+        CHECK(s && s->triangle_vertex_normals && (i == 0 || s->corner_uvs), "%s", s ? "no normals" : err);
+        CHECK(!s || s->vertex_normal_count == 24u + (unsigned)i, "%u vertex normals", s ? s->vertex_normal_count : 0);
         if (!s) return;
         trace_stats st;
         img[i] = util_render(s, 1, 24, 1, &st);

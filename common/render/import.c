@@ -44,6 +44,9 @@ typedef struct {
     const import_options *opt;
     import_model *m;
     size_t tri_cap;
+    size_t normal_cap;       /* of m->normals, in normals */
+    uint32_t *normal_slots;  /* hash set of m->normals: index + 1, 0 = empty */
+    size_t slot_cap;         /* a power of two, at least twice normal_count */
     size_t visits;
 } importer;
 
@@ -811,8 +814,8 @@ static int grow_tris(importer *im, size_t more) {
     while (cap < m->tri_count + more) cap *= 2;
     double *p = realloc(m->positions, cap * 9 * sizeof *p);
     if (p) m->positions = p;
-    float *n = realloc(m->normals, cap * 9 * sizeof *n);
-    if (n) m->normals = n;
+    uint32_t *n = realloc(m->normal_indices, cap * 3 * sizeof *n);
+    if (n) m->normal_indices = n;
     float *uv = realloc(m->uvs, cap * 6 * sizeof *uv);
     if (uv) m->uvs = uv;
     uint8_t *f = realloc(m->flags, cap);
@@ -821,6 +824,60 @@ static int grow_tris(importer *im, size_t more) {
     if (mt) m->material = mt;
     if (!p || !n || !uv || !f || !mt) return fail(im, "out of memory for %zu triangles", cap);
     im->tri_cap = cap;
+    return 0;
+}
+
+/* Hash of a normal's bits (for normal_index's set). */
+static uint64_t normal_hash(const float n[3]) {
+    uint32_t b[3];
+    memcpy(b, n, sizeof b);
+    uint64_t h = (((uint64_t)b[0] << 32) | b[1]) ^ (uint64_t)b[2] * 0x9E3779B97F4A7C15ull;
+    h = (h ^ (h >> 31)) * 0xBF58476D1CE4E5B9ull; /* splitmix64's finaliser */
+    return h ^ (h >> 27);
+}
+
+/* Make room for one more normal in m->normals and its hash set (rehashed
+ * when half full). Returns 0, or -1 (with the error set) out of memory. */
+static int grow_normals(importer *im) {
+    import_model *m = im->m;
+    if (m->normal_count == im->normal_cap) {
+        size_t cap = im->normal_cap ? 2 * im->normal_cap : 1024;
+        float *p = cap < UINT32_MAX ? realloc(m->normals, cap * 3 * sizeof *p) : NULL;
+        if (!p) return fail(im, "out of memory for %zu normals", cap);
+        m->normals = p;
+        im->normal_cap = cap;
+    }
+    if (2 * (m->normal_count + 1) <= im->slot_cap) return 0;
+    size_t cap = im->slot_cap ? 2 * im->slot_cap : 2048;
+    uint32_t *slots = calloc(cap, sizeof *slots);
+    if (!slots) return fail(im, "out of memory for %zu normals", m->normal_count);
+    for (size_t i = 0; i < m->normal_count; i++) {
+        size_t k = normal_hash(&m->normals[3 * i]) & (cap - 1);
+        while (slots[k]) k = (k + 1) & (cap - 1);
+        slots[k] = (uint32_t)i + 1;
+    }
+    free(im->normal_slots);
+    im->normal_slots = slots;
+    im->slot_cap = cap;
+    return 0;
+}
+
+/* Index of normal n in m->normals, appended when no equal one (bit for bit)
+ * is there yet: a mesh's corners share their normals as its vertices do,
+ * also where the file repeats a vertex per face (OBJ through Assimp, flat
+ * glTF). Returns 0 with *idx set, or -1 (error set) out of memory. */
+static int normal_index(importer *im, const float n[3], uint32_t *idx) {
+    if (grow_normals(im)) return -1;
+    import_model *m = im->m;
+    size_t k = normal_hash(n) & (im->slot_cap - 1);
+    for (; im->normal_slots[k]; k = (k + 1) & (im->slot_cap - 1))
+        if (memcmp(&m->normals[3 * (size_t)(im->normal_slots[k] - 1)], n, 3 * sizeof *n) == 0) {
+            *idx = im->normal_slots[k] - 1;
+            return 0;
+        }
+    *idx = (uint32_t)m->normal_count;
+    memcpy(&m->normals[3 * m->normal_count++], n, 3 * sizeof *n);
+    im->normal_slots[k] = *idx + 1;
     return 0;
 }
 
@@ -853,6 +910,7 @@ static int add_mesh(importer *im, const struct aiScene *sc, const struct aiMesh 
         size_t t = m->tri_count;
         int order[3] = {0, det < 0 ? 2 : 1, det < 0 ? 1 : 2};
         m->flags[t] = (mesh->mNormals ? 1 : 0) | (mesh->mTextureCoords[0] ? 2 : 0);
+        float corner_n[3][3];
         for (int k = 0; k < 3; k++) {
             unsigned vi = face->mIndices[order[k]];
             if (vi >= mesh->mNumVertices)
@@ -872,7 +930,7 @@ static int add_mesh(importer *im, const struct aiScene *sc, const struct aiMesh 
                 user_dir(im->opt, w);
                 double l = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
                 if (!(l > 0) || !isfinite(l)) m->flags[t] &= (uint8_t)~1u;
-                for (int r = 0; r < 3; r++) m->normals[9 * t + 3 * k + r] = (float)(l > 0 ? w[r] / l * (det < 0 ? -1 : 1) : 0);
+                for (int r = 0; r < 3; r++) corner_n[k][r] = (float)(l > 0 ? w[r] / l * (det < 0 ? -1 : 1) : 0);
             }
             if (mesh->mTextureCoords[0]) {
                 const struct aiVector3D *uv = &mesh->mTextureCoords[0][vi];
@@ -882,6 +940,8 @@ static int add_mesh(importer *im, const struct aiScene *sc, const struct aiMesh 
                 m->uvs[6 * t + 2 * k + 1] = 1.0f - uv->y;
             }
         }
+        for (int k = 0; k < 3 && (m->flags[t] & 1); k++)
+            if (normal_index(im, corner_n[k], &m->normal_indices[3 * t + k])) return -1;
         m->material[t] = mesh->mMaterialIndex;
         m->tri_count++;
     }
@@ -989,6 +1049,7 @@ static int import_common(importer *im, import_model *out) {
     free(im->buffers);
     free(im->buffer_lens);
     free(im->tex_slot);
+    free(im->normal_slots);
     if (rc) import_model_free(out);
     return rc;
 }
@@ -1034,6 +1095,7 @@ void import_model_free(import_model *m) {
     if (!m) return;
     free(m->positions);
     free(m->normals);
+    free(m->normal_indices);
     free(m->uvs);
     free(m->flags);
     free(m->material);
