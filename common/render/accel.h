@@ -3,7 +3,7 @@
  * Four structures answer the same two questions (closest hit, any hit):
  *  - ACCEL_BVH: a binary bounding volume hierarchy (bvh.h), for scenes of
  *    hundreds of primitives;
- *  - ACCEL_WIDE: a 4-wide BVH with SIMD node and leaf tests (accel_wide.h),
+ *  - ACCEL_WIDE: an 8-wide BVH with SIMD node and leaf tests (accel_wide.h),
  *    for large scenes;
  *  - ACCEL_EMBREE: Embree's BVH walk with Tessera's tests at the leaves
  *    (accel_embree.h), on request;

@@ -1,4 +1,4 @@
-/* accel_wide.c - the 4-wide BVH of accel_wide.h: Embree's generic builder
+/* accel_wide.c - the 8-wide BVH of accel_wide.h: Embree's generic builder
  * makes it, Tessera walks it and decides every hit.
  *
  * Build: one padded box per primitive (accel_padded_box), handed to
@@ -7,7 +7,8 @@
  * which the RTCBVH owns and frees.
  *
  * Walk: a node holds its children's boxes as structure of arrays, so one
- * 4-lane slab test covers all four; the children hit are visited nearest
+ * 8-lane slab test (two SSE registers) covers all eight; the children hit
+ * are visited nearest
  * first, the others kept on a fixed-size stack with their entry distance
  * and dropped when they come up behind the culling distance. A leaf holds up
  * to 4 primitives: its triangles' vertices as 4 lanes for the flat kernel's
@@ -36,20 +37,32 @@
 #define FLAT(name) wide4_##name
 #include "accel_flat4.h"
 
+/* Children per node: 8 measured 3-8% faster than 4 (docs/meshes.md). The
+ * walk's bytes do not depend on it; -DNODE_W=4 builds the 4-wide tree. */
+#ifndef NODE_W
+#define NODE_W 8
+#endif
+
 typedef wide4_vfloat vfloat;
 typedef wide4_vint vint;
+/* Static functions pass 8-float vectors among themselves only, so the ABI
+ * note for 32-byte vectors without AVX does not concern us. */
+#pragma GCC diagnostic ignored "-Wpsabi"
+/* A node's lanes: NODE_W floats (two SSE registers' worth for 8). */
+typedef float nfloat __attribute__((vector_size(NODE_W * sizeof(float))));
+typedef int32_t nint __attribute__((vector_size(NODE_W * sizeof(int32_t))));
 
 #define WIDE_MAX_DEPTH 40                       /* the builder's limit on the tree's depth */
-#define WIDE_STACK (3 * WIDE_MAX_DEPTH + 4)     /* 3 siblings kept per level at most */
+#define WIDE_STACK ((NODE_W - 1) * WIDE_MAX_DEPTH + NODE_W) /* NODE_W - 1 siblings kept per level at most */
 #define LEAF_TAG ((uintptr_t)1)                 /* low bit of a child reference: a leaf */
 #define SLAB_WIDEN (1.0f + 3.0f / 8388608.0f)   /* 1 + 3 * 2^-23 >= pbrt's 1 + 2 gamma(3) */
 
-/* An inner node: the boxes of its (up to) 4 children, box[2a][k] the lower
+/* An inner node: the boxes of its (up to) NODE_W children, box[2a][k] the lower
  * and box[2a + 1][k] the upper bound of child k on axis a; an absent child
  * has the empty box (lower +inf, upper -inf), which no ray enters. */
 typedef struct {
-    float box[6][4];
-    uintptr_t child[4]; /* node pointer, or leaf pointer | LEAF_TAG */
+    float box[6][NODE_W];
+    uintptr_t child[NODE_W]; /* node pointer, or leaf pointer | LEAF_TAG */
 } wide_node;
 
 /* A leaf: triangles in lanes [0, tris) (vertex k's axis a at v[k][a][lane]),
@@ -78,7 +91,7 @@ static void *cb_create_node(RTCThreadLocalAllocator alloc, unsigned int child_co
     (void)child_count;
     wide_node *n = rtcThreadLocalAlloc(alloc, sizeof *n, 64);
     if (!n) return NULL;
-    for (int k = 0; k < 4; k++) {
+    for (int k = 0; k < NODE_W; k++) {
         for (int a = 0; a < 3; a++) {
             n->box[2 * a][k] = INFINITY;
             n->box[2 * a + 1][k] = -INFINITY;
@@ -92,13 +105,13 @@ static void *cb_create_node(RTCThreadLocalAllocator alloc, unsigned int child_co
 static void cb_set_children(void *node, void **children, unsigned int count, void *user) {
     wide_node *n = node;
     (void)user;
-    for (unsigned k = 0; k < count && k < 4; k++) n->child[k] = (uintptr_t)children[k];
+    for (unsigned k = 0; k < count && k < NODE_W; k++) n->child[k] = (uintptr_t)children[k];
 }
 
 static void cb_set_bounds(void *node, const struct RTCBounds **bounds, unsigned int count, void *user) {
     wide_node *n = node;
     (void)user;
-    for (unsigned k = 0; k < count && k < 4; k++) {
+    for (unsigned k = 0; k < count && k < NODE_W; k++) {
         const struct RTCBounds *b = bounds[k];
         n->box[0][k] = b->lower_x, n->box[1][k] = b->upper_x;
         n->box[2][k] = b->lower_y, n->box[3][k] = b->upper_y;
@@ -160,6 +173,7 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
         return NULL;
     }
     w->stats.config = w->dev.config;
+    w->stats.node_width = NODE_W;
     size_t n = (size_t)s->triangle_count + s->sphere_count;
     w->stats.primitive_count = n;
     if (n == 0) return w; /* nothing to hit: root 0 */
@@ -174,7 +188,7 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
     build_ctx b = {.s = s};
     struct RTCBuildArguments args = rtcDefaultBuildArguments();
     args.buildQuality = RTC_BUILD_QUALITY_MEDIUM; /* binned SAH */
-    args.maxBranchingFactor = 4;
+    args.maxBranchingFactor = NODE_W;
     args.maxDepth = WIDE_MAX_DEPTH;
     args.sahBlockSize = 4; /* 1 to 4 primitives cost one leaf test */
     args.minLeafSize = 3;  /* measured: 6.5% fewer instructions than 1 at 655k triangles */
@@ -216,24 +230,50 @@ void accel_wide_get_stats(const accel_wide *w, accel_wide_stats *out) { *out = w
 
 static inline vfloat vsplat(float x) { return (vfloat){x, x, x, x}; }
 
-/* A node's row of 4 floats (16-byte aligned). */
-static inline vfloat vload(const float *p) { return *(const vfloat *)p; }
+static inline nfloat nsplat(float x) {
+    nfloat v;
+    for (int k = 0; k < NODE_W; k++) v[k] = x;
+    return v;
+}
 
-/* Lane-wise a < b ? a : b and a > b ? a : b (minps / maxps). */
-static inline vfloat vmin(vfloat a, vfloat b) {
+/* A node's row of NODE_W floats (16-byte aligned). */
+static inline nfloat nload(const float *p) { return *(const nfloat *)p; }
+
+/* Lane-wise a < b ? a : b and a > b ? a : b (minps / maxps per half).
+ * Vectors of 8 go by pointer: GCC notes an ABI change for passing them by
+ * value without AVX (they are inlined either way). */
+static inline nfloat nmin(const nfloat *a, const nfloat *b) {
 #ifdef __SSE2__
-    return (vfloat)_mm_min_ps((__m128)a, (__m128)b);
+    union { nfloat n; __m128 h[NODE_W / 4]; } x = {*a}, y = {*b};
+    for (int i = 0; i < NODE_W / 4; i++) x.h[i] = _mm_min_ps(x.h[i], y.h[i]);
+    return x.n;
 #else
-    vint m = a < b;
-    return (vfloat)(((vint)a & m) | ((vint)b & ~m));
+    nint m = *a < *b;
+    return (nfloat)(((nint)*a & m) | ((nint)*b & ~m));
 #endif
 }
-static inline vfloat vmax(vfloat a, vfloat b) {
+static inline nfloat nmax(const nfloat *a, const nfloat *b) {
 #ifdef __SSE2__
-    return (vfloat)_mm_max_ps((__m128)a, (__m128)b);
+    union { nfloat n; __m128 h[NODE_W / 4]; } x = {*a}, y = {*b};
+    for (int i = 0; i < NODE_W / 4; i++) x.h[i] = _mm_max_ps(x.h[i], y.h[i]);
+    return x.n;
 #else
-    vint m = a > b;
-    return (vfloat)(((vint)a & m) | ((vint)b & ~m));
+    nint m = *a > *b;
+    return (nfloat)(((nint)*a & m) | ((nint)*b & ~m));
+#endif
+}
+
+/* Bit k set where lane k of m is. */
+static inline unsigned nbits(const nint *m) {
+#ifdef __SSE2__
+    union { nint n; __m128 h[NODE_W / 4]; } x = {*m};
+    unsigned bits = 0;
+    for (int i = 0; i < NODE_W / 4; i++) bits |= (unsigned)_mm_movemask_ps(x.h[i]) << (4 * i);
+    return bits;
+#else
+    unsigned bits = 0;
+    for (int k = 0; k < NODE_W; k++) bits |= ((*m)[k] & 1u) << k;
+    return bits;
 #endif
 }
 
@@ -243,7 +283,7 @@ static inline vfloat vmax(vfloat a, vfloat b) {
 typedef struct {
     ray_prep r;
     wide4_ray lanes;
-    vfloat o[3], inv[3];
+    nfloat o[3], inv[3];
     size_t near[3], far[3]; /* float offsets of the rows in wide_node.box */
 } walk_ray;
 
@@ -253,28 +293,30 @@ static inline void walk_ray_prepare(const ray *in, walk_ray *w) {
     const float o[3] = {in->o.x, in->o.y, in->o.z};
     const float inv[3] = {w->r.inv_d.x, w->r.inv_d.y, w->r.inv_d.z};
     for (int a = 0; a < 3; a++) {
-        w->o[a] = vsplat(o[a]);
-        w->inv[a] = vsplat(inv[a]);
+        w->o[a] = nsplat(o[a]);
+        w->inv[a] = nsplat(inv[a]);
         size_t down = signbit(inv[a]) != 0;
-        w->near[a] = 4 * (2 * a + down);
-        w->far[a] = 4 * (2 * a + 1 - down);
+        w->near[a] = NODE_W * (2 * a + down);
+        w->far[a] = NODE_W * (2 * a + 1 - down);
     }
 }
 
-/* The slab test of n's four children against [0, cull]: returns the bits of
- * the children the ray may enter and their entry distances in *tnear. */
-static inline unsigned node_test(const wide_node *n, const walk_ray *w, float cull, vfloat *tnear) {
+/* The slab test of n's children against [0, cull]: returns the bits of the
+ * children the ray may enter and their entry distances in *tnear. */
+static inline unsigned node_test(const wide_node *n, const walk_ray *w, float cull, nfloat *tnear) {
     const float *b = &n->box[0][0];
-    vfloat nx = (vload(b + w->near[0]) - w->o[0]) * w->inv[0];
-    vfloat ny = (vload(b + w->near[1]) - w->o[1]) * w->inv[1];
-    vfloat nz = (vload(b + w->near[2]) - w->o[2]) * w->inv[2];
-    vfloat fx = (vload(b + w->far[0]) - w->o[0]) * w->inv[0];
-    vfloat fy = (vload(b + w->far[1]) - w->o[1]) * w->inv[1];
-    vfloat fz = (vload(b + w->far[2]) - w->o[2]) * w->inv[2];
-    vfloat tn = vmax(vmax(nx, ny), vmax(nz, vsplat(0.0f)));
-    vfloat tf = vmin(vmin(fx, fy), vmin(fz, vsplat(cull)));
+    nfloat nx = (nload(b + w->near[0]) - w->o[0]) * w->inv[0];
+    nfloat ny = (nload(b + w->near[1]) - w->o[1]) * w->inv[1];
+    nfloat nz = (nload(b + w->near[2]) - w->o[2]) * w->inv[2];
+    nfloat fx = (nload(b + w->far[0]) - w->o[0]) * w->inv[0];
+    nfloat fy = (nload(b + w->far[1]) - w->o[1]) * w->inv[1];
+    nfloat fz = (nload(b + w->far[2]) - w->o[2]) * w->inv[2];
+    nfloat zero = nsplat(0.0f), c = nsplat(cull);
+    nfloat nxy = nmax(&nx, &ny), nz0 = nmax(&nz, &zero), fxy = nmin(&fx, &fy), fzc = nmin(&fz, &c);
+    nfloat tn = nmax(&nxy, &nz0), tf = nmin(&fxy, &fzc);
     *tnear = tn;
-    return wide4_vbits(tn <= tf * vsplat(SLAB_WIDEN));
+    nint hit = tn <= tf * nsplat(SLAB_WIDEN);
+    return nbits(&hit);
 }
 
 /* Test leaf l's primitives with the caller's tmax and fold every hit into
@@ -326,11 +368,11 @@ typedef struct {
 
 /* Push the children of n in `bits` (two or more) with their entry
  * distances, the nearest last (so popped first); returns the new top. */
-static inline int push_sorted(stack_entry *stack, int sp, const wide_node *n, unsigned bits, vfloat tn) {
+static inline int push_sorted(stack_entry *stack, int sp, const wide_node *n, unsigned bits, const nfloat *tn) {
     int first = sp;
     for (; bits; bits &= bits - 1) {
         int k = __builtin_ctz(bits);
-        stack_entry e = {n->child[k], tn[k]};
+        stack_entry e = {n->child[k], (*tn)[k]};
         int j = sp++;
         while (j > first && stack[j - 1].tnear < e.tnear) { /* farther ones below */
             stack[j] = stack[j - 1];
@@ -356,14 +398,14 @@ static inline int walk(const accel_wide *wb, const scene *s, const ray *in, floa
     for (;;) {
         if (!(cur & LEAF_TAG)) {
             const wide_node *n = (const wide_node *)cur;
-            vfloat tn;
+            nfloat tn;
             unsigned bits = node_test(n, &w, cull, &tn);
             if (bits) {
                 if ((bits & (bits - 1)) == 0) {
                     cur = n->child[__builtin_ctz(bits)];
                     continue;
                 }
-                sp = push_sorted(stack, sp, n, bits, tn);
+                sp = push_sorted(stack, sp, n, bits, &tn);
                 cur = stack[--sp].ref;
                 continue;
             }

@@ -1,7 +1,7 @@
-/* accel_wide.h - Tessera's own 4-wide BVH for large scenes: built in
+/* accel_wide.h - Tessera's own 8-wide BVH for large scenes: built in
  * parallel by Embree's generic builder (rtcBuildBVH, binned SAH over boxes
  * Tessera supplies), walked by Tessera with one SIMD slab test for a node's
- * four children, leaves of up to four triangles tested at once by the flat
+ * eight children, leaves of up to four triangles tested at once by the flat
  * kernel's watertight test (accel_flat.h), spheres by the scalar test.
  *
  * The answer is the one accel_embree.h defines, without reference to any
@@ -34,7 +34,8 @@ typedef struct accel_wide accel_wide;
 
 typedef struct {
     double build_seconds;  /* wall time of the whole build, boxes included */
-    size_t node_count;     /* inner nodes (4 children each at most) */
+    size_t node_count;     /* inner nodes */
+    int node_width;        /* children per inner node at most (8) */
     size_t leaf_count;     /* leaves (4 primitives each at most) */
     size_t primitive_count;
     size_t memory_bytes;   /* bytes held after the build (nodes and leaves) */
