@@ -4,14 +4,14 @@
  *  - ACCEL_BVH: a binary bounding volume hierarchy (bvh.h), for scenes of
  *    hundreds of primitives;
  *  - ACCEL_WIDE: an 8-wide BVH with SIMD node and leaf tests (accel_wide.h),
- *    for large scenes;
+ *    for scenes of thousands to hundreds of thousands of primitives;
  *  - ACCEL_EMBREE: Embree's BVH walk with Tessera's tests at the leaves
- *    (accel_embree.h), on request;
+ *    (accel_embree.h), for the largest scenes;
  *  - ACCEL_FLAT: every triangle tested, 16 (AVX-512), 8 (AVX2) or 4 (SSE) at a time, from
  *    arrays laid out for SIMD, then every sphere; no tree to walk. On a scene as small as
  *    the Cornell box this is faster than any tree (see docs/performance.md).
- * ACCEL_AUTO picks FLAT for small scenes, BVH for medium and WIDE for large
- * ones. The choice is a function of the scene alone, never of the machine,
+ * ACCEL_AUTO picks FLAT for small scenes, then BVH, WIDE and EMBREE as
+ * they grow. The choice is a function of the scene alone, never of the machine,
  * so every worker of a farm takes the same path. BVH, WIDE and EMBREE give
  * the same hits bit for bit (the smallest (t, index)); FLAT can differ from
  * them only in which of two hits at exactly the same distance wins.
@@ -30,9 +30,11 @@
 /* ACCEL_AUTO picks ACCEL_FLAT up to this many triangles and spheres. */
 #define ACCEL_FLAT_MAX_TRIANGLES 96
 #define ACCEL_FLAT_MAX_SPHERES 8
-/* ... and ACCEL_WIDE from this many primitives (ACCEL_BVH between);
- * ACCEL_EMBREE only when asked for (docs/meshes.md has the figures). */
+/* ... ACCEL_WIDE from this many primitives (ACCEL_BVH below), and
+ * ACCEL_EMBREE from 2^19: there the wide BVH renders no faster (within the
+ * noise) and builds slower (docs/meshes.md has the figures). */
 #define ACCEL_WIDE_MIN_PRIMITIVES 1024
+#define ACCEL_EMBREE_MIN_PRIMITIVES 524288
 
 typedef struct accel accel;
 

@@ -228,8 +228,6 @@ void accel_wide_free(accel_wide *w) {
 
 void accel_wide_get_stats(const accel_wide *w, accel_wide_stats *out) { *out = w->stats; }
 
-static inline vfloat vsplat(float x) { return (vfloat){x, x, x, x}; }
-
 static inline nfloat nsplat(float x) {
     nfloat v;
     for (int k = 0; k < NODE_W; k++) v[k] = x;
