@@ -236,20 +236,24 @@ TEST(mesh_embree_same_image_threads_and_workers) {
 }
 
 /* The whole program under qemu emulating a Nehalem (SSE4.2, no AVX): the
- * wide BVH's builder (Embree) picks its SSE kernels, the flat kernel its 4
- * lanes, and the picture is the one this machine makes natively. Skipped without qemu-x86_64, and under
+ * wide BVH's builder and Embree (the same scene with render.accel "embree")
+ * pick their SSE kernels, the flat kernel its 4 lanes, and the picture is
+ * the one this machine makes natively. Skipped without qemu-x86_64, and under
  * the sanitizers (their runtimes do not run under qemu-user). */
 TEST(mesh_embree_same_image_under_qemu_nehalem) {
 #if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
     return;
 #else
     if (!util_have_qemu()) return;
-    char out[8192];
-    int rc = util_same_under_nehalem(harness_tessera(),
-                                     "render " ICO_SCENE " --workers 0 --threads 2 --spp 4 --no-progress -v", "ico",
-                                     out, sizeof out);
-    CHECK(rc == 0, "%s", out);
-    CHECK(rc != 0 || strstr(out, "intersector: wide"), "under qemu (Nehalem) the wide BVH was not used: %s", out);
+    static const char *const scenes[][2] = {{ICO_SCENE, "intersector: wide"},
+                                            {"tests/scenes/icospheres-embree.json", "intersector: embree"}};
+    for (int k = 0; k < 2; k++) {
+        char out[8192], args[512];
+        snprintf(args, sizeof args, "render %s --workers 0 --threads 2 --spp 4 --no-progress -v", scenes[k][0]);
+        int rc = util_same_under_nehalem(harness_tessera(), args, "ico", out, sizeof out);
+        CHECK(rc == 0, "%s", out);
+        CHECK(rc != 0 || strstr(out, scenes[k][1]), "under qemu (Nehalem) %s: no \"%s\": %s", scenes[k][0], scenes[k][1], out);
+    }
 #endif
 }
 
