@@ -1,7 +1,9 @@
-/* test_meshes.c - the Embree intersector against the BVH: the same hit, bit
- * for bit, on every ray (both pick the smallest (t, index), accel_embree.h),
- * with every Embree ISA this CPU has forced, in renders with any threads and
- * workers, and under an emulated CPU without SSE4.2's successors (qemu). */
+/* test_meshes.c - the Embree intersector and the wide BVH against the BVH:
+ * the same hit, bit for bit, on every ray (all pick the smallest (t, index),
+ * accel_embree.h, accel_wide.h), with every Embree ISA this CPU has forced
+ * (for Embree's walk and for the wide BVH's builder), in renders with any
+ * threads and workers, and under an emulated CPU without SSE4.2's
+ * successors (qemu). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -71,24 +73,63 @@ static int count_differences(const scene *s, const accel *a, const accel *b, uin
     return differ;
 }
 
-static void embree_matches_bvh(const char *path) {
+/* 150 000 test rays through the BVH and through `kind` on the scene at path:
+ * the same answers, bit for bit. */
+static void matches_bvh(const char *path, accel_kind kind) {
     char err[512];
     scene *s = scene_load(path, NULL, err, sizeof err);
     CHECK(s != NULL, "%s", err);
     if (!s) return;
-    accel *tree = accel_build(s, ACCEL_BVH), *emb = accel_build_err(s, ACCEL_EMBREE, err, sizeof err);
-    CHECK(tree && emb && accel_get_kind(emb) == ACCEL_EMBREE, "build: %s", err);
+    accel *tree = accel_build(s, ACCEL_BVH), *other = accel_build_err(s, kind, err, sizeof err);
+    CHECK(tree && other && accel_get_kind(other) == kind, "build: %s", err);
     int hits = 0;
-    int differ = tree && emb ? count_differences(s, tree, emb, 150000, &hits) : -1;
-    CHECK(differ == 0, "%s: %d of 150000 rays differ between the BVH and Embree", path, differ);
+    int differ = tree && other ? count_differences(s, tree, other, 150000, &hits) : -1;
+    CHECK(differ == 0, "%s: %d of 150000 rays differ between the BVH and %s", path, differ,
+          kind == ACCEL_WIDE ? "the wide BVH" : "Embree");
     CHECK(hits > 50000, "%s: only %d rays hit (test rays not aimed at the scene?)", path, hits);
     accel_free(tree);
-    accel_free(emb);
+    accel_free(other);
     scene_free(s);
 }
 
-TEST(mesh_embree_matches_bvh_icospheres) { embree_matches_bvh(ICO_SCENE); }
-TEST(mesh_embree_matches_bvh_features) { embree_matches_bvh("scenes/features.json"); }
+TEST(mesh_embree_matches_bvh_icospheres) { matches_bvh(ICO_SCENE, ACCEL_EMBREE); }
+TEST(mesh_embree_matches_bvh_features) { matches_bvh("scenes/features.json", ACCEL_EMBREE); }
+TEST(mesh_wide_matches_bvh_icospheres) { matches_bvh(ICO_SCENE, ACCEL_WIDE); }
+TEST(mesh_wide_matches_bvh_features) { matches_bvh("scenes/features.json", ACCEL_WIDE); }
+
+/* Trees too small to have an inner node, or with spheres sharing a leaf
+ * with triangles: a quad (2 triangles) and a sphere, then 3 quads and 2
+ * spheres crossing each other, through the wide BVH and the BVH. */
+TEST(mesh_wide_small_trees_match_bvh) {
+    static const char *const shapes[] = {
+        "{\"type\": \"quad\", \"vertices\": [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], \"material\": \"m\"},"
+        "{\"type\": \"sphere\", \"center\": [0, 0, 0.5], \"radius\": 0.7, \"material\": \"m\"}",
+        "{\"type\": \"quad\", \"vertices\": [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], \"material\": \"m\"},"
+        "{\"type\": \"quad\", \"vertices\": [[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], \"material\": \"m\"},"
+        "{\"type\": \"quad\", \"vertices\": [[0, -1, -1], [0, 1, -1], [0, 1, 1], [0, -1, 1]], \"material\": \"m\"},"
+        "{\"type\": \"sphere\", \"center\": [0.3, 0, 0], \"radius\": 0.5, \"material\": \"m\"},"
+        "{\"type\": \"sphere\", \"center\": [-0.3, 0.2, 0], \"radius\": 0.4, \"material\": \"m\"}"};
+    for (size_t k = 0; k < sizeof shapes / sizeof shapes[0]; k++) {
+        char json[4096], err[512];
+        snprintf(json, sizeof json,
+                 "{\"camera\": {\"type\": \"perspective\", \"position\": [0, 0, -5], \"look_at\": [0, 0, 0], \"fov\": 40},"
+                 " \"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo\": [0.5, 0.5, 0.5]}}, \"shapes\": [%s]}",
+                 shapes[k]);
+        scene *s = util_scene_from_text(json, err, sizeof err);
+        CHECK(s != NULL, "%s", err);
+        if (!s) continue;
+        accel *tree = accel_build(s, ACCEL_BVH), *wide = accel_build_err(s, ACCEL_WIDE, err, sizeof err);
+        accel_wide_stats st = {0};
+        CHECK(tree && wide && accel_get_wide_stats(wide, &st) == 0 && st.primitive_count == s->triangle_count + s->sphere_count,
+              "build: %s", err);
+        int hits = 0, differ = tree && wide ? count_differences(s, tree, wide, 30000, &hits) : -1;
+        CHECK(differ == 0 && hits > 5000, "scene %zu (%zu nodes, %zu leaves): %d of 30000 rays differ, %d hit", k,
+              st.node_count, st.leaf_count, differ, hits);
+        accel_free(tree);
+        accel_free(wide);
+        scene_free(s);
+    }
+}
 
 /* Every Embree kernel this CPU can run, forced, and every build quality:
  * the same answers as the BVH (the tests at the leaves are Tessera's;
@@ -120,6 +161,20 @@ TEST(mesh_embree_every_isa_agrees) {
         int hits = 0, differ = emb && tree ? count_differences(s, tree, emb, 60000, &hits) : -1;
         CHECK(differ == 0, "%s: %d of 60000 rays differ from the BVH", cfg, differ);
         accel_free(emb);
+        /* The wide BVH built by that ISA's builder, on one thread and on all. */
+        static const char *const threads[] = {"", ",threads=1"};
+        for (int th = 0; th < 2; th++) {
+            char wcfg[96];
+            snprintf(wcfg, sizeof wcfg, "%s%s", cfg, threads[th]);
+            setenv("TESSERA_EMBREE_CONFIG", wcfg, 1);
+            accel *wide = accel_build_err(s, ACCEL_WIDE, err, sizeof err);
+            unsetenv("TESSERA_EMBREE_CONFIG");
+            accel_wide_stats ws;
+            CHECK(wide && accel_get_wide_stats(wide, &ws) == 0 && strcmp(ws.config, wcfg) == 0, "%s: %s", wcfg, err);
+            differ = wide && tree ? count_differences(s, tree, wide, 60000, &hits) : -1;
+            CHECK(differ == 0, "wide BVH built with %s: %d of 60000 rays differ from the BVH", wcfg, differ);
+            accel_free(wide);
+        }
         tried++;
     }
     CHECK(tried >= 2, "only %d ISAs tried", tried);
@@ -136,24 +191,31 @@ TEST(mesh_embree_every_isa_agrees) {
     scene_free(s);
 }
 
-/* The picture through Embree is the BVH's, bit for bit, with 1 and 2 render
- * threads, and in a local farm of 1, 2 and 3 workers. */
+/* The picture through Embree and through the wide BVH is the BVH's, bit for
+ * bit, with 1 and 2 render threads, and in a local farm of 1, 2 and 3
+ * workers (render.accel "auto": the wide BVH). */
 TEST(mesh_embree_same_image_threads_and_workers) {
     char err[512];
     scene *s = scene_load(ICO_SCENE, NULL, err, sizeof err);
-    CHECK(s && accel_get_kind(s->accel) == ACCEL_EMBREE, "auto should pick Embree for %u triangles: %s",
+    CHECK(s && accel_get_kind(s->accel) == ACCEL_WIDE, "auto should pick the wide BVH for %u triangles: %s",
           s ? s->triangle_count : 0, s ? "" : err);
     if (!s) return;
     size_t bytes = (size_t)s->settings.width * (size_t)s->settings.height * 3 * sizeof(float);
     trace_stats st;
-    float *e1 = util_render(s, 1, 16, 1, &st), *e2 = util_render(s, 2, 7, 1, &st);
     accel_free(s->accel);
     s->accel = accel_build(s, ACCEL_BVH);
     float *b1 = util_render(s, 1, 16, 1, &st);
-    CHECK(e1 && e2 && b1 && memcmp(e1, b1, bytes) == 0, "Embree (1 thread) and BVH images differ");
-    CHECK(e1 && e2 && memcmp(e1, e2, bytes) == 0, "Embree images differ with 1 and 2 threads");
-    free(e1);
-    free(e2);
+    static const accel_kind kinds[] = {ACCEL_EMBREE, ACCEL_WIDE};
+    for (int k = 0; k < 2; k++) {
+        accel_free(s->accel);
+        s->accel = accel_build(s, kinds[k]);
+        const char *name = kinds[k] == ACCEL_WIDE ? "wide BVH" : "Embree";
+        float *e1 = util_render(s, 1, 16, 1, &st), *e2 = util_render(s, 2, 7, 1, &st);
+        CHECK(e1 && e2 && b1 && memcmp(e1, b1, bytes) == 0, "%s (1 thread) and BVH images differ", name);
+        CHECK(e1 && e2 && memcmp(e1, e2, bytes) == 0, "%s images differ with 1 and 2 threads", name);
+        free(e1);
+        free(e2);
+    }
     free(b1);
     scene_free(s);
 
@@ -173,21 +235,25 @@ TEST(mesh_embree_same_image_threads_and_workers) {
     }
 }
 
-/* The whole program under qemu emulating a Nehalem (SSE4.2, no AVX): Embree
- * picks its SSE kernels, the flat kernel its 4 lanes, and the picture is the
- * one this machine makes natively. Skipped without qemu-x86_64, and under
+/* The whole program under qemu emulating a Nehalem (SSE4.2, no AVX): the
+ * wide BVH's builder and Embree (the same scene with render.accel "embree")
+ * pick their SSE kernels, the flat kernel its 4 lanes, and the picture is
+ * the one this machine makes natively. Skipped without qemu-x86_64, and under
  * the sanitizers (their runtimes do not run under qemu-user). */
 TEST(mesh_embree_same_image_under_qemu_nehalem) {
 #if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
     return;
 #else
     if (!util_have_qemu()) return;
-    char out[8192];
-    int rc = util_same_under_nehalem(harness_tessera(),
-                                     "render " ICO_SCENE " --workers 0 --threads 2 --spp 4 --no-progress -v", "ico",
-                                     out, sizeof out);
-    CHECK(rc == 0, "%s", out);
-    CHECK(rc != 0 || strstr(out, "intersector: embree"), "under qemu (Nehalem) Embree was not used: %s", out);
+    static const char *const scenes[][2] = {{ICO_SCENE, "intersector: wide"},
+                                            {"tests/scenes/icospheres-embree.json", "intersector: embree"}};
+    for (int k = 0; k < 2; k++) {
+        char out[8192], args[512];
+        snprintf(args, sizeof args, "render %s --workers 0 --threads 2 --spp 4 --no-progress -v", scenes[k][0]);
+        int rc = util_same_under_nehalem(harness_tessera(), args, "ico", out, sizeof out);
+        CHECK(rc == 0, "%s", out);
+        CHECK(rc != 0 || strstr(out, scenes[k][1]), "under qemu (Nehalem) %s: no \"%s\": %s", scenes[k][0], scenes[k][1], out);
+    }
 #endif
 }
 

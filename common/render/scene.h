@@ -58,14 +58,14 @@ typedef struct {
 } camera;
 
 /* Which ray intersector a scene uses (accel.h). */
-typedef enum { ACCEL_AUTO, ACCEL_BVH, ACCEL_FLAT, ACCEL_EMBREE } accel_kind;
+typedef enum { ACCEL_AUTO, ACCEL_BVH, ACCEL_FLAT, ACCEL_EMBREE, ACCEL_WIDE } accel_kind;
 
 typedef struct {
     int width, height;
     int spp;       /* samples per pixel */
     int max_depth; /* maximum number of path segments after the camera ray */
     uint64_t seed;
-    accel_kind accel; /* render.accel: "auto" (default), "bvh", "flat" or "embree" */
+    accel_kind accel; /* render.accel: "auto" (default), "bvh", "flat", "embree" or "wide" */
 } render_settings;
 
 /* Command-line overrides; a negative value (or has_seed == 0) means "keep
