@@ -182,10 +182,11 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
          * moderate weight alive longer), where beta leaves out the
          * refraction's (eta_i / eta_t)^2 (pbrt-v4's etaScale: a path inside
          * glass is not dimmer, its radiance is only scaled until it leaves).
-         * Never right after a delta bounce (mirror, glass): it does not lower
-         * the weight, so each specular vertex would only roll again, with the
-         * same odds, against the caustic paths that carry the largest
-         * weights. From the fifth vertex on. Measured in docs/performance.md
+         * Never right after a delta bounce (mirror, glass): it hardly lowers
+         * the weight, so the roll would only repeat the decision of the last
+         * rough vertex, against the caustic paths that carry the largest
+         * weights (a path of delta bounces alone, between mirrors, runs to
+         * max_depth). From the fifth vertex on. Measured in docs/performance.md
          * (issue 15): on the spheres 33% less variance from the delta rule,
          * then 10% less (box 9%) from the fifth vertex for 9% more rays. */
         eta_scale *= bs.eta * bs.eta;
