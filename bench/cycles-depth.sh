@@ -17,9 +17,12 @@
 # Writes bench/results/cycles-depth.csv and .md, prints the table.
 # usage: bench/cycles-depth.sh TESSERA_BIN "SCENES" "DEPTHS" SPP [REF_SPP [SUFFIX]]
 # (SUFFIX: write cycles-depth-SUFFIX.{csv,md}, e.g. a second sample count)
+# SIZE=N renders N x N (default 256; 128 for quick looks). KEEP=DIR keeps
+# every image there as SCENE-RENDERER-DEPTH-SEED.pfm (for per-pixel maps,
+# bench/cycles/pixelvar.py).
 set -euo pipefail
 bin=$1 scenes=$2 depths=$3 spp=$4 ref_spp=${5:-8192} suffix=${6:+-$6}
-size=256
+size=${SIZE:-256}
 out=bench/results
 mkdir -p "$out"
 tmp=$(mktemp -d /tmp/tessera-cycles-depth.XXXXXX)
@@ -53,6 +56,7 @@ for entry in $scenes; do # FILE or FILE@REF_SPP, as in cycles.sh
   name=$(basename "$scene" .json)
   ref=$("$here/cycles/reference.sh" "$scene" "$size" "$rs")
   "$bin" tonemap "$ref" -o "$tmp/ref.pfm" > /dev/null
+  [[ -n ${KEEP:-} ]] && mkdir -p "$KEEP" && cp "$tmp/ref.pfm" "$KEEP/$name-ref.pfm"
   prev=""
   for d in $depths full; do
     declare -A res=()
@@ -72,6 +76,10 @@ for entry in $scenes; do # FILE or FILE@REF_SPP, as in cycles.sh
     ratio=$(awk -v a="$ti" -v b="$ci" 'BEGIN {printf "%.3f", (b > 0) ? a / b : 0}')
     echo "$name,$d,$tm,$tv,$ti,$cm,$cv,$ci,$ratio" >> "$csv"
     printf "%-16s %5s | %9.5f %10.4g %10.4g | %9.5f %10.4g %10.4g | %s\n" "$name" "$d" "$tm" "$tv" "$ti" "$cm" "$cv" "$ci" "$ratio"
+    if [[ -n ${KEEP:-} ]]; then
+      mkdir -p "$KEEP"
+      for f in "$tmp"/*-"$d"-[12].pfm; do cp "$f" "$KEEP/$name-$(basename "$f")"; done
+    fi
     [[ -n $prev ]] && rm -f "$tmp"/*-"$prev"-[12].*
     prev=$d
   done

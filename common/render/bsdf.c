@@ -82,10 +82,12 @@ static int sample_glass(const material *m, vec3 wo, float u, bsdf_sample *out) {
     vec3 wi = vec3_make(-wo.x * inv_eta, -wo.y * inv_eta, entering ? -cos_t : cos_t);
     out->wi = vec3_normalize(wi);
     out->weight = vec3_scale(m->kt, inv_eta * inv_eta);
+    out->eta = eta;
     return 1;
 }
 
 int bsdf_sample_wi(const material *m, vec3 wo, float u1, float u2, float u3, bsdf_sample *out) {
+    out->eta = 1.0f;
     switch (m->kind) {
     case MATERIAL_DIFFUSE:
     case MATERIAL_GLOSSY: {

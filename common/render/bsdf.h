@@ -17,6 +17,7 @@ typedef struct {
     vec3 weight;  /* f * |cos(wi)| / pdf: what the path throughput is multiplied by */
     float pdf;    /* solid-angle density of wi; 0 for delta (specular) events */
     int is_delta; /* 1 for mirror and glass: no light sampling, no MIS */
+    float eta;    /* eta_t / eta_i of a refraction (weight holds 1 / eta^2); 1 otherwise */
 } bsdf_sample;
 
 /* 1 if the material has a non-delta component that light sampling can hit. */

@@ -30,7 +30,7 @@ enum {
 
 /* The first vertex (0 = the camera ray's hit) after whose bounce Russian
  * roulette may end a path. */
-#define ROULETTE_MIN_DEPTH 3
+#define ROULETTE_MIN_DEPTH 4
 
 
 /* Geometry at a hit: precise position and unit geometric normal (front face
@@ -127,6 +127,10 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
      * are reached only through primitives that have them.) */
     int has_lights = (s->features & (FEATURE_AREA_LIGHTS | FEATURE_POINT_LIGHTS)) != 0;
     int passes = 0; /* cut-out surfaces passed through (render/shading.h) */
+    /* The product of eta^2 over the refractions so far: beta * eta_scale is
+     * the throughput without the radiance scaling (eta_i / eta_t)^2 of
+     * refraction, which a path inside glass undoes when it leaves. */
+    float eta_scale = 1.0f;
     for (int depth = 0;; depth++) {
         hit h;
         st->rays++;
@@ -173,15 +177,21 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
         beta = vec3_mul(beta, bs.weight);
         prev_pdf = bs.pdf;
         prev_p = sf.p;
-        /* Russian roulette, Cycles' rule: continue with probability
-         * min(1, sqrt(max component of beta)). The sqrt keeps paths of
-         * moderate weight alive longer (and a specular bounce does not lower
-         * beta, so a caustic path is hardly ever ended right after one).
-         * From the fourth vertex on, as before: starting at the second, as
-         * Cycles does, saved time but cost more in variance (measured in
-         * docs/performance.md). */
-        if (depth >= ROULETTE_MIN_DEPTH) {
-            float survive = min_f(1.0f, sqrtf(vec3_max_comp(beta)));
+        /* Russian roulette: continue with probability min(1, sqrt(max
+         * component of beta)), Cycles' rule (the sqrt keeps paths of
+         * moderate weight alive longer), where beta leaves out the
+         * refraction's (eta_i / eta_t)^2 (pbrt-v4's etaScale: a path inside
+         * glass is not dimmer, its radiance is only scaled until it leaves).
+         * Never right after a delta bounce (mirror, glass): it hardly lowers
+         * the weight, so the roll would only repeat the decision of the last
+         * rough vertex, against the caustic paths that carry the largest
+         * weights (a path of delta bounces alone, between mirrors, runs to
+         * max_depth). From the fifth vertex on. Measured in docs/performance.md
+         * (issue 15): on the spheres 33% less variance from the delta rule,
+         * then 10% less (box 9%) from the fifth vertex for 9% more rays. */
+        eta_scale *= bs.eta * bs.eta;
+        if (depth >= ROULETTE_MIN_DEPTH && !bs.is_delta) {
+            float survive = min_f(1.0f, sqrtf(vec3_max_comp(beta) * eta_scale));
             if (!(u_roulette < survive)) break;
             beta = vec3_scale(beta, 1.0f / survive);
         }
