@@ -38,7 +38,13 @@ else
   LDFLAGS_V :=
 endif
 CFLAGS := $(CFLAGS_COMMON) $(CFLAGS_OPT) -I$(BUILD)
-LDLIBS := -lcjson -lpng16 -ljpeg -lOpenEXRCore-3_1 -lsodium -luv -lembree3 -lpthread -lm
+# Embree and Assimp are not linked: common/render/dynlib.c opens them on
+# first use (a render that needs neither no longer loads them at start-up),
+# by the sonames found here.
+soname = $(shell objdump -p $$($(CC) -print-file-name=lib$(1).so) 2>/dev/null | awk '/SONAME/ {print $$2}')
+$(BUILD)/common/render/dynlib.o: CFLAGS += -DTESSERA_EMBREE_SONAME='"$(or $(call soname,embree3),libembree3.so.3)"' \
+                                           -DTESSERA_ASSIMP_SONAME='"$(or $(call soname,assimp),libassimp.so.5)"'
+LDLIBS := -lcjson -lpng16 -ljpeg -lOpenEXRCore-3_1 -lsodium -luv -ldl -lpthread -lm
 LDFLAGS := $(LDFLAGS_V)
 
 .DEFAULT_GOAL := all
@@ -237,7 +243,6 @@ slurm-bench: $(TESSERA) $(WORKER)
 	tests/slurm/run.sh $(BUILD)/bin --bench-layout $(SLURM_BENCH_ROUNDS)
 # ---- glTF / OBJ+MTL import (issue 14): Assimp reads the models ------------
 DEB_PACKAGES += libassimp-dev
-LDLIBS += -lassimp
 FUZZ_TARGETS += gltf
 fuzz: $(FUZZ_BUILD)/fuzz_gltf
 # ---- Tessera against Blender Cycles in the same run (issue 15) ----
