@@ -151,13 +151,18 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
         if (sf.smooth) n = shading_normal_oriented(sf.ng, sf.ns, n, wo);
         material m_hit;
         if (s->corner_normals && h.prim < s->triangle_count) { /* imported: textures, normals, cutout */
-            m = shading_resolve(s, &h, m, n, wo, &m_hit, &n);
+            /* Into a copy: were n's address taken, n would live on the
+             * stack for every bounce and be reloaded by halves that
+             * straddle its stores (a store-forwarding stall). */
+            vec3 n_resolved = n;
+            m = shading_resolve(s, &h, m, n, wo, &m_hit, &n_resolved);
             if (!m) {
                 if (++passes > 64) break;
                 r = spawn(sf.p, sf.ng, h.prim, r.d);
                 depth--;
                 continue;
             }
+            n = n_resolved;
         }
         frame fr = frame_from_normal(n);
         vec3 wo_local = frame_to_local(&fr, wo);
