@@ -8,8 +8,10 @@
  * (Assimp) need them, so the functions Tessera calls are defined here with
  * the libraries' own prototypes (the headers are included, so the compiler
  * checks them), and each opens its library (dlopen, by the soname the build
- * found) and looks itself up on its first call. The program links neither
- * library; the callers (accel_embree.c, import.c) are unchanged. */
+ * found) and looks itself up on its first call. The release programs link
+ * neither library (the sanitizer builds do, and these wrappers then find
+ * them loaded: see the Makefile); the callers (accel_embree.c, import.c)
+ * are unchanged. */
 #include <dlfcn.h>
 #include <pthread.h>
 #include <stdatomic.h>
