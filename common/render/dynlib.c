@@ -4,8 +4,8 @@
  * and minizip behind them) were loaded and relocated by every tessera and
  * tessera-worker process before main: about 15 ms of CPU each, paid three
  * times by a local-farm render that uses neither (docs/performance.md, "Fixed
- * costs"). Only big meshes (the Embree intersector) and imported models
- * (Assimp) need them, so the functions Tessera calls are defined here with
+ * costs"). Only meshes (Embree's intersector and BVH builder) and imported
+ * models (Assimp) need them, so the functions Tessera calls are defined here with
  * the libraries' own prototypes (the headers are included, so the compiler
  * checks them), and each opens its library (dlopen, by the soname the build
  * found) and looks itself up on its first call. The release programs link
@@ -120,6 +120,14 @@ DYNLIB_CALL_VOID(embree, rtcIntersect1, (RTCScene scene, struct RTCIntersectCont
                  (scene, context, rayhit))
 DYNLIB_CALL_VOID(embree, rtcOccluded1, (RTCScene scene, struct RTCIntersectContext *context, struct RTCRay *ray),
                  (scene, context, ray))
+
+/* The BVH builder (accel_wide.c): a BVH that cannot be made is NULL, and
+ * so is a build or an allocation without the library. */
+DYNLIB_CALL(embree, RTCBVH, rtcNewBVH, (RTCDevice device), (device), NULL)
+DYNLIB_CALL(embree, void *, rtcBuildBVH, (const struct RTCBuildArguments *args), (args), NULL)
+DYNLIB_CALL(embree, void *, rtcThreadLocalAlloc, (RTCThreadLocalAllocator allocator, size_t bytes, size_t align),
+            (allocator, bytes, align), NULL)
+DYNLIB_CALL_VOID(embree, rtcReleaseBVH, (RTCBVH bvh), (bvh))
 
 /* ---- Assimp: an import that cannot be run is NULL, and the error says why ---- */
 

@@ -39,7 +39,7 @@ enum {
  * interpolated (shading_normal.h), else ng. */
 typedef struct {
     vec3 p, ng, ns;
-    int smooth; /* ns comes from vertex normals */
+    int smooth; /* ns comes from vertex normals, or a normal map bent it: the leak guard applies */
     const prim_info *info;
 } surface;
 
@@ -150,12 +150,12 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
         vec3 n = (m->kind != MATERIAL_GLASS && vec3_dot(sf.ng, wo) < 0.0f) ? vec3_neg(sf.ng) : sf.ng;
         if (sf.smooth) n = shading_normal_oriented(sf.ng, sf.ns, n, wo);
         material m_hit;
-        if (s->corner_normals && h.prim < s->triangle_count) { /* imported: textures, normals, cutout */
+        if (s->corner_uvs && h.prim < s->triangle_count) { /* imported: textures, normal map, cutout */
             /* Into a copy: were n's address taken, n would live on the
              * stack for every bounce and be reloaded by halves that
              * straddle its stores (a store-forwarding stall). */
             vec3 n_resolved = n;
-            m = shading_resolve(s, &h, m, n, wo, &m_hit, &n_resolved);
+            m = shading_resolve(s, &h, m, n, wo, &m_hit, &n_resolved, &sf.smooth);
             if (!m) {
                 if (++passes > 64) break;
                 r = spawn(sf.p, sf.ng, h.prim, r.d);
