@@ -38,7 +38,19 @@ else
   LDFLAGS_V :=
 endif
 CFLAGS := $(CFLAGS_COMMON) $(CFLAGS_OPT) -I$(BUILD)
-LDLIBS := -lcjson -lpng16 -ljpeg -lOpenEXRCore-3_1 -lsodium -luv -lembree3 -lpthread -lm
+# Embree and Assimp are not linked: common/render/dynlib.c opens them on
+# first use (a render that needs neither no longer loads them at start-up),
+# by the sonames found here.
+soname = $(shell objdump -p $$($(CC) -print-file-name=lib$(1).so) 2>/dev/null | awk '/SONAME/ {print $$2}')
+$(BUILD)/common/render/dynlib.o: CFLAGS += -DTESSERA_EMBREE_SONAME='"$(or $(call soname,embree3),libembree3.so.3)"' \
+                                           -DTESSERA_ASSIMP_SONAME='"$(or $(call soname,assimp),libassimp.so.5)"'
+# The sanitizer builds link them all the same (dynlib.c then finds them
+# already loaded): with Assimp dlopen()ed, LeakSanitizer's tracer crashed
+# at the exit of farm processes (GCC 12's libsanitizer, glibc 2.36; one run
+# in two of gltf_farm_same_bytes_any_workers_threads_tiles).
+LINKED_AT_START := -Wl,--no-as-needed -lembree3 -lassimp
+LDLIBS := -lcjson -lpng16 -ljpeg -lOpenEXRCore-3_1 -lsodium -luv -ldl -lpthread -lm \
+          $(if $(filter asan tsan,$(VARIANT)),$(LINKED_AT_START))
 LDFLAGS := $(LDFLAGS_V)
 
 .DEFAULT_GOAL := all
@@ -193,6 +205,7 @@ $(FUZZ_BUILD)/%.o: %.c | $(DEPS_STAMP)
 	@mkdir -p $(dir $@)
 	clang $(FUZZ_CFLAGS) -c $< -o $@
 
+$(FUZZ_BUILD)/fuzz_%: LDLIBS += $(LINKED_AT_START)
 $(FUZZ_BUILD)/fuzz_%: tests/fuzz/fuzz_%.c $(FUZZ_COMMON_OBJ)
 	clang $(FUZZ_CFLAGS) -fsanitize=fuzzer -o $@ $^ $(LDLIBS)
 
@@ -237,7 +250,6 @@ slurm-bench: $(TESSERA) $(WORKER)
 	tests/slurm/run.sh $(BUILD)/bin --bench-layout $(SLURM_BENCH_ROUNDS)
 # ---- glTF / OBJ+MTL import (issue 14): Assimp reads the models ------------
 DEB_PACKAGES += libassimp-dev
-LDLIBS += -lassimp
 FUZZ_TARGETS += gltf
 fuzz: $(FUZZ_BUILD)/fuzz_gltf
 # ---- Tessera against Blender Cycles in the same run (issue 15) ----

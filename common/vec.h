@@ -39,6 +39,9 @@ static inline float min_f(float a, float b) { return a < b ? a : b; }
 static inline float max_f(float a, float b) { return a > b ? a : b; }
 static inline vec3 vec3_min(vec3 a, vec3 b) { return vec3_make(min_f(a.x, b.x), min_f(a.y, b.y), min_f(a.z, b.z)); }
 static inline vec3 vec3_max(vec3 a, vec3 b) { return vec3_make(max_f(a.x, b.x), max_f(a.y, b.y), max_f(a.z, b.z)); }
+/* sqrt of x clamped at 0 (x < 0, -0 or NaN give +0): exactly
+ * sqrtf(fmaxf(0.0f, x)) with glibc's fmaxf, without its library call. */
+static inline float sqrt_clamped(float x) { return sqrtf(max_f(x, 0.0f)); }
 static inline float vec3_max_comp(vec3 a) { return max_f(a.x, max_f(a.y, a.z)); }
 static inline float vec3_comp(vec3 a, int axis) { return axis == 0 ? a.x : axis == 1 ? a.y : a.z; }
 static inline int vec3_is_zero(vec3 a) { return a.x == 0.0f && a.y == 0.0f && a.z == 0.0f; }

@@ -75,7 +75,7 @@ static int sample_glass(const material *m, vec3 wo, float u, bsdf_sample *out) {
     float eta = entering ? m->ior : 1.0f / m->ior; /* eta_t / eta_i */
     float cos_i = fabsf(wo.z); /* sin_i^2 = 1 - cos_i^2 */
     float sin2_t = (1.0f - cos_i * cos_i) / (eta * eta);
-    float cos_t = sqrtf(fmaxf(0.0f, 1.0f - sin2_t));
+    float cos_t = sqrt_clamped(1.0f - sin2_t);
     float inv_eta = 1.0f / eta;
     /* Snell: the tangential part scales by 1/eta and flips; the normal part
      * is cos_t on the far side of the interface. */

@@ -32,7 +32,7 @@ static float sphere_cone(const sphere *sp, vec3 ref, float *dc_out) {
     *dc_out = sqrtf(dc2);
     if (dc2 <= r2) return 0.0f;
     float sin2 = r2 / dc2;
-    float cos_max = sqrtf(fmaxf(0.0f, 1.0f - sin2));
+    float cos_max = sqrt_clamped(1.0f - sin2);
     return sin2 / (1.0f + cos_max);
 }
 
@@ -45,9 +45,9 @@ static int sample_sphere(const scene *s, const light *l, vec3 ref, float u1, flo
         vec3 w = frame_to_world(&f, warp_uniform_cone(u1, u2, 1.0f - one_minus_cos));
         /* Distance along w to the near side of the sphere (clamped for rays
          * that graze the silhouette through rounding). */
-        float cos_t = vec3_dot(w, axis), sin2_t = fmaxf(0.0f, 1.0f - cos_t * cos_t);
+        float cos_t = vec3_dot(w, axis), sin2_t = max_f(1.0f - cos_t * cos_t, 0.0f);
         float r2 = sp->radius * sp->radius;
-        float ds = dc * cos_t - sqrtf(fmaxf(0.0f, r2 - dc * dc * sin2_t));
+        float ds = dc * cos_t - sqrt_clamped(r2 - dc * dc * sin2_t);
         out->wi = w;
         out->dist = ds;
         out->p = vec3_add(ref, vec3_scale(w, ds));

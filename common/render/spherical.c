@@ -4,7 +4,6 @@
 #include "spherical.h"
 
 static float clamp_f(float x, float lo, float hi) { return x < lo ? lo : (x > hi ? hi : x); }
-static float safe_sqrt(float x) { return sqrtf(fmaxf(0.0f, x)); }
 static float safe_asin(float x) { return asinf(clamp_f(x, -1.0f, 1.0f)); }
 
 /* The angle between unit vectors, accurate near 0 and pi too. */
@@ -67,14 +66,14 @@ int spherical_triangle_sample(vec3 v0, vec3 v1, vec3 v2, vec3 p, float u1, float
     float k2 = sin_phi - sin_alpha * vec3_dot(a, b);
     float cos_bp = (k2 + (k2 * cos_phi - k1 * sin_phi) * cos_alpha) / ((k2 * sin_phi + k1 * cos_phi) * sin_alpha);
     cos_bp = clamp_f(isfinite(cos_bp) ? cos_bp : 1.0f, -1.0f, 1.0f);
-    float sin_bp = safe_sqrt(1.0f - cos_bp * cos_bp);
+    float sin_bp = sqrt_clamped(1.0f - cos_bp * cos_bp);
     vec3 c_perp = gram_schmidt(c, a);
     if (!(vec3_length(c_perp) > 0.0f)) return 0;
     vec3 cp = vec3_add(vec3_scale(a, cos_bp), vec3_scale(vec3_normalize(c_perp), sin_bp));
     /* u2 picks the direction on the arc from b to c', with the density
      * that makes the whole map uniform in solid angle. */
     float cos_t = 1.0f - u2 * (1.0f - vec3_dot(cp, b));
-    float sin_t = safe_sqrt(1.0f - cos_t * cos_t);
+    float sin_t = sqrt_clamped(1.0f - cos_t * cos_t);
     vec3 cp_perp = gram_schmidt(cp, b);
     vec3 w = vec3_scale(b, cos_t);
     if (vec3_length(cp_perp) > 0.0f) w = vec3_add(w, vec3_scale(vec3_normalize(cp_perp), sin_t));
@@ -131,7 +130,7 @@ vec3 spherical_rect_sample(const spherical_rect *r, float u1, float u2) {
     float cu = 1.0f / sqrtf(fu * fu + r->b0 * r->b0);
     if (!(fu > 0.0f)) cu = -cu;
     cu = clamp_f(isfinite(cu) ? cu : 0.0f, -0x1.fffffep-1f, 0x1.fffffep-1f);
-    float xu = clamp_f(-(cu * r->z0) / safe_sqrt(1.0f - cu * cu), r->x0, r->x1);
+    float xu = clamp_f(-(cu * r->z0) / sqrt_clamped(1.0f - cu * cu), r->x0, r->x1);
     /* u2: along y at xu, uniform in the solid angle's measure there. */
     float dd = sqrtf(xu * xu + r->z0 * r->z0);
     float h0 = r->y0 / sqrtf(dd * dd + r->y0 * r->y0), h1 = r->y1 / sqrtf(dd * dd + r->y1 * r->y1);

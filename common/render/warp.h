@@ -18,7 +18,7 @@ static inline vec3 warp_cosine_hemisphere(float u1, float u2) {
         phi = (TS_PI / 2.0f) - (TS_PI / 4.0f) * (a / b);
     }
     float x = r * cosf(phi), y = r * sinf(phi);
-    return vec3_make(x, y, sqrtf(fmaxf(0.0f, 1.0f - x * x - y * y)));
+    return vec3_make(x, y, sqrt_clamped(1.0f - x * x - y * y));
 }
 static inline float warp_cosine_hemisphere_pdf(float cos_theta) {
     return cos_theta > 0.0f ? cos_theta * TS_INV_PI : 0.0f;
@@ -27,7 +27,7 @@ static inline float warp_cosine_hemisphere_pdf(float cos_theta) {
 /* Power-cosine lobe around +z: pdf(w) = (n + 1) / (2 pi) cos^n(theta). */
 static inline vec3 warp_power_cosine(float u1, float u2, float n) {
     float cos_t = powf(1.0f - u1, 1.0f / (n + 1.0f)); /* 1-u1 in (0,1]: never 0^x */
-    float sin_t = sqrtf(fmaxf(0.0f, 1.0f - cos_t * cos_t));
+    float sin_t = sqrt_clamped(1.0f - cos_t * cos_t);
     float phi = 2.0f * TS_PI * u2;
     return vec3_make(sin_t * cosf(phi), sin_t * sinf(phi), cos_t);
 }
@@ -51,7 +51,7 @@ static inline void warp_uniform_triangle(float u1, float u2, float *b1, float *b
  * pdf = 1 / (2 pi (1 - cos_max)). */
 static inline vec3 warp_uniform_cone(float u1, float u2, float cos_max) {
     float cos_t = 1.0f - u1 * (1.0f - cos_max);
-    float sin_t = sqrtf(fmaxf(0.0f, 1.0f - cos_t * cos_t));
+    float sin_t = sqrt_clamped(1.0f - cos_t * cos_t);
     float phi = 2.0f * TS_PI * u2;
     return vec3_make(sin_t * cosf(phi), sin_t * sinf(phi), cos_t);
 }
@@ -59,7 +59,7 @@ static inline vec3 warp_uniform_cone(float u1, float u2, float cos_max) {
 /* Uniform direction on the unit sphere. pdf = 1 / (4 pi). */
 static inline vec3 warp_uniform_sphere(float u1, float u2) {
     float z = 1.0f - 2.0f * u1;
-    float r = sqrtf(fmaxf(0.0f, 1.0f - z * z));
+    float r = sqrt_clamped(1.0f - z * z);
     float phi = 2.0f * TS_PI * u2;
     return vec3_make(r * cosf(phi), r * sinf(phi), z);
 }
