@@ -21,6 +21,7 @@
 #include "scene_bundle.h"
 #include "scene.h"
 #include "limit.h"
+#include "memhint.h"
 #include "texture.h"
 
 #define MAX_RESOLUTION LIMIT_SIDE
@@ -294,6 +295,7 @@ static double *reserve_vertices(loader *L, size_t n) {
         while (cap < L->wv_count + n) cap *= 2;
         double *p = realloc(L->wv, 3 * cap * sizeof *p);
         if (!p) return NULL;
+        memhint_huge(p, 3 * cap * sizeof *p);
         L->wv = p;
         L->wv_cap = cap;
     }
@@ -343,6 +345,7 @@ static int reserve_triangles(loader *L, size_t n) {
     if (cap < L->tri_count + n) cap = L->tri_count + n; /* a mesh: one allocation, not a doubling per mesh */
     tri_r *p = realloc(L->tris, cap * sizeof *p);
     if (!p) return -1;
+    memhint_huge(p, cap * sizeof *p);
     L->tris = p;
     L->tri_cap = cap;
     return 0;
@@ -802,6 +805,10 @@ static int assemble(loader *L) {
         free(v);
         return jf_fail(&L->j, "shapes", NULL, "out of memory");
     }
+    memhint_huge(s->triangles, (L->tri_count + 1) * sizeof(triangle));
+    memhint_huge(s->triangle_info, (L->tri_count + 1) * sizeof(prim_info));
+    memhint_huge(s->triangle_normals, (L->tri_count + 1) * sizeof(vec3));
+    memhint_huge(v, (L->wv_count + 1) * sizeof *v);
     memset(&s->triangles[L->tri_count], 0, sizeof(triangle));
     memset(&s->triangle_info[L->tri_count], 0, sizeof(prim_info));
     memset(&s->triangle_normals[L->tri_count], 0, sizeof(vec3));
