@@ -250,6 +250,10 @@ TEST(mesh_obj_bad_input_names_file_and_line) {
         {"vt 1e300\n", "bad.obj:1: texture coordinate is not finite"},
         {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2", "bad.obj:4: face needs at least three vertices"}, /* truncated */
         {"v 0 0 0\nv 1 0 0\nv 0 1", "bad.obj:3: vertex needs three numbers"},                /* truncated */
+        /* Parsed in place: strtod and strtol skip any blank, '\n' too, so
+         * they must not see past the line (the next one holds numbers). */
+        {"v 1 2 \v\n3 4 5\n", "bad.obj:1: vertex needs three numbers"},
+        {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 \v\n3\n", "bad.obj:4: face corner is not an index"},
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         obj_mesh m;
@@ -257,6 +261,28 @@ TEST(mesh_obj_bad_input_names_file_and_line) {
         int rc = obj_parse(cases[i].text, strlen(cases[i].text), "bad.obj", &m, err, sizeof err);
         CHECK(rc == -1 && strstr(err, cases[i].want), "case %zu: got %d \"%s\", want \"%s\"", i, rc, err, cases[i].want);
         if (rc == 0) obj_mesh_free(&m);
+    }
+}
+
+/* The scene's centre is half the sum of the bounds, grown corner by corner
+ * as fmin/fmax do: on a tie (-0 against +0) the first corner stays. So a
+ * scene flat at y = 0 has its centre's y signed like its first corner's y,
+ * whatever the later ones (the loader's bounds keep fmin's rule). */
+TEST(mesh_bounds_keep_the_first_of_equal_corners) {
+    static const char *const first_y[2] = {"-0.0", "0.0"}, *const later_y[2] = {"0.0", "-0.0"};
+    for (int k = 0; k < 2; k++) {
+        char json[1024], err[512];
+        snprintf(json, sizeof json,
+                 "{\"camera\": {\"type\": \"perspective\", \"position\": [0, 3, -3], \"look_at\": [0, 0, 0], "
+                 "\"fov\": 40}, \"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo\": [0.5, 0.5, 0.5]}}, "
+                 "\"shapes\": [{\"type\": \"triangle\", \"material\": \"m\", \"vertices\": [[0, %s, 0], [1, %s, 0], "
+                 "[0, %s, 1]]}]}", first_y[k], later_y[k], later_y[k]);
+        scene *s = scene_load(util_write_temp("flat-zero.json", json), NULL, err, sizeof err);
+        CHECK(s != NULL, "%s", err);
+        if (!s) continue;
+        CHECK(signbit(s->world_center[1]) == (k == 0), "first corner y %s: centre y %g (sign %d)", first_y[k],
+              s->world_center[1], signbit(s->world_center[1]) != 0);
+        scene_free(s);
     }
 }
 
