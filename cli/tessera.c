@@ -479,7 +479,7 @@ static int cmd_render(int argc, char **argv) {
         if (a.camera) scene_bundle_free(&b);
         return 1;
     }
-    a.ov.no_accel = a.listen || a.workers > 0; /* the workers build their own */
+    a.ov.no_accel = 1; /* the workers build their own; this process, below, if it renders */
     scene *s = scene_load_bundle(&b, &a.ov, err, sizeof err);
     if (!s) {
         fprintf(stderr, "tessera: %s\n", err);
@@ -503,9 +503,13 @@ static int cmd_render(int argc, char **argv) {
         if (a.verbose)
             fprintf(stderr, "no local farm: %u primitives are rendered in this process with %d threads (the scene "
                     "is loaded once, not again by a worker)\n", s->triangle_count + s->sphere_count, a.threads);
+    }
+    int farm_mode = a.listen || a.workers > 0;
+    if (!farm_mode) {
+        scene_bundle_free(&b); /* the scene has what it needs: the mesh files' text goes before the build */
         s->accel = accel_build_err(s, s->settings.accel, err, sizeof err);
         if (!s->accel) {
-            fprintf(stderr, "tessera: %s: building the intersector: %s\n", s->path, err);
+            fprintf(stderr, "tessera: %s: shapes: building the intersector: %s\n", s->path, err);
             rc = -1;
         }
     }
@@ -528,7 +532,6 @@ static int cmd_render(int argc, char **argv) {
         rc = -1;
     }
     double t0 = now_seconds();
-    int farm_mode = a.listen || a.workers > 0;
     if (rc == 0) rc = farm_mode ? render_on_farm(&a, s, &b, &img, &st) : render_in_process(&a, s, &img, &st);
     double secs = now_seconds() - t0;
     if (rc == 0) rc = save_image(&a, s, &img);
