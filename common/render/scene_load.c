@@ -875,21 +875,11 @@ void scene_feature_names(uint32_t features, char *buf, size_t len) {
 /* Free the loader's temporaries (the scene and the JSON stay); it can be
  * called again. */
 static void loader_free(loader *L) {
-    free(L->material_names);
+    void *temps[] = {(void *)L->material_names, L->wv, L->tris, L->spheres, L->emitters, L->points, L->shade_n,
+                     L->shade_uv, L->shade_flags, L->vn, L->vt, L->tri_vn, L->tri_vt};
+    for (size_t i = 0; i < sizeof temps / sizeof temps[0]; i++) free(temps[i]);
     name_index_free(&L->material_index);
-    free(L->wv);
-    free(L->tris);
-    free(L->spheres);
-    free(L->emitters);
-    free(L->points);
-    free(L->shade_n);
-    free(L->shade_uv);
-    free(L->shade_flags);
     obj_mesh_free(&L->obj);
-    free(L->vn);
-    free(L->vt);
-    free(L->tri_vn);
-    free(L->tri_vt);
     json_ctx j = L->j;
     scene *s = L->s;
     memset(L, 0, sizeof *L);
