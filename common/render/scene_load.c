@@ -5,8 +5,8 @@
  * once the bounds of all geometry are known the whole scene is moved into
  * internal units (see scene.h) and only then rounded to float, each vertex
  * once. A mesh's triangles share its vertices, so a mesh costs 24 bytes per
- * vertex and 24 per triangle while loading. Every refusal names the file and the field; docs/scene-format.md
- * describes the format. */
+ * vertex and 24 per triangle while loading. Every refusal names the file
+ * and the field; docs/scene-format.md describes the format. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -285,14 +285,13 @@ static int shape_emission(loader *L, const cJSON *sh, const char *where, int *em
     return 0;
 }
 
-/* Make room for n more vertices in L->wv; returns the first new one (the
- * count is not advanced), or NULL when out of memory or past 2^32 - 1
- * vertices (indices are 32 bits). */
+/* Make room for n more vertices in L->wv (a mesh's exactly, a triangle's
+ * by doubling); returns the first new one (the count is not advanced), or
+ * NULL when out of memory or past 2^32 - 1 vertices (indices are 32 bits). */
 static double *reserve_vertices(loader *L, size_t n) {
     if (L->wv_count + n > UINT32_MAX) return NULL;
     if (L->wv_count + n > L->wv_cap) {
-        size_t cap = L->wv_cap ? L->wv_cap : 256;
-        while (cap < L->wv_count + n) cap *= 2;
+        size_t cap = n > 3 ? L->wv_count + n : L->wv_cap ? 2 * L->wv_cap : 256;
         double *p = realloc(L->wv, 3 * cap * sizeof *p);
         if (!p) return NULL;
         memhint_huge(p, 3 * cap * sizeof *p);
@@ -337,12 +336,12 @@ static void keep_triangle(loader *L, uint32_t ia, uint32_t ib, uint32_t ic, uint
     bounds_add(L, L->wv + 3 * (size_t)ic);
 }
 
-/* Make room for n more triangles in L->tris. Returns 0, or -1 when out of
- * memory (then L->tris is unchanged). */
+/* Make room for n more triangles in L->tris (a mesh's exactly: one
+ * allocation, not a doubling per mesh; one triangle by doubling). Returns
+ * 0, or -1 when out of memory (then L->tris is unchanged). */
 static int reserve_triangles(loader *L, size_t n) {
     if (L->tri_count + n <= L->tri_cap) return 0;
-    size_t cap = L->tri_cap ? 2 * L->tri_cap : 64;
-    if (cap < L->tri_count + n) cap = L->tri_count + n; /* a mesh: one allocation, not a doubling per mesh */
+    size_t cap = n > 1 ? L->tri_count + n : L->tri_cap ? 2 * L->tri_cap : 64;
     tri_r *p = realloc(L->tris, cap * sizeof *p);
     if (!p) return -1;
     memhint_huge(p, cap * sizeof *p);
@@ -801,8 +800,10 @@ static int assemble(loader *L) {
     s->spheres = calloc(L->sphere_count + 1, sizeof(sphere));
     s->sphere_info = calloc(L->sphere_count + 1, sizeof(prim_info));
     vec3 *v = malloc((L->wv_count + 1) * sizeof *v); /* the vertices in internal units */
-    if (!s->triangles || !s->triangle_info || !s->triangle_normals || !s->spheres || !s->sphere_info || !v) {
+    uint8_t *used = calloc(L->wv_count + 1, 1);       /* a corner of a kept triangle */
+    if (!s->triangles || !s->triangle_info || !s->triangle_normals || !s->spheres || !s->sphere_info || !v || !used) {
         free(v);
+        free(used);
         return jf_fail(&L->j, "shapes", NULL, "out of memory");
     }
     memhint_huge(s->triangles, (L->tri_count + 1) * sizeof(triangle));
@@ -812,7 +813,13 @@ static int assemble(loader *L) {
     memset(&s->triangles[L->tri_count], 0, sizeof(triangle));
     memset(&s->triangle_info[L->tri_count], 0, sizeof(prim_info));
     memset(&s->triangle_normals[L->tri_count], 0, sizeof(vec3));
-    for (size_t i = 0; i < L->wv_count; i++) v[i] = to_internal(s, L->wv + 3 * i);
+    /* Only the corners of kept triangles: they lie within the bounds, while
+     * a vertex no face (or only a degenerate one) uses may lie anywhere,
+     * beyond what a float holds. */
+    for (size_t t = 0; t < L->tri_count; t++) used[L->tris[t].v[0]] = used[L->tris[t].v[1]] = used[L->tris[t].v[2]] = 1;
+    for (size_t i = 0; i < L->wv_count; i++)
+        if (used[i]) v[i] = to_internal(s, L->wv + 3 * i);
+    free(used);
     free(L->wv); /* not needed past here: the scene's peak memory is the intersector's build */
     L->wv = NULL;
     for (size_t t = 0; t < L->tri_count; t++) {
