@@ -207,7 +207,7 @@ fuzz: $(FUZZ_BINS)
 	done; echo "fuzz: $(words $(FUZZ_TARGETS)) targets, no failures"
 
 -include $(FUZZ_COMMON_OBJ:.o=.d)
--include $(COMMON_OBJ:.o=.d) $(TEST_OBJ:.o=.d) $(COORD_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(BUILD)/bench/loadgen.d $(BUILD)/bench/seal_speed.d
+-include $(COMMON_OBJ:.o=.d) $(TEST_OBJ:.o=.d) $(COORD_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(BUILD)/bench/loadgen.d $(BUILD)/bench/seal_speed.d $(BUILD)/bench/accel_speed.d
 
 # ---- make install (issue 18) -------------------------------------------------
 # `make install [PREFIX=/usr/local] [DESTDIR=]` copies tessera and tessera-worker
@@ -317,6 +317,13 @@ bench-upload-stall: $(TESSERA) $(WORKER)
 	BIN=$(BUILD)/bin bench/upload_stall.py 3
 
 # ---- issue 17: trust on hostile networks --------------------------------------
+# Render CPU per intersector, interleaved in one process (docs/meshes.md):
+#   build/release/bin/accel-speed SCENE.json --width 128 --height 128 --spp 16 embree wide
+ACCEL_SPEED := $(BUILD)/bin/accel-speed
+$(ACCEL_SPEED): $(BUILD)/bench/accel_speed.o $(foreach l,render image net base,$(call layer_lib,$(l)))
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
+
 # What sealed links and audited tiles cost: five configurations of the local
 # farm run interleaved (bench/trust.sh; printed, not asserted).
 .PHONY: bench-trust

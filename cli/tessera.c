@@ -318,6 +318,7 @@ static void show_progress(void *ctx, int done, int total, const trace_stats *so_
 static void print_scene_info(const scene *s) {
     bvh_stats bs;
     accel_embree_stats es;
+    accel_wide_stats ws;
     char features[256];
     scene_feature_names(s->features, features, sizeof features);
     fprintf(stderr, "scene %s: %u triangles, %u spheres, %u lights, %u materials, %zu degenerate triangles skipped\n",
@@ -326,6 +327,10 @@ static void print_scene_info(const scene *s) {
     fprintf(stderr, "features: %s\n", features);
     if (!s->accel)
         fprintf(stderr, "intersector: built by each worker (workers print theirs with -v)\n");
+    else if (accel_get_wide_stats(s->accel, &ws) == 0)
+        fprintf(stderr, "intersector: wide (%d-wide BVH, Tessera's walk and tests; builder device \"%s\"), %zu nodes, "
+                "%zu leaves, %.1f KiB, peak %.1f KiB while building, built in %.3f ms\n", ws.node_width, ws.config, ws.node_count,
+                ws.leaf_count, (double)ws.memory_bytes / 1024.0, (double)ws.peak_bytes / 1024.0, ws.build_seconds * 1e3);
     else if (accel_get_embree_stats(s->accel, &es) == 0)
         fprintf(stderr, "intersector: embree (Tessera's tests at the leaves; device \"%s\"), %.1f KiB, peak %.1f KiB "
                 "while building, built in %.3f ms\n", es.config, (double)es.final_bytes / 1024.0,

@@ -583,7 +583,8 @@ TEST(gltf_texture_transform_is_read) {
 }
 
 /* A model shape's "rotate" (degrees, x then y then z) turns geometry and
- * shading normals: a triangle facing +z turned 90 degrees about y faces +x. */
+ * shading normals: a triangle (and a quad with normals) facing +z turned 90
+ * degrees about y faces +x. */
 TEST(gltf_model_shape_rotates) {
     good("rot.gltf");
     char err[1024];
@@ -595,6 +596,22 @@ TEST(gltf_model_shape_rotates) {
     if (!s) return;
     vec3 n = s->triangle_normals[0];
     CHECK(fabsf(n.x - 1) < 1e-5f && fabsf(n.y) < 1e-5f && fabsf(n.z) < 1e-5f, "normal %g %g %g", n.x, n.y, n.z);
+    scene_free(s);
+    /* The unit quad with its normals (+z at all 4 vertices): one shading
+     * normal, stored once for the 6 corners, turned to +x. */
+    util_write_temp("rotq.gltf", "{\"asset\": {\"version\": \"2.0\"}, \"scenes\": [{\"nodes\": [0]}], \"nodes\": [{\"mesh\": 0}],"
+                                 " \"meshes\": [{\"primitives\": [{\"attributes\": {\"POSITION\": 0, \"NORMAL\": 1},"
+                                 " \"indices\": 3}]}]," UNIT_QUAD_GLTF_DATA);
+    path = util_write_temp("rotq.json",
+        "{\"camera\": {\"type\": \"perspective\", \"position\": [5, 0, 0], \"look_at\": [0, 0, 0], \"fov\": 40},"
+        " \"shapes\": [{\"type\": \"model\", \"file\": \"rotq.gltf\", \"rotate\": [0, 90, 0]}]}");
+    s = scene_load(path, NULL, err, sizeof err);
+    CHECK(s, "%s", err);
+    if (!s) return;
+    CHECK(s->triangle_count == 2 && s->vertex_normal_count == 1 && s->triangle_vertex_normals, "%u triangles, %u normals",
+          s->triangle_count, s->vertex_normal_count);
+    n = s->vertex_normal_count ? s->vertex_normals[0] : vec3_splat(0);
+    CHECK(fabsf(n.x - 1) < 1e-5f && fabsf(n.y) < 1e-5f && fabsf(n.z) < 1e-5f, "shading normal %g %g %g", n.x, n.y, n.z);
     scene_free(s);
     path = util_write_temp("rot2.json",
         "{\"camera\": {\"type\": \"perspective\", \"position\": [5, 0, 0], \"look_at\": [0, 0, 0], \"fov\": 40},"

@@ -12,9 +12,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef __SSE2__
-#include <emmintrin.h>
-#endif
 #if defined(__x86_64__) && defined(__GNUC__)
 #include <immintrin.h>
 #endif
@@ -36,6 +33,7 @@ struct accel {
     accel_kind kind;
     bvh *tree;                /* ACCEL_BVH */
     accel_embree *embree;     /* ACCEL_EMBREE */
+    accel_wide *wide;         /* ACCEL_WIDE */
     flat_triangles flat;      /* ACCEL_FLAT */
     flat_traverse_fn flat_fn; /* the widest kernel this CPU runs */
 };
@@ -45,7 +43,8 @@ static flat_traverse_fn flat_choose(void);
 static accel_kind choose_kind(const scene *s, accel_kind want) {
     if (want != ACCEL_AUTO) return want;
     if (s->triangle_count <= ACCEL_FLAT_MAX_TRIANGLES && s->sphere_count <= ACCEL_FLAT_MAX_SPHERES) return ACCEL_FLAT;
-    return s->triangle_count + s->sphere_count >= ACCEL_EMBREE_MIN_PRIMITIVES ? ACCEL_EMBREE : ACCEL_BVH;
+    size_t n = (size_t)s->triangle_count + s->sphere_count;
+    return n >= ACCEL_EMBREE_MIN_PRIMITIVES ? ACCEL_EMBREE : n >= ACCEL_WIDE_MIN_PRIMITIVES ? ACCEL_WIDE : ACCEL_BVH;
 }
 
 /* Lay out s's triangles for the flat intersector. Returns 0, or -1 when out
@@ -80,6 +79,7 @@ accel *accel_build_err(const scene *s, accel_kind kind, char *err, size_t err_le
     snprintf(err, err_len, "out of memory");
     int ok = a->kind == ACCEL_BVH      ? (a->tree = bvh_build(s)) != NULL
              : a->kind == ACCEL_EMBREE ? (a->embree = accel_embree_build(s, err, err_len)) != NULL
+             : a->kind == ACCEL_WIDE   ? (a->wide = accel_wide_build(s, err, err_len)) != NULL
                                        : flat_build(&a->flat, s) == 0;
     if (!ok) {
         accel_free(a);
@@ -97,6 +97,7 @@ void accel_free(accel *a) {
     if (!a) return;
     bvh_free(a->tree);
     accel_embree_free(a->embree);
+    accel_wide_free(a->wide);
     for (int k = 0; k < 3; k++)
         for (int ax = 0; ax < 3; ax++) free(a->flat.v[k][ax]);
     free(a);
@@ -111,25 +112,21 @@ int accel_get_embree_stats(const accel *a, accel_embree_stats *out) {
     return 0;
 }
 
+int accel_get_wide_stats(const accel *a, accel_wide_stats *out) {
+    if (!a->wide) return -1;
+    accel_wide_get_stats(a->wide, out);
+    return 0;
+}
+
 int accel_get_bvh_stats(const accel *a, bvh_stats *out) {
     if (!a->tree) return -1;
     bvh_get_stats(a->tree, out);
     return 0;
 }
 
-/* 4 lanes: SSE2, which every x86-64 has (elsewhere, whatever the compiler
- * makes of 16-byte vectors). */
-#define FLAT_LANES 4
+/* 4 lanes: SSE2, which every x86-64 has. */
 #define FLAT(name) flat4_##name
-#define FLAT_TARGET
-#define FLAT_SPLAT(x) {x, x, x, x}
-#define FLAT_LANE_IDS {0, 1, 2, 3}
-#ifdef __SSE2__
-#define FLAT_BITS(m) _mm_movemask_ps((__m128)(m))
-#else
-#define FLAT_BITS(m) (((m)[0] & 1) | ((m)[1] & 2) | ((m)[2] & 4) | ((m)[3] & 8))
-#endif
-#include "accel_flat.h"
+#include "accel_flat4.h"
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #define HAVE_FLAT8 1
@@ -174,12 +171,14 @@ int accel_flat_lanes(const accel *a) {
 }
 
 int accel_intersect(const accel *a, const scene *s, const ray *r, float tmax, hit *h) {
+    if (a->kind == ACCEL_WIDE) return accel_wide_intersect(a->wide, s, r, tmax, h);
     if (a->kind == ACCEL_EMBREE) return accel_embree_intersect(a->embree, s, r, tmax, h);
     if (a->kind == ACCEL_BVH) return bvh_intersect(a->tree, s, r, tmax, h);
     return a->flat_fn(&a->flat, s, r, tmax, h, 0);
 }
 
 int accel_occluded(const accel *a, const scene *s, const ray *r, float tmax) {
+    if (a->kind == ACCEL_WIDE) return accel_wide_occluded(a->wide, s, r, tmax);
     if (a->kind == ACCEL_EMBREE) return accel_embree_occluded(a->embree, s, r, tmax);
     if (a->kind == ACCEL_BVH) return bvh_occluded(a->tree, s, r, tmax);
     hit h;

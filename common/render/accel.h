@@ -1,15 +1,20 @@
 /* accel.h - the scene's ray intersector, chosen to fit the scene.
  *
- * Two structures answer the same two questions (closest hit, any hit):
- *  - ACCEL_BVH: a bounding volume hierarchy (bvh.h), for scenes with many
- *    primitives;
+ * Four structures answer the same two questions (closest hit, any hit):
+ *  - ACCEL_BVH: a binary bounding volume hierarchy (bvh.h), for scenes of
+ *    hundreds of primitives;
+ *  - ACCEL_WIDE: an 8-wide BVH with SIMD node and leaf tests (accel_wide.h),
+ *    for scenes of thousands to hundreds of thousands of primitives;
+ *  - ACCEL_EMBREE: Embree's BVH walk with Tessera's tests at the leaves
+ *    (accel_embree.h), for the largest scenes;
  *  - ACCEL_FLAT: every triangle tested, 16 (AVX-512), 8 (AVX2) or 4 (SSE) at a time, from
  *    arrays laid out for SIMD, then every sphere; no tree to walk. On a scene as small as
  *    the Cornell box this is faster than any tree (see docs/performance.md).
- * ACCEL_AUTO picks FLAT for small scenes and BVH otherwise. The choice is a
- * function of the scene alone, never of the machine, so every worker of a
- * farm takes the same path. The two can differ only in which of two hits at
- * exactly the same distance wins.
+ * ACCEL_AUTO picks FLAT for small scenes, then BVH, WIDE and EMBREE as
+ * they grow. The choice is a function of the scene alone, never of the machine,
+ * so every worker of a farm takes the same path. BVH, WIDE and EMBREE give
+ * the same hits bit for bit (the smallest (t, index)); FLAT can differ from
+ * them only in which of two hits at exactly the same distance wins.
  *
  * Built once per scene, then read-only: any number of threads may trace
  * through it at once. */
@@ -17,6 +22,7 @@
 #define TESSERA_ACCEL_H
 
 #include "accel_embree.h"
+#include "accel_wide.h"
 #include "bvh.h"
 #include "intersect.h"
 #include "scene.h"
@@ -24,8 +30,11 @@
 /* ACCEL_AUTO picks ACCEL_FLAT up to this many triangles and spheres. */
 #define ACCEL_FLAT_MAX_TRIANGLES 96
 #define ACCEL_FLAT_MAX_SPHERES 8
-/* ... and ACCEL_EMBREE from this many primitives (ACCEL_BVH between). */
-#define ACCEL_EMBREE_MIN_PRIMITIVES 1024
+/* ... ACCEL_WIDE from this many primitives (ACCEL_BVH below), and
+ * ACCEL_EMBREE from 2^19: there the wide BVH renders no faster (within the
+ * noise) and builds slower (docs/meshes.md has the figures). */
+#define ACCEL_WIDE_MIN_PRIMITIVES 1024
+#define ACCEL_EMBREE_MIN_PRIMITIVES 524288
 
 typedef struct accel accel;
 
@@ -44,12 +53,16 @@ int accel_get_embree_stats(const accel *a, accel_embree_stats *out);
 /* Free an intersector; NULL is allowed. */
 void accel_free(accel *a);
 
-/* The kind that was built: ACCEL_BVH, ACCEL_FLAT or ACCEL_EMBREE, never ACCEL_AUTO. */
+/* The kind that was built: ACCEL_BVH, ACCEL_FLAT, ACCEL_EMBREE or ACCEL_WIDE, never ACCEL_AUTO. */
 accel_kind accel_get_kind(const accel *a);
 
 /* How many triangles the flat kernel this CPU runs tests at once: 16 with
  * AVX-512F, 8 with AVX2, else 4. Can't fail. */
 int accel_flat_lanes(const accel *a);
+
+/* ACCEL_WIDE's statistics; returns 0, or -1 (leaving *out alone) for the
+ * other kinds. */
+int accel_get_wide_stats(const accel *a, accel_wide_stats *out);
 
 /* The BVH's statistics; returns 0, or -1 (leaving *out alone) for FLAT. */
 int accel_get_bvh_stats(const accel *a, bvh_stats *out);

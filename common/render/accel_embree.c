@@ -14,31 +14,25 @@
  *    BOX_PAD absolute; scene units are about 1), thousands of ulps, far more
  *    than any slab test's rounding;
  *  - ray.tfar, the culling distance, is never the best t itself but
- *    cull_distance(t) = t (1 + TFAR_SLACK), so a candidate whose t equals
+ *    accel_cull_distance(t) = t (1 + 2^-12), so a candidate whose t equals
  *    the best (a tie, decided by index) or is below it is never culled.
  * The callbacks compare candidates only by hit_before() on the numbers of
  * intersect.h computed with the caller's tmax, never with ray.tfar. So the
  * result is the minimum over all primitives, whichever order they come in. */
 #include "accel_embree.h"
 
-#include <embree3/rtcore.h>
-#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
 #define BOX_PAD (1.0f / 65536.0f)
-#define TFAR_SLACK (1.0f / 4096.0f)
 
 struct accel_embree {
-    RTCDevice device;
+    accel_embree_device dev;
     RTCScene scene;
     const scene *s;
     accel_embree_stats stats;
-    atomic_llong bytes, peak;
-    char config[128];
-    char error[256];
 };
 
 /* One query: Embree's context first, so a callback can cast back to it. */
@@ -51,8 +45,6 @@ typedef struct {
     int found;
 } query;
 
-static float cull_distance(float t) { return t * (1.0f + TFAR_SLACK) + 1e-30f; }
-
 /* Tessera's test of primitive id (as bvh.c's prim_hit does it). */
 static inline int prim_test(const scene *s, const ray_prep *r, uint32_t id, float tmax, float *t, float *b1,
                             float *b2) {
@@ -62,10 +54,7 @@ static inline int prim_test(const scene *s, const ray_prep *r, uint32_t id, floa
     return sphere_intersect(r, &s->spheres[id - s->triangle_count], id == r->skip, tmax, t);
 }
 
-static void cb_bounds(const struct RTCBoundsFunctionArguments *args) {
-    const scene *s = args->geometryUserPtr;
-    uint32_t id = args->primID;
-    float lo[3], hi[3];
+void accel_padded_box(const scene *s, uint32_t id, float lo[3], float hi[3]) {
     if (id < s->triangle_count) {
         const triangle *t = &s->triangles[id];
         lo[0] = fminf(t->v0.x, fminf(t->v1.x, t->v2.x));
@@ -83,9 +72,18 @@ static void cb_bounds(const struct RTCBoundsFunctionArguments *args) {
     float m = 0;
     for (int a = 0; a < 3; a++) m = fmaxf(m, fmaxf(fabsf(lo[a]), fabsf(hi[a])));
     float pad = BOX_PAD * (1.0f + m);
+    for (int a = 0; a < 3; a++) {
+        lo[a] -= pad;
+        hi[a] += pad;
+    }
+}
+
+static void cb_bounds(const struct RTCBoundsFunctionArguments *args) {
+    float lo[3], hi[3];
+    accel_padded_box(args->geometryUserPtr, args->primID, lo, hi);
     struct RTCBounds *b = args->bounds_o;
-    b->lower_x = lo[0] - pad, b->lower_y = lo[1] - pad, b->lower_z = lo[2] - pad;
-    b->upper_x = hi[0] + pad, b->upper_y = hi[1] + pad, b->upper_z = hi[2] + pad;
+    b->lower_x = lo[0], b->lower_y = lo[1], b->lower_z = lo[2];
+    b->upper_x = hi[0], b->upper_y = hi[1], b->upper_z = hi[2];
 }
 
 static void cb_intersect(const struct RTCIntersectFunctionNArguments *args) {
@@ -98,7 +96,7 @@ static void cb_intersect(const struct RTCIntersectFunctionNArguments *args) {
     q->found = 1;
     q->best = (hit){t, id, b1, b2};
     struct RTCRayHit *rh = (struct RTCRayHit *)args->rayhit; /* N == 1: rtcIntersect1 */
-    rh->ray.tfar = cull_distance(t);
+    rh->ray.tfar = accel_cull_distance(t);
     rh->hit.geomID = args->geomID;
     rh->hit.primID = id;
 }
@@ -113,18 +111,40 @@ static void cb_occluded(const struct RTCOccludedFunctionNArguments *args) {
 }
 
 static void cb_error(void *user, enum RTCError code, const char *str) {
-    accel_embree *e = user;
-    if (!e->error[0]) snprintf(e->error, sizeof e->error, "Embree error %d: %s", (int)code, str ? str : "?");
+    accel_embree_device *d = user;
+    if (!d->error[0]) snprintf(d->error, sizeof d->error, "Embree error %d: %s", (int)code, str ? str : "?");
 }
 
 static bool cb_memory(void *user, ssize_t bytes, bool post) {
-    accel_embree *e = user;
+    accel_embree_device *d = user;
     (void)post;
-    long long now = atomic_fetch_add(&e->bytes, (long long)bytes) + (long long)bytes;
-    long long peak = atomic_load(&e->peak);
-    while (now > peak && !atomic_compare_exchange_weak(&e->peak, &peak, now)) {
+    long long now = atomic_fetch_add(&d->bytes, (long long)bytes) + (long long)bytes;
+    long long peak = atomic_load(&d->peak);
+    while (now > peak && !atomic_compare_exchange_weak(&d->peak, &peak, now)) {
     }
     return true;
+}
+
+int accel_embree_device_open(accel_embree_device *d, char *err, size_t err_len) {
+    const char *cfg = getenv("TESSERA_EMBREE_CONFIG");
+    snprintf(d->config, sizeof d->config, "%s", cfg ? cfg : "");
+    d->error[0] = 0;
+    atomic_store(&d->bytes, 0);
+    atomic_store(&d->peak, 0);
+    d->device = rtcNewDevice(d->config);
+    if (!d->device) {
+        snprintf(err, err_len, "Embree refused device configuration \"%s\" (error %d)", d->config,
+                 (int)rtcGetDeviceError(NULL));
+        return -1;
+    }
+    rtcSetDeviceErrorFunction(d->device, cb_error, d);
+    rtcSetDeviceMemoryMonitorFunction(d->device, cb_memory, d);
+    return 0;
+}
+
+void accel_embree_device_close(accel_embree_device *d) {
+    if (d->device) rtcReleaseDevice(d->device);
+    d->device = NULL;
 }
 
 /* Embree's Morton-code build (LOW) unless TESSERA_EMBREE_QUALITY says
@@ -145,21 +165,14 @@ accel_embree *accel_embree_build(const scene *s, char *err, size_t err_len) {
     accel_embree *e = calloc(1, sizeof *e);
     if (!e) return snprintf(err, err_len, "out of memory"), NULL;
     e->s = s;
-    const char *cfg = getenv("TESSERA_EMBREE_CONFIG");
-    snprintf(e->config, sizeof e->config, "%s", cfg ? cfg : "");
-    e->stats.config = e->config;
-    e->device = rtcNewDevice(e->config);
-    if (!e->device) {
-        snprintf(err, err_len, "Embree refused device configuration \"%s\" (error %d)", e->config,
-                 (int)rtcGetDeviceError(NULL));
+    if (accel_embree_device_open(&e->dev, err, err_len) != 0) {
         free(e);
         return NULL;
     }
-    rtcSetDeviceErrorFunction(e->device, cb_error, e);
-    rtcSetDeviceMemoryMonitorFunction(e->device, cb_memory, e);
-    e->scene = rtcNewScene(e->device);
+    e->stats.config = e->dev.config;
+    e->scene = rtcNewScene(e->dev.device);
     rtcSetSceneBuildQuality(e->scene, build_quality());
-    RTCGeometry g = rtcNewGeometry(e->device, RTC_GEOMETRY_TYPE_USER);
+    RTCGeometry g = rtcNewGeometry(e->dev.device, RTC_GEOMETRY_TYPE_USER);
     rtcSetGeometryUserPrimitiveCount(g, s->triangle_count + s->sphere_count);
     rtcSetGeometryUserData(g, (void *)s);
     rtcSetGeometryBoundsFunction(g, cb_bounds, (void *)s);
@@ -169,22 +182,22 @@ accel_embree *accel_embree_build(const scene *s, char *err, size_t err_len) {
     rtcAttachGeometry(e->scene, g);
     rtcReleaseGeometry(g);
     rtcCommitScene(e->scene);
-    if (e->error[0]) {
-        snprintf(err, err_len, "%s", e->error);
+    if (e->dev.error[0]) {
+        snprintf(err, err_len, "%s", e->dev.error);
         accel_embree_free(e);
         return NULL;
     }
     clock_gettime(CLOCK_MONOTONIC, &t1);
     e->stats.build_seconds = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
-    e->stats.memory_bytes = (size_t)atomic_load(&e->peak);
-    e->stats.final_bytes = (size_t)atomic_load(&e->bytes);
+    e->stats.memory_bytes = (size_t)atomic_load(&e->dev.peak);
+    e->stats.final_bytes = (size_t)atomic_load(&e->dev.bytes);
     return e;
 }
 
 void accel_embree_free(accel_embree *e) {
     if (!e) return;
     if (e->scene) rtcReleaseScene(e->scene);
-    if (e->device) rtcReleaseDevice(e->device);
+    accel_embree_device_close(&e->dev);
     free(e);
 }
 
@@ -201,7 +214,7 @@ static void query_start(query *q, const scene *s, const ray *r, float tmax, stru
     er->org_x = r->o.x, er->org_y = r->o.y, er->org_z = r->o.z;
     er->dir_x = r->d.x, er->dir_y = r->d.y, er->dir_z = r->d.z;
     er->tnear = 0.0f;
-    er->tfar = cull_distance(tmax);
+    er->tfar = accel_cull_distance(tmax);
     er->time = 0.0f;
     er->mask = UINT32_MAX;
     er->id = 0;

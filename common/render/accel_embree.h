@@ -23,6 +23,8 @@
 #ifndef TESSERA_ACCEL_EMBREE_H
 #define TESSERA_ACCEL_EMBREE_H
 
+#include <embree3/rtcore.h>
+#include <stdatomic.h>
 #include <stddef.h>
 
 #include "intersect.h"
@@ -36,6 +38,33 @@ typedef struct {
     size_t final_bytes;  /* bytes Embree holds after it */
     const char *config;  /* the device configuration used ("" for Embree's defaults) */
 } accel_embree_stats;
+
+/* An Embree device with Tessera's configuration (TESSERA_EMBREE_CONFIG), its
+ * first error and the bytes it holds (now and at the peak), shared by this
+ * intersector and accel_wide.c's builder. */
+typedef struct {
+    RTCDevice device;
+    atomic_llong bytes, peak;
+    char config[128];
+    char error[256];
+} accel_embree_device;
+
+/* Open d (which must stay at this address until closed). Returns 0, or -1
+ * with why in err (Embree refusing the configuration). */
+int accel_embree_device_open(accel_embree_device *d, char *err, size_t err_len);
+
+/* Release d's device; a device that failed to open is allowed. */
+void accel_embree_device_close(accel_embree_device *d);
+
+/* The culling distance handed to a tree walk once the best hit is at t:
+ * t (1 + 2^-12), so a candidate at t (a tie, decided by index) or nearer is
+ * never culled by the walk's rounding (accel_embree.c). */
+static inline float accel_cull_distance(float t) { return t * (1.0f + 1.0f / 4096.0f) + 1e-30f; }
+
+/* Primitive id's box (triangles, then spheres), padded by 2^-16 of its
+ * largest coordinate plus 2^-16, far more than any slab test's rounding
+ * (accel_embree.c). Can't fail. */
+void accel_padded_box(const scene *s, uint32_t id, float lo[3], float hi[3]);
 
 /* Build over s's triangles and spheres. Returns NULL on failure (out of
  * memory, or Embree refusing the device configuration) and writes why to

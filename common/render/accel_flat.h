@@ -9,7 +9,9 @@
  * Before including, define FLAT_LANES, FLAT(name) (the name with a width
  * suffix), FLAT_TARGET (a function attribute or nothing), FLAT_SPLAT(x),
  * FLAT_LANE_IDS and FLAT_BITS(mask) (bit k set where lane k of the mask is);
- * this file undefines them again at its end. Not a public header. */
+ * this file undefines them again at its end. With FLAT_LANES_ONLY defined,
+ * only the lane kernel (test_lanes, no flat traversal) is defined: the wide
+ * BVH's leaves use it (accel_wide.c). Not a public header. */
 
 typedef float FLAT(vfloat) __attribute__((vector_size(FLAT_LANES * sizeof(float))));
 typedef int32_t FLAT(vint) __attribute__((vector_size(FLAT_LANES * sizeof(int32_t))));
@@ -56,25 +58,24 @@ typedef struct {
     vint edge; /* some edge function was exactly 0: the scalar test decides */
 } FLAT(group);
 
-/* The vector half of triangle_intersect() (intersect.h) for triangles
- * [base, base + FLAT_LANES), term for term. */
-FLAT_TARGET static inline void FLAT(test_group)(const flat_triangles *f, const ray_prep *r, const FLAT(ray) *v,
-                                                  uint32_t base, float tmax, FLAT(group) *g) {
+/* The vector half of triangle_intersect() (intersect.h), term for term, for
+ * the FLAT_LANES triangles whose vertex k's axis a is at p[k][a][lane];
+ * lanes outside `real` are never candidates. */
+FLAT_TARGET static inline void FLAT(test_lanes)(const float *const p[3][3], const ray_prep *r, const FLAT(ray) *v,
+                                                  vint real, float tmax, FLAT(group) *g) {
     const int kx = r->kx, ky = r->ky, kz = r->kz;
     vfloat sx = v->sx, sy = v->sy, sz = v->sz;
-    vfloat Az = FLAT(vload)(f->v[0][kz] + base) - v->oz;
-    vfloat Bz = FLAT(vload)(f->v[1][kz] + base) - v->oz;
-    vfloat Cz = FLAT(vload)(f->v[2][kz] + base) - v->oz;
-    vfloat Ax = (FLAT(vload)(f->v[0][kx] + base) - v->ox) - sx * Az;
-    vfloat Ay = (FLAT(vload)(f->v[0][ky] + base) - v->oy) - sy * Az;
-    vfloat Bx = (FLAT(vload)(f->v[1][kx] + base) - v->ox) - sx * Bz;
-    vfloat By = (FLAT(vload)(f->v[1][ky] + base) - v->oy) - sy * Bz;
-    vfloat Cx = (FLAT(vload)(f->v[2][kx] + base) - v->ox) - sx * Cz;
-    vfloat Cy = (FLAT(vload)(f->v[2][ky] + base) - v->oy) - sy * Cz;
+    vfloat Az = FLAT(vload)(p[0][kz]) - v->oz;
+    vfloat Bz = FLAT(vload)(p[1][kz]) - v->oz;
+    vfloat Cz = FLAT(vload)(p[2][kz]) - v->oz;
+    vfloat Ax = (FLAT(vload)(p[0][kx]) - v->ox) - sx * Az;
+    vfloat Ay = (FLAT(vload)(p[0][ky]) - v->oy) - sy * Az;
+    vfloat Bx = (FLAT(vload)(p[1][kx]) - v->ox) - sx * Bz;
+    vfloat By = (FLAT(vload)(p[1][ky]) - v->oy) - sy * Bz;
+    vfloat Cx = (FLAT(vload)(p[2][kx]) - v->ox) - sx * Cz;
+    vfloat Cy = (FLAT(vload)(p[2][ky]) - v->oy) - sy * Cz;
     vfloat U = Cx * By - Cy * Bx, V = Ax * Cy - Ay * Cx, W = Bx * Ay - By * Ax;
     vfloat zero = FLAT(vsplat)(0.0f);
-    vint lane_ids = (vint)FLAT_LANE_IDS + (int32_t)base;
-    vint real = (lane_ids < v->count) & (lane_ids != v->skip);
     g->edge = real & ((U == zero) | (V == zero) | (W == zero));
     /* Outside unless U, V, W share a sign. With no zero among them (zeros
      * are edge lanes, decided by the scalar test), a float's sign bit is
@@ -91,6 +92,18 @@ FLAT_TARGET static inline void FLAT(test_group)(const flat_triangles *f, const r
     /* No det != 0 test: where U, V, W are nonzero with one sign, their sum
      * is nonzero; where one is zero the lane is an edge lane. */
     g->ok = real & ~outside & (g->T > zero) & (g->T < FLAT(vsplat)(tmax) * g->det);
+}
+
+#ifndef FLAT_LANES_ONLY
+/* test_lanes for the flat arrays' triangles [base, base + FLAT_LANES). */
+FLAT_TARGET static inline void FLAT(test_group)(const flat_triangles *f, const ray_prep *r, const FLAT(ray) *v,
+                                                  uint32_t base, float tmax, FLAT(group) *g) {
+    const float *const p[3][3] = {{f->v[0][0] + base, f->v[0][1] + base, f->v[0][2] + base},
+                                  {f->v[1][0] + base, f->v[1][1] + base, f->v[1][2] + base},
+                                  {f->v[2][0] + base, f->v[2][1] + base, f->v[2][2] + base}};
+    vint lane_ids = (vint)FLAT_LANE_IDS + (int32_t)base;
+    vint real = (lane_ids < v->count) & (lane_ids != v->skip);
+    FLAT(test_lanes)(p, r, v, real, tmax, g);
 }
 
 /* The scalar tail for lane k of a group, with the current closest distance
@@ -149,7 +162,7 @@ FLAT_TARGET static int FLAT(traverse)(const flat_triangles *f, const scene *s, c
     }
     return found;
 }
-
+#endif /* FLAT_LANES_ONLY */
 
 #undef vfloat
 #undef vint

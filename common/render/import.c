@@ -44,6 +44,9 @@ typedef struct {
     const import_options *opt;
     import_model *m;
     size_t tri_cap;
+    size_t normal_cap;       /* of m->normals, in normals */
+    uint32_t *normal_slots;  /* hash set of m->normals: index + 1, 0 = empty */
+    size_t slot_cap;         /* a power of two, at least twice normal_count */
     size_t visits;
 } importer;
 
@@ -811,8 +814,8 @@ static int grow_tris(importer *im, size_t more) {
     while (cap < m->tri_count + more) cap *= 2;
     double *p = realloc(m->positions, cap * 9 * sizeof *p);
     if (p) m->positions = p;
-    float *n = realloc(m->normals, cap * 9 * sizeof *n);
-    if (n) m->normals = n;
+    uint32_t *n = realloc(m->normal_indices, cap * 3 * sizeof *n);
+    if (n) m->normal_indices = n;
     float *uv = realloc(m->uvs, cap * 6 * sizeof *uv);
     if (uv) m->uvs = uv;
     uint8_t *f = realloc(m->flags, cap);
@@ -821,6 +824,135 @@ static int grow_tris(importer *im, size_t more) {
     if (mt) m->material = mt;
     if (!p || !n || !uv || !f || !mt) return fail(im, "out of memory for %zu triangles", cap);
     im->tri_cap = cap;
+    return 0;
+}
+
+/* Hash of a normal's bits (for normal_index's set). */
+static uint64_t normal_hash(const float n[3]) {
+    uint32_t b[3];
+    memcpy(b, n, sizeof b);
+    uint64_t h = (((uint64_t)b[0] << 32) | b[1]) ^ (uint64_t)b[2] * 0x9E3779B97F4A7C15ull;
+    h = (h ^ (h >> 31)) * 0xBF58476D1CE4E5B9ull; /* splitmix64's finaliser */
+    return h ^ (h >> 27);
+}
+
+/* Make room for one more normal in m->normals and its hash set (rehashed
+ * when half full). Returns 0, or -1 (with the error set) out of memory. */
+static int grow_normals(importer *im) {
+    import_model *m = im->m;
+    if (m->normal_count == im->normal_cap) {
+        size_t cap = im->normal_cap ? 2 * im->normal_cap : 1024;
+        float *p = cap < UINT32_MAX ? realloc(m->normals, cap * 3 * sizeof *p) : NULL;
+        if (!p) return fail(im, "out of memory for %zu normals", cap);
+        m->normals = p;
+        im->normal_cap = cap;
+    }
+    if (2 * (m->normal_count + 1) <= im->slot_cap) return 0;
+    size_t cap = im->slot_cap ? 2 * im->slot_cap : 2048;
+    uint32_t *slots = calloc(cap, sizeof *slots);
+    if (!slots) return fail(im, "out of memory for %zu normals", m->normal_count);
+    for (size_t i = 0; i < m->normal_count; i++) {
+        size_t k = normal_hash(&m->normals[3 * i]) & (cap - 1);
+        while (slots[k]) k = (k + 1) & (cap - 1);
+        slots[k] = (uint32_t)i + 1;
+    }
+    free(im->normal_slots);
+    im->normal_slots = slots;
+    im->slot_cap = cap;
+    return 0;
+}
+
+/* Index of normal n in m->normals, appended when no equal one (bit for bit)
+ * is there yet: corners share their normals as the mesh's vertices do, also
+ * where the file repeats a vertex per face (OBJ through Assimp, flat glTF)
+ * and across meshes and instances. Returns 0 with *idx set, or -1 (error
+ * set) out of memory. */
+static int normal_index(importer *im, const float n[3], uint32_t *idx) {
+    if (grow_normals(im)) return -1;
+    import_model *m = im->m;
+    size_t k = normal_hash(n) & (im->slot_cap - 1);
+    for (; im->normal_slots[k]; k = (k + 1) & (im->slot_cap - 1))
+        if (memcmp(&m->normals[3 * (size_t)(im->normal_slots[k] - 1)], n, 3 * sizeof *n) == 0) {
+            *idx = im->normal_slots[k] - 1;
+            return 0;
+        }
+    *idx = (uint32_t)m->normal_count;
+    memcpy(&m->normals[3 * m->normal_count++], n, 3 * sizeof *n);
+    im->normal_slots[k] = *idx + 1;
+    return 0;
+}
+
+#define NORMAL_UNSET UINT32_MAX    /* add_faces' vertex cache: not computed yet */
+#define NORMAL_BAD (UINT32_MAX - 1) /* the vertex's normal has no direction */
+
+/* Vertex vi's normal, transformed by N (the cofactor matrix of the node
+ * transform, whose determinant is det) and the caller's rotation, made
+ * unit: its index into m->normals, computed on first use and kept in
+ * vn[vi] (NORMAL_BAD when it has no direction). Returns 0, or -1 (error
+ * set) out of memory. */
+static int vertex_normal(importer *im, const struct aiMesh *mesh, unsigned vi, const double N[9], double det,
+                         uint32_t *vn) {
+    if (vn[vi] != NORMAL_UNSET) return 0;
+    const struct aiVector3D *n = &mesh->mNormals[vi];
+    double w[3];
+    for (int r = 0; r < 3; r++) w[r] = N[3 * r] * n->x + N[3 * r + 1] * n->y + N[3 * r + 2] * n->z;
+    user_dir(im->opt, w);
+    double l = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+    if (!(l > 0) || !isfinite(l)) {
+        vn[vi] = NORMAL_BAD;
+        return 0;
+    }
+    float u[3];
+    for (int r = 0; r < 3; r++) u[r] = (float)(w[r] / l * (det < 0 ? -1 : 1));
+    return normal_index(im, u, &vn[vi]);
+}
+
+/* The triangles of mesh under node transform M (normals by N, det as in
+ * vertex_normal; vn: its cache, NULL when the mesh has no normals). A
+ * triangle keeps normals only when all three corners have one. Returns 0 or
+ * -1 with the error set. */
+static int add_faces(importer *im, const struct aiMesh *mesh, const double M[12], const double N[9], double det,
+                     uint32_t *vn) {
+    import_model *m = im->m;
+    for (unsigned fi = 0; fi < mesh->mNumFaces; fi++) {
+        const struct aiFace *face = &mesh->mFaces[fi];
+        if (face->mNumIndices != 3) {
+            if (face->mNumIndices < 3 && m->skipped_primitives++ == 0)
+                fprintf(stderr, "warning: %s: mesh \"%s\" has points or lines (not triangles): skipped\n", im->name,
+                        mesh->mName.data);
+            continue;
+        }
+        size_t t = m->tri_count;
+        int order[3] = {0, det < 0 ? 2 : 1, det < 0 ? 1 : 2};
+        m->flags[t] = (vn ? 1 : 0) | (mesh->mTextureCoords[0] ? 2 : 0);
+        for (int k = 0; k < 3; k++) {
+            unsigned vi = face->mIndices[order[k]];
+            if (vi >= mesh->mNumVertices)
+                return fail(im, "mesh \"%s\": vertex index %u out of range (%u vertices)", mesh->mName.data, vi,
+                            mesh->mNumVertices);
+            const struct aiVector3D *v = &mesh->mVertices[vi];
+            double p[3] = {v->x, v->y, v->z};
+            double *o = &m->positions[9 * t + 3 * k];
+            for (int r = 0; r < 3; r++) o[r] = M[4 * r] * p[0] + M[4 * r + 1] * p[1] + M[4 * r + 2] * p[2] + M[4 * r + 3];
+            user_point(im->opt, o);
+            for (int r = 0; r < 3; r++)
+                if (!isfinite(o[r]) || fabs(o[r]) > 1e30) return fail(im, "mesh \"%s\": a vertex is not finite", mesh->mName.data);
+            if (vn) {
+                if (vertex_normal(im, mesh, vi, N, det, vn)) return -1;
+                if (vn[vi] == NORMAL_BAD) m->flags[t] &= (uint8_t)~1u;
+                m->normal_indices[3 * t + k] = vn[vi];
+            }
+            if (mesh->mTextureCoords[0]) {
+                const struct aiVector3D *uv = &mesh->mTextureCoords[0][vi];
+                /* Assimp flips v for glTF and keeps OBJ's v (up); both are
+                 * 1 - v in glTF's orientation. */
+                m->uvs[6 * t + 2 * k] = uv->x;
+                m->uvs[6 * t + 2 * k + 1] = 1.0f - uv->y;
+            }
+        }
+        m->material[t] = mesh->mMaterialIndex;
+        m->tri_count++;
+    }
     return 0;
 }
 
@@ -841,51 +973,15 @@ static int add_mesh(importer *im, const struct aiScene *sc, const struct aiMesh 
                    b * g - a * h, b * f - c * e, c * d - a * f, a * e - b * d}; /* cofactor matrix */
     if (mesh->mMaterialIndex >= sc->mNumMaterials) return fail(im, "mesh \"%s\": bad material index", mesh->mName.data);
     if (grow_tris(im, mesh->mNumFaces)) return -1;
-    import_model *m = im->m;
-    for (unsigned fi = 0; fi < mesh->mNumFaces; fi++) {
-        const struct aiFace *face = &mesh->mFaces[fi];
-        if (face->mNumIndices != 3) {
-            if (face->mNumIndices < 3 && m->skipped_primitives++ == 0)
-                fprintf(stderr, "warning: %s: mesh \"%s\" has points or lines (not triangles): skipped\n", im->name,
-                        mesh->mName.data);
-            continue;
-        }
-        size_t t = m->tri_count;
-        int order[3] = {0, det < 0 ? 2 : 1, det < 0 ? 1 : 2};
-        m->flags[t] = (mesh->mNormals ? 1 : 0) | (mesh->mTextureCoords[0] ? 2 : 0);
-        for (int k = 0; k < 3; k++) {
-            unsigned vi = face->mIndices[order[k]];
-            if (vi >= mesh->mNumVertices)
-                return fail(im, "mesh \"%s\": vertex index %u out of range (%u vertices)", mesh->mName.data, vi,
-                            mesh->mNumVertices);
-            const struct aiVector3D *v = &mesh->mVertices[vi];
-            double p[3] = {v->x, v->y, v->z};
-            double *o = &m->positions[9 * t + 3 * k];
-            for (int r = 0; r < 3; r++) o[r] = M[4 * r] * p[0] + M[4 * r + 1] * p[1] + M[4 * r + 2] * p[2] + M[4 * r + 3];
-            user_point(im->opt, o);
-            for (int r = 0; r < 3; r++)
-                if (!isfinite(o[r]) || fabs(o[r]) > 1e30) return fail(im, "mesh \"%s\": a vertex is not finite", mesh->mName.data);
-            if (mesh->mNormals) {
-                const struct aiVector3D *n = &mesh->mNormals[vi];
-                double w[3];
-                for (int r = 0; r < 3; r++) w[r] = N[3 * r] * n->x + N[3 * r + 1] * n->y + N[3 * r + 2] * n->z;
-                user_dir(im->opt, w);
-                double l = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
-                if (!(l > 0) || !isfinite(l)) m->flags[t] &= (uint8_t)~1u;
-                for (int r = 0; r < 3; r++) m->normals[9 * t + 3 * k + r] = (float)(l > 0 ? w[r] / l * (det < 0 ? -1 : 1) : 0);
-            }
-            if (mesh->mTextureCoords[0]) {
-                const struct aiVector3D *uv = &mesh->mTextureCoords[0][vi];
-                /* Assimp flips v for glTF and keeps OBJ's v (up); both are
-                 * 1 - v in glTF's orientation. */
-                m->uvs[6 * t + 2 * k] = uv->x;
-                m->uvs[6 * t + 2 * k + 1] = 1.0f - uv->y;
-            }
-        }
-        m->material[t] = mesh->mMaterialIndex;
-        m->tri_count++;
+    uint32_t *vn = NULL; /* each vertex's normal is transformed and looked up once */
+    if (mesh->mNormals) {
+        vn = malloc(((size_t)mesh->mNumVertices + 1) * sizeof *vn);
+        if (!vn) return fail(im, "mesh \"%s\": out of memory for %u normals", mesh->mName.data, mesh->mNumVertices);
+        memset(vn, 0xff, ((size_t)mesh->mNumVertices + 1) * sizeof *vn); /* NORMAL_UNSET */
     }
-    return 0;
+    int rc = add_faces(im, mesh, M, N, det, vn);
+    free(vn);
+    return rc;
 }
 
 static int walk_ai(importer *im, const struct aiScene *sc, const struct aiNode *node, const double parent[12], int depth) {
@@ -989,6 +1085,7 @@ static int import_common(importer *im, import_model *out) {
     free(im->buffers);
     free(im->buffer_lens);
     free(im->tex_slot);
+    free(im->normal_slots);
     if (rc) import_model_free(out);
     return rc;
 }
@@ -1034,6 +1131,7 @@ void import_model_free(import_model *m) {
     if (!m) return;
     free(m->positions);
     free(m->normals);
+    free(m->normal_indices);
     free(m->uvs);
     free(m->flags);
     free(m->material);

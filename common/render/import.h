@@ -56,7 +56,9 @@ typedef struct {
 typedef struct {
     size_t tri_count;
     double *positions;  /* 9 per triangle, world */
-    float *normals;     /* 9 per triangle (unit), valid where flags & 1 */
+    float *normals;     /* 3 per distinct shading normal (unit, world): equal ones are stored once */
+    size_t normal_count;
+    uint32_t *normal_indices; /* 3 per triangle into normals, valid where flags & 1 */
     float *uvs;         /* 6 per triangle, glTF orientation, valid where flags & 2 */
     uint8_t *flags;
     uint32_t *material; /* per triangle, into materials */

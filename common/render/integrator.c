@@ -39,7 +39,7 @@ enum {
  * interpolated (shading_normal.h), else ng. */
 typedef struct {
     vec3 p, ng, ns;
-    int smooth; /* ns comes from vertex normals */
+    int smooth; /* ns comes from vertex normals, or a normal map bent it: the leak guard applies */
     const prim_info *info;
 } surface;
 
@@ -147,8 +147,8 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
         vec3 n = (m->kind != MATERIAL_GLASS && vec3_dot(sf.ng, wo) < 0.0f) ? vec3_neg(sf.ng) : sf.ng;
         if (sf.smooth) n = shading_normal_oriented(sf.ng, sf.ns, n, wo);
         material m_hit;
-        if (s->corner_normals && h.prim < s->triangle_count) { /* imported: textures, normals, cutout */
-            m = shading_resolve(s, &h, m, n, wo, &m_hit, &n);
+        if (s->corner_uvs && h.prim < s->triangle_count) { /* imported: textures, normal map, cutout */
+            m = shading_resolve(s, &h, m, n, wo, &m_hit, &n, &sf.smooth);
             if (!m) {
                 if (++passes > 64) break;
                 r = spawn(sf.p, sf.ng, h.prim, r.d);

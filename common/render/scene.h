@@ -58,14 +58,14 @@ typedef struct {
 } camera;
 
 /* Which ray intersector a scene uses (accel.h). */
-typedef enum { ACCEL_AUTO, ACCEL_BVH, ACCEL_FLAT, ACCEL_EMBREE } accel_kind;
+typedef enum { ACCEL_AUTO, ACCEL_BVH, ACCEL_FLAT, ACCEL_EMBREE, ACCEL_WIDE } accel_kind;
 
 typedef struct {
     int width, height;
     int spp;       /* samples per pixel */
     int max_depth; /* maximum number of path segments after the camera ray */
     uint64_t seed;
-    accel_kind accel; /* render.accel: "auto" (default), "bvh", "flat" or "embree" */
+    accel_kind accel; /* render.accel: "auto" (default), "bvh", "flat", "embree" or "wide" */
 } render_settings;
 
 /* Command-line overrides; a negative value (or has_seed == 0) means "keep
@@ -153,9 +153,13 @@ typedef struct scene {
     float *light_cdf; /* light_count + 1 entries, last is 1 */
     uint32_t light_count;
 
-    /* Per-corner shading attributes of meshes (OBJ vn and vt; other importers
-     * fill the same), NULL when no triangle has any. Normals are unit length
-     * (world and internal frames differ only by a uniform scale). */
+    /* Per-corner shading attributes of meshes (OBJ vn and vt), NULL when no
+     * triangle has any. The normals are the scene's one representation of
+     * shading normals: `mesh` shapes' vn (or normals made from faces) and
+     * imported models' (glTF NORMAL, OBJ through the importer) alike, each
+     * distinct normal stored once and shared by index, all shaded by
+     * shading_normal.h's rules. Normals are unit length (world and internal
+     * frames differ only by a uniform scale). */
     vec3 *vertex_normals;
     uint32_t vertex_normal_count;
     uint32_t *triangle_vertex_normals; /* 3 per triangle into vertex_normals, SCENE_NONE for a triangle without */
@@ -172,9 +176,10 @@ typedef struct scene {
 
     size_t degenerate_triangles; /* skipped at load, reported with -v */
 
-    /* Imported models (render/import.h): per-corner shading data, NULL when
-     * no triangle has it; triangle t's corners are entries 3t, 3t+1, 3t+2. */
-    vec3 *corner_normals; /* unit shading normals (internal frame) */
+    /* Imported models (render/import.h): per-corner texture coordinates,
+     * NULL unless an imported triangle has normals or uvs; triangle t's
+     * corners are entries 3t, 3t+1, 3t+2. (Their normals are in
+     * vertex_normals above.) */
     float *corner_uvs;    /* 2 per corner, glTF convention (v down the image) */
     struct texture *textures; /* render/texture.h */
     uint32_t texture_count;

@@ -34,7 +34,7 @@ typedef struct {
     uint32_t v[3];     /* corners: indices into loader.wv */
     uint32_t material;
     int32_t emitter;   /* index into loader.emitters, or -1 */
-    int32_t shade;     /* imported models: index into loader.shade_*, or -1 */
+    int32_t shade;     /* imported models: index into loader.shade_uv, shade_flags, or -1 */
 } tri_r;
 
 typedef struct {
@@ -83,9 +83,10 @@ typedef struct {
     uint32_t *tri_vn, *tri_vt; /* 3 per triangle, as long as the last triangle that has any */
     size_t tri_vn_len, tri_vn_cap, tri_vt_len, tri_vt_cap;
     scene *s;
-    /* Imported models (import.h): per-corner normals and uvs of the
-     * triangles whose shade index points here, the model's camera. */
-    float *shade_n, *shade_uv;
+    /* Imported models (import.h): per-corner uvs of the triangles whose
+     * shade index points here (their normals go to vn, tri_vn), the model's
+     * camera. */
+    float *shade_uv;
     uint8_t *shade_flags;
     size_t shade_count, shade_cap;
     import_camera import_cam;
@@ -121,7 +122,7 @@ static double dlen(const double a[3]) { return sqrt(ddot(a, a)); }
 
 static int load_render(loader *L, const cJSON *root, const scene_overrides *ov) {
     static const char *const keys[] = {"width", "height", "spp", "max_depth", "seed", "accel", NULL};
-    static const char *const accels[] = {"auto", "bvh", "flat", "embree"}; /* in accel_kind order */
+    static const char *const accels[] = {"auto", "bvh", "flat", "embree", "wide"}; /* in accel_kind order */
     const cJSON *r = cJSON_GetObjectItemCaseSensitive(root, "render");
     cJSON empty = {0};
     empty.type = cJSON_Object;
@@ -132,10 +133,10 @@ static int load_render(loader *L, const cJSON *root, const scene_overrides *ov) 
     if (jf_string(&L->j, r, "render", "accel", 0, &accel)) return -1;
     if (!accel) accel = "auto";
     L->s->settings.accel = ACCEL_AUTO;
-    for (int k = 0; k < 4; k++)
+    for (int k = 0; k < 5; k++)
         if (strcmp(accel, accels[k]) == 0) L->s->settings.accel = (accel_kind)k;
     if (strcmp(accel, accels[L->s->settings.accel]) != 0)
-        return jf_fail(&L->j, "render", "accel", "expected \"auto\", \"bvh\", \"flat\" or \"embree\", got \"%s\"", accel);
+        return jf_fail(&L->j, "render", "accel", "expected \"auto\", \"bvh\", \"flat\", \"embree\" or \"wide\", got \"%s\"", accel);
     if (jf_int(&L->j, r, "render", "width", 0, 512, 1, MAX_RESOLUTION, &w) ||
         jf_int(&L->j, r, "render", "height", 0, 512, 1, MAX_RESOLUTION, &h) ||
         jf_int(&L->j, r, "render", "spp", 0, 16, 1, MAX_SPP, &spp) ||
@@ -452,23 +453,30 @@ static int set_corners(uint32_t **arr, size_t *len, size_t *cap, size_t tri, con
     return 0;
 }
 
-/* Append the parsed OBJ's normals (made unit; zero when they cannot be) and
- * uvs to the loader's. Returns 0 or -1 when out of memory. */
+/* Append count normals (3 floats each; OBJ's or an imported model's) to the
+ * loader's, made unit (zero when they cannot be). Returns 0 or -1 when out
+ * of memory. */
+static int append_normals(loader *L, const float *normals, size_t count) {
+    if (!count) return 0;
+    vec3 *p = realloc(L->vn, (L->vn_count + count) * sizeof *p);
+    if (!p) return -1;
+    L->vn = p;
+    for (size_t i = 0; i < count; i++) {
+        const float *n = normals + 3 * i;
+        double len = sqrt((double)n[0] * n[0] + (double)n[1] * n[1] + (double)n[2] * n[2]);
+        L->vn[L->vn_count++] = len > 1e-30 && isfinite(len)
+                                   ? vec3_make((float)(n[0] / len), (float)(n[1] / len), (float)(n[2] / len))
+                                   : vec3_make(0, 0, 0);
+    }
+    return 0;
+}
+
+/* Append the parsed OBJ's normals and uvs to the loader's. Returns 0 or -1
+ * when out of memory. */
 static int add_mesh_attributes(loader *L, const obj_mesh *m) {
     L->obj_vn_base = L->vn_count;
     L->obj_vt_base = L->vt_count;
-    if (m->normal_count) {
-        vec3 *p = realloc(L->vn, (L->vn_count + m->normal_count) * sizeof *p);
-        if (!p) return -1;
-        L->vn = p;
-        for (size_t i = 0; i < m->normal_count; i++) {
-            const float *n = m->normals + 3 * i;
-            double len = sqrt((double)n[0] * n[0] + (double)n[1] * n[1] + (double)n[2] * n[2]);
-            L->vn[L->vn_count++] = len > 1e-30 && isfinite(len)
-                                       ? vec3_make((float)(n[0] / len), (float)(n[1] / len), (float)(n[2] / len))
-                                       : vec3_make(0, 0, 0);
-        }
-    }
+    if (append_normals(L, m->normals, m->normal_count)) return -1;
     if (m->uv_count) {
         float *p = realloc(L->vt, 2 * (L->vt_count + m->uv_count) * sizeof *p);
         if (!p) return -1;
@@ -882,8 +890,8 @@ void scene_feature_names(uint32_t features, char *buf, size_t len) {
 /* Free the loader's temporaries (the scene and the JSON stay); it can be
  * called again. */
 static void loader_free(loader *L) {
-    void *temps[] = {(void *)L->material_names, L->wv, L->tris, L->spheres, L->emitters, L->points, L->shade_n,
-                     L->shade_uv, L->shade_flags, L->vn, L->vt, L->tri_vn, L->tri_vt};
+    void *temps[] = {(void *)L->material_names, L->wv, L->tris, L->spheres, L->emitters, L->points, L->shade_uv,
+                     L->shade_flags, L->vn, L->vt, L->tri_vn, L->tri_vt};
     for (size_t i = 0; i < sizeof temps / sizeof temps[0]; i++) free(temps[i]);
     name_index_free(&L->material_index);
     obj_mesh_free(&L->obj);
@@ -971,7 +979,6 @@ void scene_free(scene *s) {
     free(s->sphere_info);
     free(s->lights);
     free(s->light_cdf);
-    free(s->corner_normals);
     free(s->corner_uvs);
     for (uint32_t i = 0; s->textures && i < s->texture_count; i++) texture_free(&s->textures[i]);
     free(s->textures);

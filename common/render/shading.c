@@ -1,5 +1,5 @@
-/* shading.c - textures, shading normals, normal maps and cutouts at hits on
- * imported triangles (see shading.h). */
+/* shading.c - textures, normal maps and cutouts at hits on imported
+ * triangles (see shading.h). */
 #include "shading.h"
 
 #include "accel.h"
@@ -60,15 +60,9 @@ static vec3 normal_mapped(const scene *s, const hit *h, vec3 nsm, vec3 texn, flo
 }
 
 const material *shading_resolve(const scene *s, const hit *h, const material *m, vec3 n, vec3 wo,
-                                 material *scratch, vec3 *ns) {
+                                 material *scratch, vec3 *ns, int *bent) {
     *ns = n;
     if (h->prim >= s->triangle_count) return m;
-    const vec3 *cn = &s->corner_normals[3 * (size_t)h->prim];
-    float b0 = 1.0f - h->b1 - h->b2;
-    vec3 sn = vec3_add(vec3_add(vec3_scale(cn[0], b0), vec3_scale(cn[1], h->b1)), vec3_scale(cn[2], h->b2));
-    float sl = vec3_length(sn);
-    sn = sl > 0.0f ? vec3_scale(sn, 1.0f / sl) : n;
-    if (vec3_dot(sn, n) < 0.0f) sn = vec3_neg(sn); /* the side the ray arrived on */
     int textured = m->tex_base || m->tex_mr || m->tex_normal;
     if (textured || m->alpha_cutoff > 0.0f) {
         *scratch = *m;
@@ -87,14 +81,15 @@ const material *shading_resolve(const scene *s, const hit *h, const material *m,
             scratch->roughness *= c.rgb.y;
             scratch->metallic *= c.rgb.z;
         }
-        if ((t = tex(s, m->tex_normal))) sn = normal_mapped(s, h, sn, texture_lookup(t, u, v).rgb, m->normal_scale);
+        if ((t = tex(s, m->tex_normal)) && m->kind != MATERIAL_GLASS) {
+            vec3 sn = normal_mapped(s, h, n, texture_lookup(t, u, v).rgb, m->normal_scale);
+            if (vec3_dot(sn, wo) > 0.0f) { /* else a black facet: keep n */
+                *ns = sn;
+                *bent = 1;
+            }
+        }
         m = scratch;
     }
-    /* A triangle with vertex normals of its own (a mesh shape's vn) was
-     * shaded by shading_normal.h already: its n stays, the corner normal
-     * (its geometric normal) must not flatten it. */
-    int own = s->triangle_vertex_normals && s->triangle_vertex_normals[3 * (size_t)h->prim] != SCENE_NONE;
-    if (!own && m->kind != MATERIAL_GLASS && vec3_dot(sn, wo) > 0.0f) *ns = sn;
     return m;
 }
 

@@ -15,8 +15,13 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     if (import_model_from_memory(name, data, size, &m, err, sizeof err) == 0) {
         for (size_t i = 0; i < 9 * m.tri_count; i++)
             if (!isfinite(m.positions[i])) abort();
-        for (size_t t = 0; t < m.tri_count; t++)
+        for (size_t t = 0; t < m.tri_count; t++) {
             if (m.material[t] >= m.material_count) abort();
+            for (int k = 0; k < 3 && (m.flags[t] & 1); k++) /* shading normals: shared, in range */
+                if (m.normal_indices[3 * t + k] >= m.normal_count) abort();
+        }
+        for (size_t i = 0; i < 3 * m.normal_count; i++)
+            if (!isfinite(m.normals[i]) || fabsf(m.normals[i]) > 1.0f + 1e-6f) abort();
         import_model_free(&m);
     } else if (!err[0]) {
         abort();

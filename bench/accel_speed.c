@@ -1,0 +1,90 @@
+/* accel_speed.c - render CPU time of a scene through each intersector,
+ * in one process, the kinds interleaved round by round, so that a loaded
+ * machine's noise falls on all of them alike.
+ *
+ *   accel-speed SCENE.json [--width W --height H --spp N] [--rounds R] [KIND...]
+ *
+ * KIND: bvh, embree, wide (default: embree wide). Each intersector is built
+ * once; each round renders the whole image as one tile on the calling
+ * thread and reports that thread's CPU time (CLOCK_THREAD_CPUTIME_ID: the
+ * builders' threads and the loading are not counted), rays per CPU second,
+ * and whether the picture equals the first kind's bit for bit. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "render/accel.h"
+#include "render/render.h"
+#include "render/scene.h"
+
+static double thread_cpu(void) {
+    struct timespec t;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+static int parse_kind(const char *name, accel_kind *out) {
+    static const char *const names[] = {"auto", "bvh", "flat", "embree", "wide"}; /* accel_kind order */
+    for (int k = 0; k < 5; k++)
+        if (strcmp(name, names[k]) == 0) return *out = (accel_kind)k, 0;
+    return -1;
+}
+
+int main(int argc, char **argv) {
+    const char *path = NULL, *names[8];
+    accel_kind kinds[8];
+    int nk = 0, rounds = 3;
+    scene_overrides ov = {-1, -1, -1, -1, 0, 0, 1}; /* no intersector: built below, one per kind */
+    for (int i = 1; i < argc; i++) {
+        if (i + 1 < argc && strcmp(argv[i], "--width") == 0) ov.width = atoi(argv[++i]);
+        else if (i + 1 < argc && strcmp(argv[i], "--height") == 0) ov.height = atoi(argv[++i]);
+        else if (i + 1 < argc && strcmp(argv[i], "--spp") == 0) ov.spp = atoi(argv[++i]);
+        else if (i + 1 < argc && strcmp(argv[i], "--rounds") == 0) rounds = atoi(argv[++i]);
+        else if (!path) path = argv[i];
+        else if (nk < 8 && parse_kind(argv[i], &kinds[nk]) == 0) names[nk++] = argv[i];
+        else return fprintf(stderr, "accel-speed: unknown argument \"%s\"\n", argv[i]), 2;
+    }
+    if (!path || rounds < 1) return fprintf(stderr, "usage: accel-speed SCENE.json [--width W --height H --spp N] [--rounds R] [KIND...]\n"), 2;
+    if (nk == 0) {
+        kinds[0] = ACCEL_EMBREE, names[0] = "embree";
+        kinds[1] = ACCEL_WIDE, names[1] = "wide";
+        nk = 2;
+    }
+    char err[512];
+    scene *s = scene_load(path, &ov, err, sizeof err);
+    if (!s) return fprintf(stderr, "accel-speed: %s\n", err), 1;
+    accel *built[8];
+    for (int k = 0; k < nk; k++) {
+        built[k] = accel_build_err(s, kinds[k], err, sizeof err);
+        if (!built[k]) return fprintf(stderr, "accel-speed: building %s: %s\n", names[k], err), 1;
+    }
+    tile_rect all = {0, 0, s->settings.width, s->settings.height};
+    size_t px = (size_t)s->settings.width * (size_t)s->settings.height;
+    float *first = malloc(px * 3 * sizeof(float)), *rgb = malloc(px * 3 * sizeof(float));
+    double *accum = malloc(px * 3 * sizeof(double));
+    if (!first || !rgb || !accum) return fprintf(stderr, "accel-speed: out of memory\n"), 1;
+    integrator_options opt = {0};
+    printf("scene %s: %u triangles, %u spheres, %dx%d, %d spp, 1 thread\n", path, s->triangle_count, s->sphere_count,
+           s->settings.width, s->settings.height, s->settings.spp);
+    for (int r = 0; r < rounds; r++)
+        for (int k = 0; k < nk; k++) {
+            s->accel = built[k];
+            trace_stats st = {0};
+            memset(accum, 0, px * 3 * sizeof(double));
+            double t0 = thread_cpu();
+            render_tile_means(s, &opt, &all, s->settings.spp, 1, accum, k ? rgb : first, &st, NULL);
+            double cpu = thread_cpu() - t0;
+            int same = k == 0 || memcmp(first, rgb, px * 3 * sizeof(float)) == 0;
+            printf("round %d %-7s render CPU %.3f s, %.3f Mrays per CPU s, %s\n", r + 1, names[k], cpu,
+                   (double)(st.rays + st.shadow_rays) / cpu * 1e-6, same ? "same picture" : "PICTURE DIFFERS");
+            fflush(stdout);
+        }
+    s->accel = NULL;
+    for (int k = 0; k < nk; k++) accel_free(built[k]);
+    free(first);
+    free(rgb);
+    free(accum);
+    scene_free(s);
+    return 0;
+}

@@ -1,0 +1,62 @@
+/* accel_wide.h - Tessera's own 8-wide BVH for large scenes: built in
+ * parallel by Embree's generic builder (rtcBuildBVH, binned SAH over boxes
+ * Tessera supplies), walked by Tessera with one SIMD slab test for a node's
+ * eight children, leaves of up to four triangles tested at once by the flat
+ * kernel's watertight test (accel_flat.h), spheres by the scalar test.
+ *
+ * The answer is the one accel_embree.h defines, without reference to any
+ * tree:
+ *
+ *   closest hit = the primitive with the smallest (t, index), t and the
+ *   barycentrics as intersect.h computes them for the caller's ray and tmax;
+ *   occluded  = some primitive has such a hit.
+ *
+ * The tree (whose shape depends on the build's threads) only decides the
+ * order in which candidates are tried: boxes are padded
+ * (accel_padded_box), the slab test's far distance is widened by
+ * 1 + 3 * 2^-23 (more than its rounding, pbrt's bound) and the culling
+ * distance by accel_cull_distance, so no box holding a candidate that could
+ * still win is skipped. Every lane of every test is the same IEEE operation
+ * on every x86-64 (SSE, no FMA), so the walk is also the same everywhere.
+ *
+ * TESSERA_EMBREE_CONFIG, if set, configures the builder's Embree device
+ * (e.g. "threads=1"). Built once per scene, then read-only: any number of
+ * threads may trace through it at once. */
+#ifndef TESSERA_ACCEL_WIDE_H
+#define TESSERA_ACCEL_WIDE_H
+
+#include <stddef.h>
+
+#include "intersect.h"
+#include "scene.h"
+
+typedef struct accel_wide accel_wide;
+
+typedef struct {
+    double build_seconds;  /* wall time of the whole build, boxes included */
+    size_t node_count;     /* inner nodes */
+    int node_width;        /* children per inner node at most (8) */
+    size_t leaf_count;     /* leaves (4 primitives each at most) */
+    size_t primitive_count;
+    size_t memory_bytes;   /* bytes held after the build (nodes and leaves) */
+    size_t peak_bytes;     /* bytes held at the build's peak, boxes included */
+    const char *config;    /* the builder's Embree device configuration ("" for Embree's defaults) */
+} accel_wide_stats;
+
+/* Build over s's triangles and spheres. Returns NULL on failure (out of
+ * memory, Embree refusing the device configuration or failing the build)
+ * and writes why to err. */
+accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len);
+
+/* Free; NULL is allowed. */
+void accel_wide_free(accel_wide *w);
+
+void accel_wide_get_stats(const accel_wide *w, accel_wide_stats *out);
+
+/* Closest hit with 0 < t < tmax. Returns 1 and fills *h, or 0 for a miss. */
+int accel_wide_intersect(const accel_wide *w, const scene *s, const ray *r, float tmax, hit *h);
+
+/* Any hit with 0 < t < tmax (shadow rays). Returns 1 if occluded. */
+int accel_wide_occluded(const accel_wide *w, const scene *s, const ray *r, float tmax);
+
+#endif
