@@ -33,9 +33,11 @@
 #include "coordinator/membudget.h"
 #include "limit.h"
 
-/* From this many primitives the default local farm is one worker with a
- * thread per core (bench/meshes.sh: at 655k triangles and above two workers
- * each loading the scene were slower than one process). */
+/* From this many primitives the default local farm gives way to rendering
+ * in this process with a thread per core (bench/meshes.sh: at 655k
+ * triangles and above two workers each loading the scene were slower than
+ * one process; one worker still loaded the scene a second time, after this
+ * process had, from its own copy of every mesh file). */
 #define LOCAL_FARM_ONE_WORKER_PRIMITIVES (1u << 19)
 
 typedef struct {
@@ -84,10 +86,10 @@ static void usage_render(FILE *f) {
             "      --camera NAME      glTF: render from this camera (node or camera name; default: the first)\n"
             "      --max-memory SIZE  refuse up front a frame larger than this, e.g. 12G (default:\n"
             "                         3/4 of the RAM or of the cgroup's limit if lower)\n"
-            "      --workers N        local worker processes (default: one per core, or one\n"
-            "                         with a thread per core for scenes of 2^19 primitives\n"
-            "                         or more; with --listen, 0); 0 without --listen\n"
-            "                         renders in this process\n"
+            "      --workers N        local worker processes (default: one per core, or none\n"
+            "                         for scenes of 2^19 primitives or more: this process\n"
+            "                         renders them with a thread per core; with --listen, 0);\n"
+            "                         0 without --listen renders in this process\n"
             "      --threads N        threads per local worker (default 1), or render threads\n"
             "                         with --workers 0 (default: all cores)\n"
             "      --listen HOST:PORT also accept remote workers (tessera-worker --connect)\n"
@@ -482,31 +484,43 @@ static int cmd_render(int argc, char **argv) {
         if (a.camera) scene_bundle_free(&b);
         return 1;
     }
-    a.ov.no_accel = a.listen || a.workers > 0; /* the workers build their own */
+    a.ov.no_accel = 1; /* the workers build their own; this process, below, if it renders */
     scene *s = scene_load_bundle(&b, &a.ov, err, sizeof err);
     if (!s) {
         fprintf(stderr, "tessera: %s\n", err);
         scene_bundle_free(&b);
         return 1;
     }
-    if (a.verbose) print_scene_info(s);
     if (a.verbose && (a.ov.width > 0) != (a.ov.height > 0))
         fprintf(stderr, "size: %dx%d: --%s given alone, so the %s keeps the scene's aspect ratio\n",
                 s->settings.width, s->settings.height, a.ov.width > 0 ? "width" : "height",
                 a.ov.width > 0 ? "height" : "width");
     /* A big scene costs every local worker its own load, build and memory;
-     * one worker with a thread per core loads it once (same bytes). */
-    if (a.workers_defaulted && !a.threads_given && a.workers > 1 &&
+     * this process has loaded it already: it renders with a thread per core
+     * (same bytes). A farm that was asked for (--workers, --threads,
+     * --listen, --http) stays one. */
+    int rc = 0;
+    if (a.workers_defaulted && !a.threads_given && !a.http && a.workers > 1 &&
         s->triangle_count + s->sphere_count >= LOCAL_FARM_ONE_WORKER_PRIMITIVES) {
         a.threads = a.workers;
         a.threads_given = 1;
-        a.workers = 1;
+        a.workers = 0;
         if (a.verbose)
-            fprintf(stderr, "local farm: 1 worker with %d threads (%u primitives: loaded once, not per core)\n",
-                    a.threads, s->triangle_count + s->sphere_count);
+            fprintf(stderr, "no local farm: %u primitives are rendered in this process with %d threads (the scene "
+                    "is loaded once, not again by a worker)\n", s->triangle_count + s->sphere_count, a.threads);
     }
+    int farm_mode = a.listen || a.workers > 0;
+    if (!farm_mode) {
+        scene_bundle_free(&b); /* the scene has what it needs: the mesh files' text goes before the build */
+        s->accel = accel_build_err(s, s->settings.accel, err, sizeof err);
+        if (!s->accel) {
+            fprintf(stderr, "tessera: %s: shapes: building the intersector: %s\n", s->path, err);
+            rc = -1;
+        }
+    }
+    if (a.verbose) print_scene_info(s);
     image img = {0};
-    int rc = render_fits_memory(&a, s);
+    if (rc == 0) rc = render_fits_memory(&a, s);
     if (rc == 0 && image_alloc(&img, s->settings.width, s->settings.height)) {
         fprintf(stderr, "tessera: out of memory for a %dx%d image\n", s->settings.width, s->settings.height);
         rc = -1;
@@ -523,7 +537,6 @@ static int cmd_render(int argc, char **argv) {
         rc = -1;
     }
     double t0 = now_seconds();
-    int farm_mode = a.listen || a.workers > 0;
     if (rc == 0) rc = farm_mode ? render_on_farm(&a, s, &b, &img, &st) : render_in_process(&a, s, &img, &st);
     double secs = now_seconds() - t0;
     if (rc == 0) rc = save_image(&a, s, &img);

@@ -8,6 +8,8 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+
+#include "memhint.h"
 #include <unistd.h>
 
 char *file_read_all(const char *path, size_t max_len, size_t *len, char *err, size_t err_len) {
@@ -30,6 +32,7 @@ char *file_read_all(const char *path, size_t max_len, size_t *len, char *err, si
     }
     size_t n = (size_t)st.st_size;
     char *buf = malloc(n + 1);
+    memhint_huge(buf, n + 1);
     if (!buf) {
         snprintf(err, err_len, "%s: out of memory reading %zu bytes", path, n);
         fclose(f);

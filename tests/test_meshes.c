@@ -316,6 +316,10 @@ TEST(mesh_obj_bad_input_names_file_and_line) {
         {"vt 1e300\n", "bad.obj:1: texture coordinate is not finite"},
         {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2", "bad.obj:4: face needs at least three vertices"}, /* truncated */
         {"v 0 0 0\nv 1 0 0\nv 0 1", "bad.obj:3: vertex needs three numbers"},                /* truncated */
+        /* Parsed in place: strtod and strtol skip any blank, '\n' too, so
+         * they must not see past the line (the next one holds numbers). */
+        {"v 1 2 \v\n3 4 5\n", "bad.obj:1: vertex needs three numbers"},
+        {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 \v\n3\n", "bad.obj:4: face corner is not an index"},
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         obj_mesh m;
@@ -324,6 +328,60 @@ TEST(mesh_obj_bad_input_names_file_and_line) {
         CHECK(rc == -1 && strstr(err, cases[i].want), "case %zu: got %d \"%s\", want \"%s\"", i, rc, err, cases[i].want);
         if (rc == 0) obj_mesh_free(&m);
     }
+}
+
+/* The scene's centre is half the sum of the bounds, grown corner by corner
+ * as fmin/fmax do: on a tie (-0 against +0) the first corner stays. So a
+ * scene flat at y = 0 has its centre's y signed like its first corner's y,
+ * whatever the later ones (the loader's bounds keep fmin's rule). */
+TEST(mesh_bounds_keep_the_first_of_equal_corners) {
+    static const char *const first_y[2] = {"-0.0", "0.0"}, *const later_y[2] = {"0.0", "-0.0"};
+    for (int k = 0; k < 2; k++) {
+        char json[1024], err[512];
+        snprintf(json, sizeof json,
+                 "{\"camera\": {\"type\": \"perspective\", \"position\": [0, 3, -3], \"look_at\": [0, 0, 0], "
+                 "\"fov\": 40}, \"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo\": [0.5, 0.5, 0.5]}}, "
+                 "\"shapes\": [{\"type\": \"triangle\", \"material\": \"m\", \"vertices\": [[0, %s, 0], [1, %s, 0], "
+                 "[0, %s, 1]]}]}", first_y[k], later_y[k], later_y[k]);
+        scene *s = scene_load(util_write_temp("flat-zero.json", json), NULL, err, sizeof err);
+        CHECK(s != NULL, "%s", err);
+        if (!s) continue;
+        CHECK(signbit(s->world_center[1]) == (k == 0), "first corner y %s: centre y %g (sign %d)", first_y[k],
+              s->world_center[1], signbit(s->world_center[1]) != 0);
+        scene_free(s);
+    }
+}
+
+/* Vertices no kept triangle uses (unreferenced, or only in a degenerate
+ * face) neither move the scene's frame nor reach it: the same triangles,
+ * bit for bit, as without them (one of them is beyond what a float holds). */
+TEST(mesh_unused_vertices_change_nothing) {
+    static const char *const objs[2] = {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+                                        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1e300 0 0\nv 5 5 5\nf 1 2 3\nf 5 5 5\n"};
+    scene *s[2];
+    for (int k = 0; k < 2; k++) {
+        char err[512];
+        util_write_temp(k ? "unused-b.obj" : "unused-a.obj", objs[k]);
+        const char *json = k ? "{\"camera\": {\"type\": \"perspective\", \"position\": [0, 0, -3], \"look_at\": [0, 0, 0], "
+                               "\"fov\": 40}, \"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo\": [0.5, 0.5, 0.5]}}, "
+                               "\"shapes\": [{\"type\": \"mesh\", \"file\": \"unused-b.obj\", \"material\": \"m\"}]}"
+                             : "{\"camera\": {\"type\": \"perspective\", \"position\": [0, 0, -3], \"look_at\": [0, 0, 0], "
+                               "\"fov\": 40}, \"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo\": [0.5, 0.5, 0.5]}}, "
+                               "\"shapes\": [{\"type\": \"mesh\", \"file\": \"unused-a.obj\", \"material\": \"m\"}]}";
+        s[k] = scene_load(util_write_temp(k ? "unused-b.json" : "unused-a.json", json), NULL, err, sizeof err);
+        CHECK(s[k] != NULL, "%s", err);
+    }
+    if (s[0] && s[1]) {
+        CHECK(s[1]->triangle_count == 1 && s[1]->degenerate_triangles == 1, "%u triangles, %zu degenerate",
+              s[1]->triangle_count, s[1]->degenerate_triangles);
+        CHECK(memcmp(s[0]->triangles, s[1]->triangles, sizeof(triangle)) == 0 &&
+                  memcmp(s[0]->world_center, s[1]->world_center, sizeof s[0]->world_center) == 0 &&
+                  s[0]->world_scale == s[1]->world_scale,
+              "unused vertices moved the frame: centre x %g against %g, scale %g against %g", s[1]->world_center[0],
+              s[0]->world_center[0], s[1]->world_scale, s[0]->world_scale);
+    }
+    scene_free(s[0]);
+    scene_free(s[1]);
 }
 
 /* vn and vt reach the scene: unit normals and uvs with per-corner indices
@@ -622,4 +680,43 @@ TEST(mesh_smooth_normals_survive_an_imported_model) {
     CHECK(img[0] && img[1] && top > 0.05f && worst < 1e-3f * top, "images differ by up to %g (brightest %g)", worst, top);
     free(img[0]);
     free(img[1]);
+}
+
+/* A scene of 2^19 primitives or more: `tessera render` with its defaults
+ * renders it in its own process (it has loaded it already) instead of
+ * handing it to a local worker, and the picture is the farm's, byte for
+ * byte. The mesh: a 512 x 512 grid of quads, 2^19 triangles. */
+TEST(mesh_big_scene_renders_in_process_with_the_farms_bytes) {
+    enum { N = 512 };
+    char *obj = malloc((size_t)(N + 1) * (N + 1) * 32 + (size_t)N * N * 48), *p = obj;
+    CHECK(obj != NULL, "out of memory");
+    if (!obj) return;
+    for (int i = 0; i <= N; i++)
+        for (int k = 0; k <= N; k++) p += sprintf(p, "v %d %g %d\n", k, 0.25 * ((i * 7 + k * 3) % 5), i);
+    for (int i = 0; i < N; i++)
+        for (int k = 0; k < N; k++) {
+            int a = i * (N + 1) + k + 1;
+            p += sprintf(p, "f %d %d %d %d\n", a, a + N + 1, a + N + 2, a + 1);
+        }
+    util_write_temp("grid.obj", obj);
+    free(obj);
+    const char *json = "{\"render\": {\"width\": 12, \"height\": 12, \"spp\": 2}, \"camera\": {\"type\": \"perspective\", "
+                       "\"position\": [256, 400, -200], \"look_at\": [256, 0, 256], \"fov\": 50}, \"materials\": {\"m\": "
+                       "{\"type\": \"diffuse\", \"albedo\": [0.5, 0.5, 0.5]}}, \"shapes\": [{\"type\": \"mesh\", \"file\": "
+                       "\"grid.obj\", \"material\": \"m\"}, {\"type\": \"quad\", \"emission\": [5, 5, 5], \"vertices\": "
+                       "[[100, 300, 100], [400, 300, 100], [400, 300, 400], [100, 300, 400]]}]}";
+    char scene_path[512], img_own[512], img_farm[512], cmd[2048], out[8192];
+    snprintf(scene_path, sizeof scene_path, "%s", util_write_temp("grid.json", json));
+    snprintf(img_own, sizeof img_own, "%s", util_temp_path("grid-own.pfm"));
+    snprintf(img_farm, sizeof img_farm, "%s", util_temp_path("grid-farm.pfm"));
+    snprintf(cmd, sizeof cmd, "%s render %s -v --no-progress -o %s", harness_tessera(), scene_path, img_own);
+    int st = util_run(cmd, out, sizeof out);
+    CHECK(st == 0 && strstr(out, "no local farm: 524290 primitives are rendered in this process") &&
+              strstr(out, "intersector: ") && !strstr(out, "built by each worker"),
+          "defaults: status %d: %s", st, out);
+    snprintf(cmd, sizeof cmd, "%s render %s --workers 1 --threads 2 --no-progress -o %s", harness_tessera(), scene_path,
+             img_farm);
+    st = util_run(cmd, out, sizeof out);
+    CHECK(st == 0, "one worker: status %d: %s", st, out);
+    CHECK(util_same_file(img_own, img_farm), "in process and on a one-worker farm: the images differ");
 }

@@ -80,6 +80,7 @@ static int job_ensure_scene(pool_job *j) {
         j->s = scene_memory_check(&j->bundle, j->load_error, sizeof j->load_error) ? NULL
                : scene_load_bundle(&j->bundle, &ov, j->load_error, sizeof j->load_error);
         j->load_state = j->s ? 1 : -1;
+        scene_bundle_free(&j->bundle); /* the scene holds what it needs: no second copy of the meshes while rendering */
     }
     int rc = j->load_state == 1 ? 0 : -1;
     pthread_mutex_unlock(&j->load_lock);

@@ -139,8 +139,8 @@ static int text_refs(const char *name, const char *data, size_t len, const char 
                      int (*cb)(void *, const char *), void *ctx) {
     size_t kl = strlen(keyword);
     for (size_t i = 0; i < len;) {
-        size_t e = i;
-        while (e < len && data[e] != '\n') e++;
+        const char *nl = memchr(data + i, '\n', len - i);
+        size_t e = nl ? (size_t)(nl - data) : len;
         size_t s = i;
         while (s < e && (data[s] == ' ' || data[s] == '\t')) s++;
         if (e - s > kl && strncmp(data + s, keyword, kl) == 0 && (data[s + kl] == ' ' || data[s + kl] == '\t')) {

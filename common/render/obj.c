@@ -1,8 +1,10 @@
 /* obj.c - a reader for the geometry part of Wavefront OBJ files.
  *
- * One pass over the text, line by line. Indices are resolved as they are
- * read (OBJ allows negative indices relative to the vertices so far), so a
- * face that names a vertex not yet defined is an error on its own line. */
+ * One pass over the text, line by line, parsed where it lies (a line ends
+ * at its '\n'; only a last line without one is copied, to end it with a
+ * NUL). Indices are resolved as they are read (OBJ allows negative indices
+ * relative to the vertices so far), so a face that names a vertex not yet
+ * defined is an error on its own line. */
 #include "obj.h"
 
 #include <ctype.h>
@@ -30,6 +32,35 @@ static int grow(void **arr, size_t *cap, size_t need, size_t size) {
     return 0;
 }
 
+#define OBJ_MAX_LINE 4096 /* bytes, with the '\n' or NUL */
+
+/* strtod or strtol (10) of s, which must not look past its line: the rest of
+ * the line (to '\n' or NUL, shorter than OBJ_MAX_LINE) is copied and
+ * NUL-terminated first, as the C functions skip any blank, newlines too.
+ * Sets *end like they do and returns the result in *d or *l. */
+static void parse_in_line(const char *s, char **end, double *d, long *l) {
+    char copy[OBJ_MAX_LINE], *e;
+    size_t n = 0;
+    while (n < sizeof copy - 1 && s[n] != '\n' && s[n] != '\0') n++;
+    memcpy(copy, s, n);
+    copy[n] = '\0';
+    if (d) *d = strtod(copy, &e);
+    else *l = strtol(copy, &e, 10);
+    *end = (char *)s + (e - copy);
+}
+
+static double strtod_line(const char *s, char **end) {
+    double d;
+    parse_in_line(s, end, &d, NULL);
+    return d;
+}
+
+static long strtol_line(const char *s, char **end) {
+    long l;
+    parse_in_line(s, end, NULL, &l);
+    return l;
+}
+
 /* strtod(s, end), faster for the plain decimals OBJ writers print
  * ("-0.5257311", "1e-3"), with exactly strtod's result: when the digits
  * form an integer m < 2^53 and the power of ten p has |p| <= 22, both m and
@@ -49,19 +80,19 @@ static double parse_double(const char *s, char **end) {
     for (; *p >= '0' && *p <= '9'; p++, digits++) m = m * 10 + (uint64_t)(*p - '0');
     if (*p == '.')
         for (p++; *p >= '0' && *p <= '9'; p++, digits++, frac++) m = m * 10 + (uint64_t)(*p - '0');
-    if (digits == 0 || digits > 19) return strtod(s, end);
+    if (digits == 0 || digits > 19) return strtod_line(s, end);
     if (*p == 'e' || *p == 'E') {
         const char *q = p + 1;
         int eneg = *q == '-';
         if (*q == '-' || *q == '+') q++;
-        if (!(*q >= '0' && *q <= '9')) return strtod(s, end);
+        if (!(*q >= '0' && *q <= '9')) return strtod_line(s, end);
         for (; *q >= '0' && *q <= '9' && exp < 1000; q++) exp = exp * 10 + (*q - '0');
         if (eneg) exp = -exp;
         p = q;
     }
-    if (!(*p == ' ' || *p == '\t' || *p == '\0' || *p == '\r' || *p == '\n' || *p == '#')) return strtod(s, end);
+    if (!(*p == ' ' || *p == '\t' || *p == '\0' || *p == '\r' || *p == '\n' || *p == '#')) return strtod_line(s, end);
     int p10 = exp - frac;
-    if (m > (1ull << 53) || p10 > 22 || p10 < -22) return strtod(s, end);
+    if (m > (1ull << 53) || p10 > 22 || p10 < -22) return strtod_line(s, end);
     double v = p10 >= 0 ? (double)m * pow10[p10] : (double)m / pow10[-p10];
     *end = (char *)p;
     return neg ? -v : v;
@@ -75,7 +106,7 @@ static long parse_long(const char *s, char **end) {
     long v = 0;
     int digits = 0;
     for (; *p >= '0' && *p <= '9' && digits < 18; p++, digits++) v = v * 10 + (*p - '0');
-    if (digits == 0 || (*p >= '0' && *p <= '9')) return strtol(s, end, 10);
+    if (digits == 0 || (*p >= '0' && *p <= '9')) return strtol_line(s, end);
     *end = (char *)p;
     return neg ? -v : v;
 }
@@ -229,24 +260,26 @@ static int read_face(obj_reader *r, const char *s) {
 int obj_parse(const char *buf, size_t len, const char *name, obj_mesh *out, char *err, size_t err_len) {
     obj_reader r = {name, 0, err, err_len, out, 0, 0, 0, 0, 0, 0};
     memset(out, 0, sizeof *out);
-    char line[4096];
+    char last[OBJ_MAX_LINE]; /* the last line when no '\n' ends it */
     size_t pos = 0;
     while (pos < len) {
-        size_t end = pos;
-        while (end < len && buf[end] != '\n') end++;
+        const char *nl = memchr(buf + pos, '\n', len - pos), *line = buf + pos;
+        size_t n = nl ? (size_t)(nl - line) : len - pos;
         r.line++;
-        size_t n = end - pos;
-        if (n >= sizeof line) {
+        if (n >= OBJ_MAX_LINE) {
             obj_fail(&r, "line longer than 4095 characters");
             goto fail;
         }
-        memcpy(line, buf + pos, n);
-        line[n] = '\0';
         if (memchr(line, '\0', n)) {
             obj_fail(&r, "NUL byte in text");
             goto fail;
         }
-        pos = end + 1;
+        if (!nl) {
+            memcpy(last, line, n);
+            last[n] = '\0';
+            line = last;
+        }
+        pos += n + 1;
         const char *s = line;
         while (*s == ' ' || *s == '\t') s++;
         int rc = 0;

@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "fileio.h"
+#include "memhint.h"
 #include "model_files.h"
 
 #define BUNDLE_SCENE_MAX (64u << 20)
@@ -176,6 +177,7 @@ uint8_t *scene_bundle_serialise(const scene_bundle *b, size_t *len) {
     }
     uint8_t *buf = malloc(n), *p = buf;
     if (!buf) return NULL;
+    memhint_huge(buf, n);
     put_u32(p, (uint32_t)count);
     p += 4;
     for (size_t i = 0; i < b->count; i++) {
@@ -197,6 +199,7 @@ uint8_t *scene_bundle_serialise(const scene_bundle *b, size_t *len) {
 static char *dup_bytes(const uint8_t *p, size_t len) {
     char *s = malloc(len + 1);
     if (!s) return NULL;
+    memhint_huge(s, len + 1);
     memcpy(s, p, len);
     s[len] = '\0';
     return s;

@@ -1,10 +1,12 @@
 /* scene_load.c - read a JSON scene file into a validated `scene`.
  *
- * Parsing happens in double precision into temporary lists (triangles,
- * spheres, emitters); once the bounds of all geometry are known the whole
- * scene is moved into internal units (see scene.h) and only then rounded to
- * float. Every refusal names the file and the field; docs/scene-format.md
- * describes the format. */
+ * Parsing happens in double precision into temporary lists (vertices in
+ * world coordinates, triangles as three vertex indices, spheres, emitters);
+ * once the bounds of all geometry are known the whole scene is moved into
+ * internal units (see scene.h) and only then rounded to float, each vertex
+ * once. A mesh's triangles share its vertices, so a mesh costs 24 bytes per
+ * vertex and 24 per triangle while loading. Every refusal names the file
+ * and the field; docs/scene-format.md describes the format. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -19,6 +21,7 @@
 #include "scene_bundle.h"
 #include "scene.h"
 #include "limit.h"
+#include "memhint.h"
 #include "texture.h"
 
 #define MAX_RESOLUTION LIMIT_SIDE
@@ -28,11 +31,11 @@
 #define MESH_SCALE_MAX 1e6 /* a mesh scaled by 1e30 rendered black: float intersection maths overflows */
 
 typedef struct {
-    double p[3][3];
+    uint32_t v[3];     /* corners: indices into loader.wv */
     uint32_t material;
-    int emitter; /* index into loader.emitters, or -1 */
-    int32_t shade; /* imported models: index into loader.shade_uv, shade_flags, or -1 */
-} tri_d;
+    int32_t emitter;   /* index into loader.emitters, or -1 */
+    int32_t shade;     /* imported models: index into loader.shade_uv, shade_flags, or -1 */
+} tri_r;
 
 typedef struct {
     double c[3], r;
@@ -58,8 +61,11 @@ typedef struct {
     const scene_bundle *bundle; /* the scene text and its meshes */
     const char **material_names;
     name_index material_index; /* name -> material slot, for linear checks */
-    tri_d *tris;
+    double *wv;                  /* 3 per vertex, world coordinates */
+    size_t wv_count, wv_cap;     /* in vertices */
+    tri_r *tris;
     size_t tri_count, tri_cap;
+    double tri_lo[3], tri_hi[3]; /* bounds of the triangles kept so far */
     sphere_d *spheres;
     size_t sphere_count, sphere_cap;
     emitter_d *emitters;
@@ -280,27 +286,89 @@ static int shape_emission(loader *L, const cJSON *sh, const char *where, int *em
     return 0;
 }
 
-/* Append a triangle. `strict`: a degenerate triangle is an error naming the
- * shape; otherwise (meshes) it is skipped and counted. */
-static int add_triangle(loader *L, const double *a, const double *b, const double *c, uint32_t mat,
-                        int emitter, int strict, const char *where) {
+/* Make room for n more vertices in L->wv (a mesh's exactly, a triangle's
+ * by doubling); returns the first new one (the count is not advanced), or
+ * NULL when out of memory or past 2^32 - 1 vertices (indices are 32 bits). */
+static double *reserve_vertices(loader *L, size_t n) {
+    if (L->wv_count + n > UINT32_MAX) return NULL;
+    if (L->wv_count + n > L->wv_cap) {
+        size_t cap = n > 3 ? L->wv_count + n : L->wv_cap ? 2 * L->wv_cap : 256;
+        double *p = realloc(L->wv, 3 * cap * sizeof *p);
+        if (!p) return NULL;
+        memhint_huge(p, 3 * cap * sizeof *p);
+        L->wv = p;
+        L->wv_cap = cap;
+    }
+    return L->wv + 3 * L->wv_count;
+}
+
+/* Whether the triangle a, b, c has an area worth keeping: its normal's
+ * length against the product of two edges' lengths. */
+static int triangle_has_area(const double *a, const double *b, const double *c) {
     double e1[3], e2[3], n[3];
     dsub(b, a, e1);
     dsub(c, a, e2);
     dcross(e1, e2, n);
-    if (!(dlen(n) > 1e-12 * dlen(e1) * dlen(e2))) {
+    return dlen(n) > 1e-12 * dlen(e1) * dlen(e2);
+}
+
+/* Grow the triangle bounds by point p; the same as lo = fmin(lo, p) and
+ * hi = fmax(hi, p), which keep their first argument on a tie (C99 F.9.9.2,
+ * glibc), but inline. */
+static void bounds_add(loader *L, const double p[3]) {
+    for (int a = 0; a < 3; a++) {
+        L->tri_lo[a] = p[a] < L->tri_lo[a] ? p[a] : L->tri_lo[a];
+        L->tri_hi[a] = p[a] > L->tri_hi[a] ? p[a] : L->tri_hi[a];
+    }
+}
+
+/* Append the triangle of vertices ia, ib, ic (in L->wv, with room made for
+ * it in L->tris) and grow the bounds by its corners. */
+static void keep_triangle(loader *L, uint32_t ia, uint32_t ib, uint32_t ic, uint32_t mat, int emitter) {
+    tri_r *t = &L->tris[L->tri_count++];
+    t->v[0] = ia;
+    t->v[1] = ib;
+    t->v[2] = ic;
+    t->material = mat;
+    t->emitter = emitter;
+    t->shade = -1;
+    bounds_add(L, L->wv + 3 * (size_t)ia);
+    bounds_add(L, L->wv + 3 * (size_t)ib);
+    bounds_add(L, L->wv + 3 * (size_t)ic);
+}
+
+/* Make room for n more triangles in L->tris (a mesh's exactly: one
+ * allocation, not a doubling per mesh; one triangle by doubling). Returns
+ * 0, or -1 when out of memory (then L->tris is unchanged). */
+static int reserve_triangles(loader *L, size_t n) {
+    if (L->tri_count + n <= L->tri_cap) return 0;
+    size_t cap = n > 1 ? L->tri_count + n : L->tri_cap ? 2 * L->tri_cap : 64;
+    tri_r *p = realloc(L->tris, cap * sizeof *p);
+    if (!p) return -1;
+    memhint_huge(p, cap * sizeof *p);
+    L->tris = p;
+    L->tri_cap = cap;
+    return 0;
+}
+
+/* Append a triangle given by its corners. `strict`: a degenerate triangle
+ * is an error naming the shape; otherwise (meshes) it is skipped and
+ * counted. */
+static int add_triangle(loader *L, const double *a, const double *b, const double *c, uint32_t mat,
+                        int emitter, int strict, const char *where) {
+    if (!triangle_has_area(a, b, c)) {
         if (strict) return jf_fail(&L->j, where, "vertices", "degenerate triangle (zero area)");
         L->s->degenerate_triangles++;
         return 0;
     }
-    tri_d *t = push((void **)&L->tris, &L->tri_count, &L->tri_cap, sizeof *t);
-    if (!t) return jf_fail(&L->j, where, NULL, "out of memory");
-    memcpy(t->p[0], a, sizeof t->p[0]);
-    memcpy(t->p[1], b, sizeof t->p[1]);
-    memcpy(t->p[2], c, sizeof t->p[2]);
-    t->material = mat;
-    t->emitter = emitter;
-    t->shade = -1;
+    double *w = reserve_vertices(L, 3);
+    if (!w || reserve_triangles(L, 1)) return jf_fail(&L->j, where, NULL, "out of memory");
+    memcpy(w, a, 3 * sizeof *w);
+    memcpy(w + 3, b, 3 * sizeof *w);
+    memcpy(w + 6, c, 3 * sizeof *w);
+    uint32_t first = (uint32_t)L->wv_count;
+    L->wv_count += 3;
+    keep_triangle(L, first, first + 1, first + 2, mat, emitter);
     return 0;
 }
 
@@ -491,23 +559,24 @@ static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat
             return jf_fail(&L->j, where, NULL, "out of memory");
     }
     const obj_mesh m = L->obj;
-    if (L->tri_cap < L->tri_count + m.triangle_count) { /* one allocation, not a doubling per mesh */
-        tri_d *p = realloc(L->tris, (L->tri_count + m.triangle_count) * sizeof *p);
-        if (!p) return jf_fail(&L->j, where, NULL, "out of memory (%zu triangles)", L->tri_count + m.triangle_count);
-        L->tris = p;
-        L->tri_cap = L->tri_count + m.triangle_count;
-    }
-    int rc = 0;
-    for (size_t t = 0; t < m.triangle_count && !rc; t++) {
-        double p[3][3];
-        for (int k = 0; k < 3; k++)
-            for (int a = 0; a < 3; a++) p[k][a] = m.positions[3 * m.indices[3 * t + k] + a] * scale + translate[a];
+    double *w = reserve_vertices(L, m.vertex_count);
+    if (!w || reserve_triangles(L, m.triangle_count))
+        return jf_fail(&L->j, where, NULL, "out of memory (%zu triangles)", L->tri_count + m.triangle_count);
+    for (size_t i = 0; i < 3 * m.vertex_count; i += 3) /* world coordinates, once per vertex */
+        for (int a = 0; a < 3; a++) w[i + a] = m.positions[i + a] * scale + translate[a];
+    size_t base = L->wv_count;
+    L->wv_count += m.vertex_count;
+    for (size_t t = 0; t < m.triangle_count; t++) {
+        const uint32_t *idx = m.indices + 3 * t;
+        if (!triangle_has_area(w + 3 * (size_t)idx[0], w + 3 * (size_t)idx[1], w + 3 * (size_t)idx[2])) {
+            L->s->degenerate_triangles++;
+            continue;
+        }
         size_t before = L->tri_count;
-        rc = add_triangle(L, p[0], p[1], p[2], mat, em, 0, where);
-        if (!rc && L->tri_count > before && add_triangle_attributes(L, &m, t, before))
-            rc = jf_fail(&L->j, where, NULL, "out of memory");
+        keep_triangle(L, (uint32_t)(base + idx[0]), (uint32_t)(base + idx[1]), (uint32_t)(base + idx[2]), mat, em);
+        if (add_triangle_attributes(L, &m, t, before)) return jf_fail(&L->j, where, NULL, "out of memory");
     }
-    return rc;
+    return 0;
 }
 
 #include "scene_load_import.inc"
@@ -585,13 +654,9 @@ static int load_lights(loader *L, const cJSON *root) {
 /* Pick the internal frame: centre of the geometry's bounds, and a power of
  * two (exact to divide by) at least half the largest extent. */
 static void choose_units(loader *L) {
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (size_t t = 0; t < L->tri_count; t++)
-        for (int k = 0; k < 3; k++)
-            for (int a = 0; a < 3; a++) {
-                lo[a] = fmin(lo[a], L->tris[t].p[k][a]);
-                hi[a] = fmax(hi[a], L->tris[t].p[k][a]);
-            }
+    double lo[3], hi[3];
+    memcpy(lo, L->tri_lo, sizeof lo); /* the triangles', grown as they were added */
+    memcpy(hi, L->tri_hi, sizeof hi);
     for (size_t i = 0; i < L->sphere_count; i++)
         for (int a = 0; a < 3; a++) {
             lo[a] = fmin(lo[a], L->spheres[i].c[a] - L->spheres[i].r);
@@ -735,22 +800,46 @@ static int assemble(loader *L) {
     scene *s = L->s;
     s->triangle_count = (uint32_t)L->tri_count;
     s->sphere_count = (uint32_t)L->sphere_count;
-    s->triangles = calloc(L->tri_count + 1, sizeof(triangle));
-    s->triangle_info = calloc(L->tri_count + 1, sizeof(prim_info));
-    s->triangle_normals = calloc(L->tri_count + 1, sizeof(vec3));
+    /* Every element is written below: malloc, not calloc, and one spare
+     * (zeroed) so that no size is 0. */
+    s->triangles = malloc((L->tri_count + 1) * sizeof(triangle));
+    s->triangle_info = malloc((L->tri_count + 1) * sizeof(prim_info));
+    s->triangle_normals = malloc((L->tri_count + 1) * sizeof(vec3));
     s->spheres = calloc(L->sphere_count + 1, sizeof(sphere));
     s->sphere_info = calloc(L->sphere_count + 1, sizeof(prim_info));
-    if (!s->triangles || !s->triangle_info || !s->triangle_normals || !s->spheres || !s->sphere_info)
+    vec3 *v = malloc((L->wv_count + 1) * sizeof *v); /* the vertices in internal units */
+    uint8_t *used = calloc(L->wv_count + 1, 1);       /* a corner of a kept triangle */
+    if (!s->triangles || !s->triangle_info || !s->triangle_normals || !s->spheres || !s->sphere_info || !v || !used) {
+        free(v);
+        free(used);
         return jf_fail(&L->j, "shapes", NULL, "out of memory");
+    }
+    memhint_huge(s->triangles, (L->tri_count + 1) * sizeof(triangle));
+    memhint_huge(s->triangle_info, (L->tri_count + 1) * sizeof(prim_info));
+    memhint_huge(s->triangle_normals, (L->tri_count + 1) * sizeof(vec3));
+    memhint_huge(v, (L->wv_count + 1) * sizeof *v);
+    memset(&s->triangles[L->tri_count], 0, sizeof(triangle));
+    memset(&s->triangle_info[L->tri_count], 0, sizeof(prim_info));
+    memset(&s->triangle_normals[L->tri_count], 0, sizeof(vec3));
+    /* Only the corners of kept triangles: they lie within the bounds, while
+     * a vertex no face (or only a degenerate one) uses may lie anywhere,
+     * beyond what a float holds. */
+    for (size_t t = 0; t < L->tri_count; t++) used[L->tris[t].v[0]] = used[L->tris[t].v[1]] = used[L->tris[t].v[2]] = 1;
+    for (size_t i = 0; i < L->wv_count; i++)
+        if (used[i]) v[i] = to_internal(s, L->wv + 3 * i);
+    free(used);
+    free(L->wv); /* not needed past here: the scene's peak memory is the intersector's build */
+    L->wv = NULL;
     for (size_t t = 0; t < L->tri_count; t++) {
-        s->triangles[t].v0 = to_internal(s, L->tris[t].p[0]);
-        s->triangles[t].v1 = to_internal(s, L->tris[t].p[1]);
-        s->triangles[t].v2 = to_internal(s, L->tris[t].p[2]);
+        s->triangles[t].v0 = v[L->tris[t].v[0]];
+        s->triangles[t].v1 = v[L->tris[t].v[1]];
+        s->triangles[t].v2 = v[L->tris[t].v[2]];
         const triangle *tr = &s->triangles[t];
         s->triangle_normals[t] = vec3_normalize(vec3_cross(vec3_sub(tr->v1, tr->v0), vec3_sub(tr->v2, tr->v0)));
         s->triangle_info[t].material = L->tris[t].material;
         s->triangle_info[t].light = -1;
     }
+    free(v);
     for (size_t i = 0; i < L->sphere_count; i++) {
         s->spheres[i].center = to_internal(s, L->spheres[i].c);
         s->spheres[i].radius = (float)(L->spheres[i].r / s->world_scale);
@@ -798,6 +887,21 @@ void scene_feature_names(uint32_t features, char *buf, size_t len) {
     }
 }
 
+/* Free the loader's temporaries (the scene and the JSON stay); it can be
+ * called again. */
+static void loader_free(loader *L) {
+    void *temps[] = {(void *)L->material_names, L->wv, L->tris, L->spheres, L->emitters, L->points, L->shade_uv,
+                     L->shade_flags, L->vn, L->vt, L->tri_vn, L->tri_vt};
+    for (size_t i = 0; i < sizeof temps / sizeof temps[0]; i++) free(temps[i]);
+    name_index_free(&L->material_index);
+    obj_mesh_free(&L->obj);
+    json_ctx j = L->j;
+    scene *s = L->s;
+    memset(L, 0, sizeof *L);
+    L->j = j;
+    L->s = s;
+}
+
 static int load_root(loader *L, const cJSON *root, const scene_overrides *ov) {
     static const char *const keys[] = {"render", "camera", "background", "materials", "shapes", "lights", "import", NULL};
     static const double black[3] = {0, 0, 0};
@@ -817,6 +921,7 @@ static int load_root(loader *L, const cJSON *root, const scene_overrides *ov) {
     }
     if (assemble(L) || assemble_shading(L)) return -1;
     record_features(L->s);
+    loader_free(L); /* before the intersector's build, the peak of a load */
     if (ov && ov->no_accel) return 0;
     char aerr[256];
     L->s->accel = accel_build_err(L->s, L->s->settings.accel, aerr, sizeof aerr);
@@ -828,6 +933,10 @@ scene *scene_load_bundle(const scene_bundle *b, const scene_overrides *ov, char 
     const char *path = b->files[0].name;
     loader L;
     memset(&L, 0, sizeof L);
+    for (int a = 0; a < 3; a++) {
+        L.tri_lo[a] = INFINITY;
+        L.tri_hi[a] = -INFINITY;
+    }
     L.j.file = path;
     L.j.err = err;
     L.j.err_len = err_len;
@@ -838,19 +947,7 @@ scene *scene_load_bundle(const scene_bundle *b, const scene_overrides *ov, char 
     if (!L.s) snprintf(err, err_len, "%s: out of memory", path);
     if (rc == 0) L.s->path = strdup(path);
     cJSON_Delete(root);
-    free(L.material_names);
-    name_index_free(&L.material_index);
-    free(L.tris);
-    free(L.spheres);
-    free(L.emitters);
-    free(L.points);
-    free(L.shade_uv);
-    free(L.shade_flags);
-    obj_mesh_free(&L.obj);
-    free(L.vn);
-    free(L.vt);
-    free(L.tri_vn);
-    free(L.tri_vt);
+    loader_free(&L);
     if (rc != 0 || !L.s->path) {
         scene_free(L.s);
         return NULL;
