@@ -4,8 +4,9 @@
  * Entry [pair][j][v]: the XOR of the reversed columns 4j to 4j + 3 selected
  * by the bits of v, dimension 2 pair in the low 32 bits and 2 pair + 1 in
  * the high 32, so a pair's two coordinates are 8 lookups and 7 XORs instead
- * of a loop over 32 bits. Generated from sampler_sobol_rev_col (Joe-Kuo
- * direction numbers); tests/test_sampler.c checks every entry against it. */
+ * of a loop over 32 bits. Generated from the Joe-Kuo direction
+ * numbers; tests/test_sampler.c checks every entry against the generator
+ * matrices (sobol_rev_col there). */
 #include "sampler.h"
 
 const uint64_t sampler_global_nibbles[SAMPLER_GLOBAL_PAIRS][8][16] = {
