@@ -23,7 +23,7 @@
  * lanes that are masked off to a multiple of LANES. */
 typedef struct {
     float *v[3][3];
-    uint32_t count, padded;
+    uint32_t count;
 } flat_triangles;
 
 typedef int (*flat_traverse_fn)(const flat_triangles *f, const scene *s, const ray *r, float tmax, hit *h,
@@ -51,8 +51,8 @@ static accel_kind choose_kind(const scene *s, accel_kind want) {
  * of memory (what was allocated is freed by accel_free). */
 static int flat_build(flat_triangles *f, const scene *s) {
     f->count = s->triangle_count;
-    f->padded = (s->triangle_count + LANES - 1) / LANES * LANES;
-    size_t bytes = (size_t)(f->padded ? f->padded : LANES) * sizeof(float);
+    uint32_t padded = (s->triangle_count + LANES - 1) / LANES * LANES;
+    size_t bytes = (size_t)(padded ? padded : LANES) * sizeof(float);
     for (int k = 0; k < 3; k++)
         for (int a = 0; a < 3; a++) {
             f->v[k][a] = aligned_alloc(LANES * sizeof(float), bytes);
