@@ -98,7 +98,13 @@ void service_on_farm_event(void *ctx, const farm_event *e) {
             if (j->state == SJOB_RUNNING) joblog_add_event(j->log, now, e);
     } else {
         sjob *j = store_find_farm_job(s, e->job); /* an adaptive job's round has a farm id of its own */
-        if (j) joblog_add_event(j->log, now, e);
+        if (j) {
+            joblog_add_event(j->log, now, e);
+            farm_event named = *e; /* the dashboard knows the job by its service id, not the round's */
+            named.job = j->desc.id;
+            if (s->web) dashboard_farm_event(s->web, &named);
+            return;
+        }
     }
     if (s->web) dashboard_farm_event(s->web, e);
 }
