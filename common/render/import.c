@@ -16,6 +16,7 @@
 #include <string.h>
 
 #include "model_files.h"
+#include "rng.h"
 
 #define IMPORT_LUMENS_PER_WATT 683.0
 #define MAX_NODE_VISITS 1000000 /* bounds the node walk of a malformed (cyclic) hierarchy */
@@ -831,9 +832,7 @@ static int grow_tris(importer *im, size_t more) {
 static uint64_t normal_hash(const float n[3]) {
     uint32_t b[3];
     memcpy(b, n, sizeof b);
-    uint64_t h = (((uint64_t)b[0] << 32) | b[1]) ^ (uint64_t)b[2] * 0x9E3779B97F4A7C15ull;
-    h = (h ^ (h >> 31)) * 0xBF58476D1CE4E5B9ull; /* splitmix64's finaliser */
-    return h ^ (h >> 27);
+    return rng_mix64((((uint64_t)b[0] << 32) | b[1]) ^ (uint64_t)b[2] * 0x9E3779B97F4A7C15ull);
 }
 
 /* Make room for one more normal in m->normals and its hash set (rehashed
