@@ -156,8 +156,10 @@ typedef struct scene {
     /* Per-corner shading attributes of meshes (OBJ vn and vt), NULL when no
      * triangle has any. The normals are the scene's one representation of
      * shading normals: `mesh` shapes' vn (or normals made from faces) and
-     * imported models' (glTF NORMAL, OBJ through the importer) alike, each
-     * distinct normal stored once and shared by index, all shaded by
+     * imported models' (glTF NORMAL, OBJ through the importer) alike (an
+     * imported model stores each distinct normal once, shared by index;
+     * a mesh stores its vn as the file lists them and made normals one per
+     * corner), all shaded by
      * shading_normal.h's rules. Normals are unit length (world and internal
      * frames differ only by a uniform scale). */
     vec3 *vertex_normals;

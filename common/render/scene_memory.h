@@ -11,9 +11,12 @@
 #include "scene_bundle.h"
 
 /* Peak bytes per triangle while loading and building (loader copy, scene
- * arrays, Embree's build), measured with bench/meshes.sh: 10.5M triangles
- * peaked at 2493 MB RSS including the 217 MB of OBJ text, i.e. ~217 B per
- * triangle; rounded up. */
+ * arrays, Embree's build). Measured with bench/meshes.sh: 10.5M triangles
+ * first peaked at 2493 MB RSS including the 217 MB of OBJ text (~217 B per
+ * triangle); since the loading work of the third session they peak at
+ * 1191-1226 MB (~120 B per triangle, docs/meshes.md "Memory"), so 256
+ * keeps a margin of about 2. (The wide BVH forced at 10.5M measured ~272
+ * B, above it; "auto" never picks it at that size.) */
 #define SCENE_MEMORY_BYTES_PER_TRIANGLE 256
 
 /* Estimated peak bytes to load bundle b: its own size plus
