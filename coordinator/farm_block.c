@@ -13,15 +13,16 @@
  * under a new connection is still the same worker; two workers sharing a
  * name on one host share their entries (give them distinct --name).
  * State: job.blocks (farm_internal.h), on the loop thread. */
+#include "connlimit.h"
 #include "farm_internal.h"
 
 #define BLOCK_MAX_DOUBLINGS 4 /* the wait grows to at most 16 times blocklist_s */
 
 /* "name@host" for p: its name and its address without the port. */
 static void block_key(const peer *p, char *out, size_t len) {
-    const char *colon = strrchr(p->rec.addr, ':');
-    int host_len = colon ? (int)(colon - p->rec.addr) : (int)strlen(p->rec.addr);
-    snprintf(out, len, "%s@%.*s", p->rec.name, host_len, p->rec.addr);
+    char host[sizeof p->rec.addr];
+    connlimit_ip_of(p->rec.addr, host, sizeof host);
+    snprintf(out, len, "%s@%s", p->rec.name, host);
 }
 
 static block_entry *block_find(const job *j, const peer *p) {
