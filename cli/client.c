@@ -12,7 +12,6 @@
 
 #include <errno.h>
 #include <inttypes.h>
-#include <sodium.h>
 #include <netdb.h>
 #include <sodium.h>
 #include <poll.h>
