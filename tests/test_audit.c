@@ -286,18 +286,11 @@ TEST(audit_service_quarantines_and_tessera_workers_shows_it) {
     CHECK(util_wait(svc, LONG, NULL) == 0, "coordinator did not exit cleanly; log %s", log);
 }
 
-/* `tessera ARGS` against the service at addr; output in out. */
-static int audit_cli(const char *addr, char *out, size_t cap, const char *args) {
-    char cmd[4096];
-    snprintf(cmd, sizeof cmd, "TESSERA_COORDINATOR=%s %s %s", addr, harness_tessera(), args);
-    return util_run(cmd, out, cap);
-}
-
 /* tiles_done of job 1 by `tessera status 1 --json`, or -1. */
 static int audit_tiles_done(const char *addr) {
     char out[8192];
     int done = -1;
-    audit_cli(addr, out, sizeof out, "status 1 --json");
+    util_cli(addr, out, sizeof out, "status 1 --json");
     const char *p = strstr(out, "\"tiles_done\":");
     if (p) sscanf(p, "\"tiles_done\":\t%d", &done);
     return done;
@@ -339,7 +332,7 @@ TEST(audit_service_restart_with_audits_pending) {
     for (int i = 0; i < 2; i++)
         CHECK(util_wait_for_text(wlog[i], "joined the farm", LONG) == 0, "%s never joined; log %s", names[i], wlog[i]);
     char out[8192], img[256];
-    int st = audit_cli(addr, out, sizeof out, "submit " SCENE " --tile-size 8");
+    int st = util_cli(addr, out, sizeof out, "submit " SCENE " --tile-size 8");
     CHECK(st == 0, "submit (%d): %s", st, out);
     for (int i = 0; i < 2; i++)
         CHECK(util_wait_for_text(wlog[i], UTIL_HOLDING, LONG) == 0, "%s never held a tile; log %s", names[i], wlog[i]);
@@ -364,7 +357,7 @@ TEST(audit_service_restart_with_audits_pending) {
     snprintf(img, sizeof img, "%s", util_temp_path("audit-restart.pfm"));
     char args[512];
     snprintf(args, sizeof args, "fetch 1 -o %s", img);
-    st = audit_cli(addr, out, sizeof out, args);
+    st = util_cli(addr, out, sizeof out, args);
     CHECK(st == 0 && util_same_file(img, audit_reference(64)), "image after a restart differs (%d): %s; log %s", st,
           out, log);
     for (int i = 0; i < 2; i++) {

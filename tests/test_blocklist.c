@@ -23,12 +23,6 @@
 #define LONG 120.0 /* seconds: only hit when something is broken */
 #define RETRY "3"  /* --blocklist-retry: long enough to see, short enough to wait for */
 
-static int run_cli(const char *addr, char *out, size_t cap, const char *args) {
-    char cmd[4096];
-    snprintf(cmd, sizeof cmd, "TESSERA_COORDINATOR=%s %s %s", addr, harness_tessera(), args);
-    return util_run(cmd, out, cap);
-}
-
 /* Start the crashing worker F; its log is appended to flog. */
 static pid_t start_crasher(const char *addr, const char *flog) {
     const char *argv[] = {util_bin("tessera-worker"), "--connect", addr, "--threads", "1", "--name", "F",
@@ -82,7 +76,7 @@ TEST(blocklist_crashing_worker_waits_then_retries_and_the_job_finishes) {
     const char *aenv[] = {hold_env, NULL};
     pid_t a = util_spawn_env(aargv, alog, aenv);
     CHECK(util_wait_for_text(alog, "joined the farm", LONG) == 0, "A never joined; log %s", alog);
-    int st = run_cli(addr, out, sizeof out, "submit " SCENE " --tile-size 8");
+    int st = util_cli(addr, out, sizeof out, "submit " SCENE " --tile-size 8");
     CHECK(st == 0, "submit (%d): %s", st, out);
     CHECK(util_wait_for_text(alog, UTIL_HOLDING, LONG) == 0, "A never held a tile; log %s", alog);
     /* F crashes on every tile; start it again each time, as a supervisor
@@ -95,7 +89,7 @@ TEST(blocklist_crashing_worker_waits_then_retries_and_the_job_finishes) {
         int exited = 0;
         for (int i = 0; i < (int)(LONG * 20) && !exited; i++) {
             if (!shown && util_file_count(log, "is blocklisted for this job") == 1) {
-                run_cli(addr, out, sizeof out, "workers");
+                util_cli(addr, out, sizeof out, "workers");
                 shown = strstr(out, "BLOCKLISTED in 1 jobs") != NULL;
             }
             int ws;
@@ -126,7 +120,7 @@ TEST(blocklist_crashing_worker_waits_then_retries_and_the_job_finishes) {
     char img[256], args[512], ref[256], cmd[1024];
     snprintf(img, sizeof img, "%s", util_temp_path("block.pfm"));
     snprintf(args, sizeof args, "fetch 1 -o %s", img);
-    st = run_cli(addr, out, sizeof out, args);
+    st = util_cli(addr, out, sizeof out, args);
     snprintf(ref, sizeof ref, "%s", util_temp_path("block-ref.pfm"));
     snprintf(cmd, sizeof cmd, "%s render " SCENE " --workers 0 -o %s", harness_tessera(), ref);
     util_run(cmd, out, sizeof out);

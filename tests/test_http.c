@@ -533,11 +533,7 @@ TEST(http_dashboard_browser) {
 }
 
 /* Run `tessera ARGS` against w; returns the exit status, output in out. */
-static int cli(const web *w, const char *args, char *out, size_t cap) {
-    char cmd[4096];
-    snprintf(cmd, sizeof cmd, "TESSERA_COORDINATOR=%s %s %s 2>&1", w->addr, harness_tessera(), args);
-    return util_run(cmd, out, cap);
-}
+static int cli(const web *w, const char *args, char *out, size_t cap) { return util_cli(w->addr, out, cap, args); }
 
 /* A number field of `tessera status JOB --json`'s job, or -1. */
 static double job_field(const web *w, int job, const char *field) {

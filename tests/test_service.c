@@ -86,13 +86,12 @@ static pid_t worker_start_held(const service *s, const char *name, const char *h
 /* Run `tessera ARGS` against the service; output in out. */
 static int cli(const service *s, char *out, size_t cap, const char *fmt, ...) __attribute__((format(printf, 4, 5)));
 static int cli(const service *s, char *out, size_t cap, const char *fmt, ...) {
-    char args[2048], cmd[4096];
+    char args[2048];
     va_list ap;
     va_start(ap, fmt);
     vsnprintf(args, sizeof args, fmt, ap);
     va_end(ap);
-    snprintf(cmd, sizeof cmd, "TESSERA_COORDINATOR=%s %s %s", s->addr, harness_tessera(), args);
-    return util_run(cmd, out, cap);
+    return util_cli(s->addr, out, cap, args);
 }
 
 static void service_stop(service *s) {

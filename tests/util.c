@@ -1,6 +1,8 @@
 /* util.c - helpers shared by the tests. */
 #include "util.h"
 
+#include "harness.h"
+
 #include <arpa/inet.h>
 #include <fcntl.h>
 #include <netinet/in.h>
@@ -59,6 +61,12 @@ int util_run(const char *cmd, char *out, size_t cap) {
     out[n] = '\0';
     int st = pclose(p);
     return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+int util_cli(const char *addr, char *out, size_t cap, const char *args) {
+    char cmd[4096];
+    snprintf(cmd, sizeof cmd, "TESSERA_COORDINATOR=%s %s %s", addr, harness_tessera(), args);
+    return util_run(cmd, out, cap);
 }
 
 const char *util_bin(const char *name) {

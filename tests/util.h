@@ -26,6 +26,11 @@ float *util_render(const scene *s, int threads, int tile, int passes, trace_stat
  * returns the exit status (or -1). */
 int util_run(const char *cmd, char *out, size_t cap);
 
+/* `tessera ARGS` (the binary under test) against the coordinator or job
+ * service at addr (TESSERA_COORDINATOR); output in out, returns the exit
+ * status as util_run. */
+int util_cli(const char *addr, char *out, size_t cap, const char *args);
+
 /* ---- processes (farm tests) ---- */
 
 #include <sys/types.h>
