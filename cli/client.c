@@ -899,12 +899,13 @@ static void usage_logs(FILE *f) {
                "\n"
                "The job's event log: submitted, tiles handed out (and backup copies), done,\n"
                "requeued after a failure, workers joining and leaving, priority changes, the\n"
-               "end. The coordinator keeps the last 2000 lines of each job while it runs;\n"
+               "end. The coordinator keeps the last %d lines of each job while it runs;\n"
                "the dashboard's job page shows the same lines.\n"
                "\n"
                "options:\n"
                "      --last N             only the newest N lines\n"
-               COMMON_OPTIONS_HELP);
+               COMMON_OPTIONS_HELP,
+            PROTOCOL_LOG_LINES_MAX);
 }
 
 static void usage_fetch(FILE *f) {
@@ -996,7 +997,7 @@ int client_main(int argc, char **argv) {
         {.name = "png16", .kind = ARG_FLAG, .dest = &a.wo.png16},
         {.name = "partial", .kind = ARG_FLAG, .dest = &a.partial},
         {.name = "camera", .kind = ARG_STRING, .dest = &a.camera},
-        {.name = "last", .kind = ARG_INT, .dest = &a.last, .lo = 1, .hi = 2000},
+        {.name = "last", .kind = ARG_INT, .dest = &a.last, .lo = 1, .hi = PROTOCOL_LOG_LINES_MAX},
         {NULL}};
     const client_command *cmd = NULL;
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
