@@ -132,13 +132,16 @@ lease *peer_find_lease(peer *p, uint32_t job_id, uint32_t tile) {
     return NULL;
 }
 
+double job_backup_age(const job *j) {
+    double age = BACKUP_AGE_FACTOR * j->tile_seconds / j->rep.tiles_done;
+    return age < BACKUP_MIN_AGE_S ? BACKUP_MIN_AGE_S : age;
+}
+
 /* A tile worth backing up for p: not done, held once, not by p, running
- * longer than BACKUP_AGE_FACTOR times the mean tile time. Oldest first. */
+ * longer than job_backup_age. Oldest first. */
 static int job_pick_backup(const farm *f, job *j, peer *p, uint32_t *out) {
-    int done = j->rep.tiles_done;
-    if (done == 0) return 0;
-    double mean = j->tile_seconds / done, now = farm_now(f), best_age = BACKUP_AGE_FACTOR * mean;
-    if (best_age < BACKUP_MIN_AGE_S) best_age = BACKUP_MIN_AGE_S;
+    if (j->rep.tiles_done == 0) return 0;
+    double now = farm_now(f), best_age = job_backup_age(j);
     int found = 0;
     for (int t = 0; t < j->tile_count; t++) {
         if (j->done[t] || j->holders[t] != 1 || now - j->first_start[t] <= best_age) continue;
