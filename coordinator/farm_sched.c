@@ -251,16 +251,11 @@ int farm_submit(farm *f, const proto_job *desc, const uint8_t *bundle, size_t bu
     j->first_start = calloc(n, sizeof *j->first_start);
     j->queue = calloc(n, sizeof *j->queue);
     if (o->scene) o->scene->refs++; /* shared, not copied */
-    j->scene = o->scene ? o->scene : bundle_len < UINT32_MAX ? conn_blob_new(WIRE_HEADER_BYTES + bundle_len) : NULL;
+    j->scene = o->scene ? o->scene : conn_blob_frame(WIRE_KIND_SCENE, bundle, bundle_len);
     if (!j->rects || !j->done || !j->holders || !j->queued || !j->failures || !j->first_start || !j->queue ||
         !j->scene || audit_new(j, f->opt.audit)) {
         farm_job_free(j);
         return -1;
-    }
-    if (!o->scene) {
-        wire_put_u32(j->scene->data, (uint32_t)(bundle_len + 1));
-        j->scene->data[4] = WIRE_KIND_SCENE;
-        memcpy(j->scene->data + WIRE_HEADER_BYTES, bundle, bundle_len);
     }
     render_split_tiles(desc->width, desc->height, o->tile_size, j->rects, j->tile_count);
     for (int t = 0; t < j->tile_count; t++) {
