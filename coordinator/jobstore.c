@@ -58,10 +58,11 @@ static void store_job_release(sjob *j) {
     free(j->sums);
     free(j->mask);
     free(j->skip);
-    free(j->bundle);
+    conn_blob_unref(j->scene);
+    j->scene = NULL;
     j->ad = NULL;
     j->sums = NULL;
-    j->mask = j->skip = j->bundle = NULL;
+    j->mask = j->skip = NULL;
     free(j->rgb);
     free(j->journaled);
     j->rgb = NULL;
@@ -254,17 +255,14 @@ static int store_submit_round(sjob *j) {
         store_on_job_event(j, &rep, 1);
         return 0;
     }
-    tile_rect *tiles = malloc((size_t)j->tile_count * sizeof *tiles);
-    if (!tiles) return -1;
-    render_split_tiles(j->desc.width, j->desc.height, j->tile_size, tiles, j->tile_count);
-    for (int t = 0; t < j->tile_count; t++) j->skip[t] = !render_tile_has_active(&tiles[t], j->desc.width, j->mask);
-    free(tiles);
+    if (render_mark_idle_tiles(j->desc.width, j->desc.height, j->tile_size, j->mask, j->skip)) return -1;
     proto_job round = j->desc;
     round.id = j->farm_id = SVC_ROUND_IDS + (s->next_round++ & (SVC_ROUND_IDS - 1));
     round.adaptive = 1;
     farm_job_options fo = {.tile_size = j->tile_size, .priority = j->priority, .done = j->skip, .mask = j->mask,
-                           .first = first, .count = count, .on_first_assign = j->first_tile > 0 ? NULL : store_on_first_assign};
-    return farm_submit(s->f, &round, j->bundle, j->bundle_len, &fo, j->sums, store_on_round_event, j);
+                           .first = first, .count = count, .on_first_assign = j->first_tile > 0 ? NULL : store_on_first_assign,
+                           .scene = j->scene};
+    return farm_submit(s->f, &round, NULL, 0, &fo, j->sums, store_on_round_event, j);
 }
 
 /* The round timer: the last round is over and the farm done with it. */
@@ -296,25 +294,26 @@ static void store_on_round_event(void *ctx, const farm_report *r, int done) {
     uv_timer_start(j->round_timer, on_round_timer, 0, 0);
 }
 
-/* Set up an adaptive job's state and hand the farm its first round.
- * Returns 0, or -1 with err set. */
-static int store_adaptive_start(service *s, sjob *j, const uint8_t *bundle, size_t len, char *err, size_t err_len) {
+/* Set up an adaptive job's state and hand the farm its first round; every
+ * round shares one framed copy of the scene: framed (a reference is taken)
+ * or, when NULL, one made from bundle. Returns 0, or -1 with err set. */
+static int store_adaptive_start(service *s, sjob *j, const uint8_t *bundle, size_t len, conn_blob *framed,
+                                char *err, size_t err_len) {
     size_t px = (size_t)j->desc.width * (size_t)j->desc.height;
     j->desc.adaptive = 1;
     j->ad = adaptive_new(j->desc.width, j->desc.height, j->desc.spp, j->min_spp, j->noise_threshold);
     j->sums = calloc(px * ADAPTIVE_CHANNELS, sizeof(float));
     j->mask = malloc(px);
     j->skip = malloc((size_t)j->tile_count);
-    j->bundle = malloc(len ? len : 1);
+    if (framed) framed->refs++;
+    j->scene = framed ? framed : conn_blob_frame(WIRE_KIND_SCENE, bundle, len);
     j->round_timer = malloc(sizeof *j->round_timer);
-    if (!j->ad || !j->sums || !j->mask || !j->skip || !j->bundle || !j->round_timer) {
+    if (!j->ad || !j->sums || !j->mask || !j->skip || !j->scene || !j->round_timer) {
         free(j->round_timer);
         j->round_timer = NULL;
         snprintf(err, err_len, "out of memory for adaptive sampling of job %u", j->desc.id);
         return -1;
     }
-    memcpy(j->bundle, bundle, len);
-    j->bundle_len = len;
     uv_timer_init(&s->loop, j->round_timer);
     j->round_timer->data = j;
     j->round_stats = (trace_stats){0};
@@ -344,7 +343,7 @@ int store_job_start(service *s, sjob *j, const uint8_t *bundle, size_t len, conn
                     size_t err_len) {
     char path[4096];
     j->farm_id = j->desc.id;
-    if (j->noise_threshold > 0) return store_adaptive_start(s, j, bundle, len, err, err_len);
+    if (j->noise_threshold > 0) return store_adaptive_start(s, j, bundle, len, framed, err, err_len);
     store_job_path(s, j->desc.id, "tiles", path, sizeof path);
     j->journal = tjournal_open(&s->loop, path, store_on_batch, store_on_journal_pause, j, err, err_len);
     if (!j->journal) return -1;

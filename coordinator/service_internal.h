@@ -89,8 +89,7 @@ typedef struct sjob {
     struct adaptive *ad;
     float *sums;             /* the round's sums (ADAPTIVE_CHANNELS per pixel) */
     uint8_t *mask, *skip;    /* the round's pixels, and its tiles without any */
-    uint8_t *bundle;         /* the scene, for every round */
-    size_t bundle_len;
+    conn_blob *scene;        /* the scene's frame, shared by every round (a reference) */
     trace_stats round_stats; /* of the rounds before the current one */
     uv_timer_t *round_timer;
     uint64_t need;            /* bytes it holds once admitted (membudget_job_bytes) */
