@@ -52,6 +52,13 @@ void svc_admit_waiting(service *s) {
     }
 }
 
+static void on_admit_timer(uv_timer_t *t) { svc_admit_waiting(t->data); }
+
+void svc_memory_released(service *s) {
+    if (s->stopping || uv_is_closing((uv_handle_t *)&s->admit)) return;
+    uv_timer_start(&s->admit, on_admit_timer, 0, 0);
+}
+
 void svc_cancel_job(service *s, sjob *j) {
     if (!j->waiting) {
         store_job_cancel(s, j); /* store_on_job_event records the state */

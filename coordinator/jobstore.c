@@ -63,6 +63,7 @@ static void store_job_release(sjob *j) {
     j->ad = NULL;
     j->sums = NULL;
     j->mask = j->skip = NULL;
+    if (j->rgb) svc_memory_released(j->svc); /* its need no longer counts (svc_memory_in_use) */
     free(j->rgb);
     free(j->journaled);
     j->rgb = NULL;

@@ -538,7 +538,6 @@ static void on_expiry(uv_timer_t *t) {
  * or in --client-timeout when that is shorter). Each close is logged once, naming the client. */
 static void on_sweep(uv_timer_t *t) {
     service *s = t->data;
-    svc_admit_waiting(s); /* memory freed by jobs that ended since */
     double now = svc_mono_now(), limit = s->o.client_timeout_s > 0 ? s->o.client_timeout_s : 30;
     client *cl, *next;
     TAILQ_FOREACH_SAFE(cl, &s->clients, link, next) {
@@ -584,6 +583,7 @@ static void on_farm_closed(void *ctx) {
     loopstat_stop(&s->stat);
     uv_close((uv_handle_t *)&s->stat_timer, NULL);
     uv_close((uv_handle_t *)&s->sweep, NULL);
+    uv_close((uv_handle_t *)&s->admit, NULL);
     uv_close((uv_handle_t *)&s->expiry, NULL);
     uv_close((uv_handle_t *)&s->sigint, NULL);
     uv_close((uv_handle_t *)&s->sigterm, NULL);
@@ -702,6 +702,8 @@ int service_run(const service_options *o) {
         free(s);
         return 1;
     }
+    uv_timer_init(&s->loop, &s->admit); /* before the jobs: a failed resume releases memory */
+    s->admit.data = s;
     store_load_jobs(s);
     upload_queue_init(&s->uploads, &s->loop);
     uv_signal_init(&s->loop, &s->sigint);

@@ -108,6 +108,7 @@ typedef struct service {
     loopstat stat;         /* loop stalls (loopstat.h); svc_longest_stall_ms */
     upload_queue uploads;  /* scenes being checked off the loop (upload.h) */
     uv_timer_t sweep;      /* closes idle and trickling clients every second */
+    uv_timer_t admit;      /* admits waiting jobs once a job has released its memory */
     TAILQ_HEAD(client_list, client) clients;
     TAILQ_HEAD(sjob_list, sjob) jobs;
     uint32_t next_id;
@@ -214,6 +215,11 @@ int svc_admit_check(const service *s, const sjob *j, char *why, size_t why_len);
 
 /* Admit every waiting job that fits now, oldest first. */
 void svc_admit_waiting(service *s);
+
+/* A job released its frame: admit waiting jobs from the loop's next turn
+ * (not from inside the farm's or the store's callback that freed it).
+ * Nothing once the service stops. Can't fail. */
+void svc_memory_released(service *s);
 
 /* Cancel a running job: a waiting one at once, else through the farm. */
 void svc_cancel_job(service *s, sjob *j);
