@@ -512,9 +512,8 @@ static int cmd_render(int argc, char **argv) {
     int farm_mode = a.listen || a.workers > 0;
     if (!farm_mode) {
         scene_bundle_free(&b); /* the scene has what it needs: the mesh files' text goes before the build */
-        s->accel = accel_build_err(s, s->settings.accel, err, sizeof err);
-        if (!s->accel) {
-            fprintf(stderr, "tessera: %s: shapes: building the intersector: %s\n", s->path, err);
+        if (scene_build_accel(s, err, sizeof err)) {
+            fprintf(stderr, "tessera: %s\n", err);
             rc = -1;
         }
     }
