@@ -471,7 +471,7 @@ static void load_job(service *s, const char *file) {
     j->tile_count = render_split_tiles(d.width, d.height, j->tile_size, NULL, 0);
     if (j->state != SJOB_RUNNING) return;
     struct stat sb;
-    snprintf(path, sizeof path, "%s/scenes/%s", s->o.data_dir, d.scene_hash);
+    store_scene_path(s, j, path, sizeof path);
     j->need = membudget_job_bytes(d.width, d.height, j->tile_count, stat(path, &sb) == 0 ? (uint64_t)sb.st_size : 0);
     int adm = svc_admit_check(s, j, err, sizeof err);
     if (adm == 0) {
@@ -485,20 +485,17 @@ static void load_job(service *s, const char *file) {
     if (adm < 0) store_save_job(j, err, sizeof err);
 }
 
-int store_job_resume(service *s, sjob *j) {
-    char path[4096], err[600];
-    size_t len = 0;
+int store_job_resume_with(service *s, sjob *j, const uint8_t *bundle, size_t len, conn_blob *framed,
+                          const char *read_err) {
+    char err[600];
     const proto_job d = j->desc;
-    /* The scene from its hash, the tiles from the journal. */
-    snprintf(path, sizeof path, "%s/scenes/%s", s->o.data_dir, d.scene_hash);
-    char *bundle = file_read_all(path, s->o.max_upload, &len, err, sizeof err);
     tile_rect *rects = calloc((size_t)j->tile_count, sizeof *rects);
     j->rgb = calloc((size_t)d.width * (size_t)d.height * 3, sizeof(float));
     j->journaled = calloc((size_t)j->tile_count, 1);
     int rc = 0;
     if (!bundle || !rects || !j->rgb || !j->journaled) {
         j->state = SJOB_FAILED;
-        snprintf(j->error, sizeof j->error, "cannot resume: %.480s", bundle ? "out of memory" : err);
+        snprintf(j->error, sizeof j->error, "cannot resume: %.480s", bundle ? "out of memory" : read_err);
         svc_log("job %u: %s", d.id, j->error);
         store_save_job(j, err, sizeof err);
         store_job_release(j);
@@ -509,7 +506,7 @@ int store_job_resume(service *s, sjob *j) {
         svc_log("job %u resumed: %d of %d tiles from the journal", d.id, j->tiles_resumed, j->tile_count);
         joblog_add(j->log, svc_wall_now(), "job resumed after a restart: %d of %d tiles from the journal",
                    j->tiles_resumed, j->tile_count);
-        if (store_job_start(s, j, (const uint8_t *)bundle, len, NULL, err, sizeof err)) {
+        if (store_job_start(s, j, bundle, len, framed, err, sizeof err)) {
             j->state = SJOB_FAILED;
             snprintf(j->error, sizeof j->error, "%.500s", err);
             store_save_job(j, err, sizeof err);
@@ -518,6 +515,19 @@ int store_job_resume(service *s, sjob *j) {
         }
     }
     free(rects);
+    return rc;
+}
+
+void store_scene_path(const service *s, const sjob *j, char *path, size_t path_len) {
+    snprintf(path, path_len, "%s/scenes/%s", s->o.data_dir, j->desc.scene_hash);
+}
+
+int store_job_resume(service *s, sjob *j) {
+    char path[4096], err[600];
+    size_t len = 0;
+    store_scene_path(s, j, path, sizeof path);
+    char *bundle = file_read_all(path, s->o.max_upload, &len, err, sizeof err);
+    int rc = store_job_resume_with(s, j, (const uint8_t *)bundle, len, NULL, err);
     free(bundle);
     return rc;
 }

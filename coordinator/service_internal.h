@@ -94,6 +94,7 @@ typedef struct sjob {
     uv_timer_t *round_timer;
     uint64_t need;            /* bytes it holds once admitted (membudget_job_bytes) */
     int waiting;              /* running but not admitted: waits for --max-memory (admission.c) */
+    int admitting;            /* admitted, its scene being read off the loop (admission.c) */
     TAILQ_ENTRY(sjob) link; /* on the service's jobs, oldest first */
 } sjob;
 
@@ -201,6 +202,16 @@ int store_running_jobs(const service *s);
  * its scene read from scenes/HASH, its frame made, its journal replayed,
  * handed to the farm. Returns 0, or -1 with the job failed and saved. */
 int store_job_resume(service *s, sjob *j);
+
+/* store_job_resume with the scene already read: bundle (len bytes; NULL
+ * when reading failed, read_err saying why) and, if not NULL, the same
+ * bytes framed for the farm (a reference is taken). The caller keeps and
+ * frees both. */
+int store_job_resume_with(service *s, sjob *j, const uint8_t *bundle, size_t len, conn_blob *framed,
+                          const char *read_err);
+
+/* The path of j's scene in the data dir: scenes/HASH. */
+void store_scene_path(const service *s, const sjob *j, char *path, size_t path_len);
 
 /* ---- admission.c ---- */
 
