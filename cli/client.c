@@ -382,23 +382,6 @@ static void warn_partial(const cJSON *p, const char *out) {
             (int)num(p, "job"), str(p, "state"), total - done, total, out, str(p, "missing"), ts, ts);
 }
 
-/* The I frame of a partial fetch (u32 width, u32 height, floats) written
- * to out. Takes body. Returns 0 or 1 (printed). */
-static int write_image_frame(long job, int kind, uint8_t *body, size_t len, const char *out, image_write_options *wo) {
-    uint32_t w = len >= 8 ? wire_get_u32(body) : 0, h = len >= 8 ? wire_get_u32(body + 4) : 0;
-    image img;
-    if (kind != 'I' || w == 0 || h == 0 || len != 8 + (size_t)w * h * 12 || image_alloc(&img, (int)w, (int)h)) {
-        free(body);
-        return cli_fail("job %ld: the coordinator sent a malformed image", job);
-    }
-    for (size_t i = 0; i < (size_t)w * h * 3; i++) img.rgb[i] = wire_get_f32(body + 8 + 4 * i);
-    free(body);
-    char err[1024];
-    int rc = image_write(out, &img, wo, err, sizeof err);
-    image_free(&img);
-    return rc ? cli_fail("%s", err) : 0;
-}
-
 /* Receive the D frames of a streamed image into the open file fd (tmp
  * names it) until image_end, checking the byte count and BLAKE2b-256
  * against it and against the image message's size. Returns 0 or 1. */
@@ -491,7 +474,7 @@ static int fetch_image(cli *c, long job, const char *out, image_write_options *w
             cJSON_Delete(e);
             return rc;
         }
-        if (e && partial && strcmp(type, "partial") == 0) { /* the image follows */
+        if (e && partial && strcmp(type, "partial") == 0) { /* the image follows, streamed */
             warn_partial(e, out);
             cJSON_Delete(e);
             if ((kind = read_frame(c, &body, &len)) < 0) return 1;
@@ -503,7 +486,8 @@ static int fetch_image(cli *c, long job, const char *out, image_write_options *w
         cJSON_Delete(e);
         return 1;
     }
-    return write_image_frame(job, kind, body, len, out, wo);
+    free(body);
+    return cli_fail("job %ld: the coordinator sent a malformed answer to fetch", job);
 }
 
 /* fetch_image with the job's scene, spp and seed in the file's header

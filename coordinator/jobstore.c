@@ -548,6 +548,11 @@ void store_load_jobs(service *s) {
     struct dirent *e;
     while ((e = readdir(d)) != NULL) {
         size_t l = strlen(e->d_name);
+        if (strstr(e->d_name, ".partial-") && l > 4 && strcmp(e->d_name + l - 4, ".pfm") == 0) {
+            snprintf(path, sizeof path, "%s/jobs/%s", s->o.data_dir, e->d_name); /* a partial fetch cut short */
+            unlink(path);
+            continue;
+        }
         if (l < 6 || strcmp(e->d_name + l - 5, ".json") != 0 || strspn(e->d_name, "0123456789") != l - 5) continue;
         char **nn = realloc(names, (n + 1) * sizeof *names);
         if (!nn) break;

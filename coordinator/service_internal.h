@@ -53,8 +53,6 @@
 #include "membudget.h"
 #include "service.h"
 
-#define WIRE_KIND_IMAGE 'I'
-
 typedef enum { SJOB_RUNNING, SJOB_DONE, SJOB_FAILED, SJOB_CANCELLED } sjob_state;
 static const char *const state_names[] = {"running", "done", "failed", "cancelled"};
 
@@ -117,6 +115,7 @@ typedef struct service {
     int stopping;
     struct dashboard *web; /* --http, or NULL (service_web.c) */
     size_t fetch_chunk;    /* bytes per D frame of a fetched image (fetch.h) */
+    uint64_t next_partial; /* names jobs/ID.partial-N.pfm, a partial fetch's image while it is made */
 } service;
 
 /* Farm ids of adaptive rounds start here, above any job number the service
