@@ -26,11 +26,11 @@ struct fetch_stream {
     uint32_t job;
     char path[4096];
     int fd;              /* -1 until the first chunk's work opens it */
-    /* fetch_start_partial: the PFM is first made from the journal at path
-     * into tmp (opened, then unlinked: the stream holds the only name) */
+    /* fetch_start_partial: the PFM at path is first made from the journal
+     * (then opened and unlinked: the stream holds the only reference) */
     fetch_partial_spec partial;
     int is_partial;
-    char journal[4096], state[32], tmp[4200];
+    char journal[4096], state[32];
     uint8_t *done;       /* the tiles found, then the "partial" message's ranges */
     int tiles_found;
     char build_err[600];
@@ -55,7 +55,7 @@ size_t fetch_chunk_size(void) {
  * from the journal. Returns 0, or -1 with build_err set. */
 static int build_partial(fetch_stream *f) {
     const fetch_partial_spec *p = &f->partial;
-    f->tiles_found = journal_write_partial_pfm(f->journal, f->tmp, p->width, p->height, p->tile_size, p->tile_count,
+    f->tiles_found = journal_write_partial_pfm(f->journal, f->path, p->width, p->height, p->tile_size, p->tile_count,
                                                f->done, f->build_err, sizeof f->build_err);
     return f->tiles_found < 0 ? -1 : 0;
 }
@@ -66,7 +66,10 @@ static void read_chunk(uv_work_t *w) {
     fetch_stream *f = w->data;
     if (f->fd < 0) {
         struct stat st;
-        if (f->is_partial && build_partial(f)) return;
+        if (f->is_partial && build_partial(f)) {
+            f->err_no = EIO; /* send_error says build_err */
+            return;
+        }
         f->fd = open(f->path, O_RDONLY | O_CLOEXEC);
         int saved = errno;
         if (f->is_partial) unlink(f->path);
