@@ -36,6 +36,7 @@ typedef struct {
     double build_seconds;  /* wall time of the whole build, boxes included */
     size_t node_count;     /* inner nodes */
     int node_width;        /* children per inner node at most (8) */
+    const char *walk_isa;  /* the walk this CPU runs: "sse2", "avx2" or "avx512" */
     size_t leaf_count;     /* leaves (4 primitives each at most) */
     size_t primitive_count;
     size_t memory_bytes;   /* bytes held after the build (nodes and leaves) */

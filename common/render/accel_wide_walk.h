@@ -1,0 +1,271 @@
+/* accel_wide_walk.h - the wide BVH's walk (accel_wide.c), written once for
+ * any vector width of the node test: accel_wide.c includes it for 4 lanes
+ * (two SSE registers per row of 8 children; any x86-64) and for 8 lanes
+ * (one AVX register per row; compiled for AVX2 and, for its 32 registers,
+ * for AVX-512VL), and picks the widest the CPU has at run time.
+ *
+ * Every width computes the same numbers: each lane of the node test is the
+ * scalar (box - o) * inv_d, max, min and tnear <= tfar * SLAB_WIDEN (IEEE
+ * operations without FMA: the same result on any ISA), and the leaves run
+ * the flat kernel's 4-lane watertight test (accel_flat.h) on every width.
+ * Nor would a different walk change the answer, which hit_before and the
+ * margins define (accel_wide.h); the tests check both
+ * (mesh_wide_walk_isas_match_bvh).
+ *
+ * Before including, define WALK(name) (the name with a width suffix),
+ * WALK_TARGET (a function attribute or nothing) and WALK_LANES (4 or 8:
+ * lanes of the node test's vectors; NODE_W must be a multiple). This file
+ * undefines them at its end. Not a public header. */
+
+/* The leaves' 4-lane kernel, compiled for this walk's target. */
+#define FLAT_LANES_ONLY
+#define FLAT_LANES 4
+#define FLAT(name) WALK(f4_##name)
+#define FLAT_TARGET WALK_TARGET
+#define FLAT_SPLAT(x) {x, x, x, x}
+#define FLAT_LANE_IDS {0, 1, 2, 3}
+#ifdef __SSE2__
+#define FLAT_BITS(m) _mm_movemask_ps((__m128)(m))
+#else
+#define FLAT_BITS(m) (((m)[0] & 1) | ((m)[1] & 2) | ((m)[2] & 4) | ((m)[3] & 8))
+#endif
+#include "accel_flat.h"
+#undef FLAT_LANES_ONLY
+#define lfloat WALK(f4_vfloat)
+#define lint WALK(f4_vint)
+
+/* The node test's vectors: WALK_LANES children's floats. */
+#if WALK_LANES == 8
+typedef __m256 WALK(nvec);
+WALK_TARGET static inline __m256 WALK(nload)(const char *p) { return _mm256_load_ps((const float *)p); }
+WALK_TARGET static inline __m256 WALK(nsplat)(float x) { return _mm256_set1_ps(x); }
+WALK_TARGET static inline __m256 WALK(nsub)(__m256 a, __m256 b) { return _mm256_sub_ps(a, b); }
+WALK_TARGET static inline __m256 WALK(nmul)(__m256 a, __m256 b) { return _mm256_mul_ps(a, b); }
+WALK_TARGET static inline __m256 WALK(nmin)(__m256 a, __m256 b) { return _mm256_min_ps(a, b); }
+WALK_TARGET static inline __m256 WALK(nmax)(__m256 a, __m256 b) { return _mm256_max_ps(a, b); }
+WALK_TARGET static inline void WALK(nstore)(float *p, __m256 a) { _mm256_store_ps(p, a); }
+/* Bit k set where lane k of a <= lane k of b. */
+WALK_TARGET static inline unsigned WALK(nle_bits)(__m256 a, __m256 b) {
+    return (unsigned)_mm256_movemask_ps(_mm256_cmp_ps(a, b, _CMP_LE_OQ));
+}
+#elif defined(__SSE2__)
+typedef __m128 WALK(nvec);
+WALK_TARGET static inline __m128 WALK(nload)(const char *p) { return _mm_load_ps((const float *)p); }
+WALK_TARGET static inline __m128 WALK(nsplat)(float x) { return _mm_set1_ps(x); }
+WALK_TARGET static inline __m128 WALK(nsub)(__m128 a, __m128 b) { return _mm_sub_ps(a, b); }
+WALK_TARGET static inline __m128 WALK(nmul)(__m128 a, __m128 b) { return _mm_mul_ps(a, b); }
+WALK_TARGET static inline __m128 WALK(nmin)(__m128 a, __m128 b) { return _mm_min_ps(a, b); }
+WALK_TARGET static inline __m128 WALK(nmax)(__m128 a, __m128 b) { return _mm_max_ps(a, b); }
+WALK_TARGET static inline void WALK(nstore)(float *p, __m128 a) { _mm_store_ps(p, a); }
+WALK_TARGET static inline unsigned WALK(nle_bits)(__m128 a, __m128 b) {
+    return (unsigned)_mm_movemask_ps(_mm_cmple_ps(a, b));
+}
+#else /* no SSE: the compiler's 16-byte vectors, min and max as SSE defines them */
+typedef lfloat WALK(nvec);
+WALK_TARGET static inline lfloat WALK(nload)(const char *p) { return *(const lfloat *)p; }
+WALK_TARGET static inline lfloat WALK(nsplat)(float x) { return (lfloat){x, x, x, x}; }
+WALK_TARGET static inline lfloat WALK(nsub)(lfloat a, lfloat b) { return a - b; }
+WALK_TARGET static inline lfloat WALK(nmul)(lfloat a, lfloat b) { return a * b; }
+WALK_TARGET static inline lfloat WALK(nmin)(lfloat a, lfloat b) {
+    lint m = a < b;
+    return (lfloat)(((lint)a & m) | ((lint)b & ~m));
+}
+WALK_TARGET static inline lfloat WALK(nmax)(lfloat a, lfloat b) {
+    lint m = a > b;
+    return (lfloat)(((lint)a & m) | ((lint)b & ~m));
+}
+WALK_TARGET static inline void WALK(nstore)(float *p, lfloat a) { *(lfloat *)p = a; }
+WALK_TARGET static inline unsigned WALK(nle_bits)(lfloat a, lfloat b) {
+    lint m = a <= b;
+    return (m[0] & 1u) | (m[1] & 2u) | (m[2] & 4u) | (m[3] & 8u);
+}
+#endif
+#define nvec WALK(nvec)
+
+/* A ray prepared for the walk: the test constants (intersect.h) and the
+ * leaves' lanes (accel_flat.h), the slab test's origin and inverse
+ * direction splatted, for each axis the byte offsets in a node of the row
+ * the ray enters by (the lower bounds where it goes up) and of the row it
+ * leaves by, and the byte offsets of axes kx, ky, kz in a leaf's vertex. */
+typedef struct {
+    ray_prep r;
+    WALK(f4_ray) lanes;
+    nvec o[3], inv[3];
+    size_t near[3], far[3];
+    size_t k[3];
+} WALK(ray);
+
+/* safe_inverse (intersect.h) of in's direction, the same bits: lane-wise
+ * IEEE division where the direction is nonzero, else +-3e38. */
+WALK_TARGET static inline void WALK(safe_inverse3)(const ray *in, float inv[3]) {
+#ifdef __SSE2__
+    __m128 d = _mm_setr_ps(in->d.x, in->d.y, in->d.z, 1.0f);
+    __m128 q = _mm_div_ps(_mm_set1_ps(1.0f), d), zero = _mm_cmpeq_ps(d, _mm_setzero_ps());
+    __m128 huge = _mm_or_ps(_mm_set1_ps(3.0e38f), _mm_and_ps(d, _mm_set1_ps(-0.0f)));
+    float out[4];
+    _mm_storeu_ps(out, _mm_or_ps(_mm_andnot_ps(zero, q), _mm_and_ps(zero, huge)));
+    inv[0] = out[0], inv[1] = out[1], inv[2] = out[2];
+#else
+    inv[0] = safe_inverse(in->d.x), inv[1] = safe_inverse(in->d.y), inv[2] = safe_inverse(in->d.z);
+#endif
+}
+
+WALK_TARGET __attribute__((always_inline)) static inline void WALK(prepare)(const ray *in, WALK(ray) *w) {
+    ray_prepare_shear(in, &w->r); /* inv_d: below, only the node test reads it */
+    WALK(f4_ray_splat)(&w->r, 0, &w->lanes);
+    const float o[3] = {in->o.x, in->o.y, in->o.z};
+    float inv[3];
+    WALK(safe_inverse3)(in, inv);
+    /* Row 2a of a node holds axis a's lower bounds, row 2a + 1 its upper
+     * ones; the ray enters by the lower where it goes up (inv >= +0). */
+    const size_t row = sizeof(float) * NODE_W;
+    for (int a = 0; a < 3; a++) {
+        w->o[a] = WALK(nsplat)(o[a]);
+        w->inv[a] = WALK(nsplat)(inv[a]);
+        w->near[a] = row * (2 * (size_t)a + (signbit(inv[a]) != 0));
+        w->far[a] = w->near[a] ^ row;
+    }
+    w->k[0] = sizeof(float) * 4 * (size_t)w->r.kx;
+    w->k[1] = sizeof(float) * 4 * (size_t)w->r.ky;
+    w->k[2] = sizeof(float) * 4 * (size_t)w->r.kz;
+}
+
+/* The slab test of n's children against [0, cull]: returns the bits of the
+ * children the ray may enter and writes their entry distances to tnear. */
+WALK_TARGET static inline unsigned WALK(node_test)(const wide_node *n, const WALK(ray) *w, nvec cull,
+                                                   float tnear[NODE_W]) {
+    const nvec zero = WALK(nsplat)(0.0f), widen = WALK(nsplat)(SLAB_WIDEN);
+    unsigned bits = 0;
+    for (int i = 0; i < NODE_W; i += WALK_LANES) {
+        const char *b = (const char *)&n->box[0][i];
+        nvec nx = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->near[0]), w->o[0]), w->inv[0]);
+        nvec ny = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->near[1]), w->o[1]), w->inv[1]);
+        nvec nz = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->near[2]), w->o[2]), w->inv[2]);
+        nvec fx = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->far[0]), w->o[0]), w->inv[0]);
+        nvec fy = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->far[1]), w->o[1]), w->inv[1]);
+        nvec fz = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->far[2]), w->o[2]), w->inv[2]);
+        nvec tn = WALK(nmax)(WALK(nmax)(nx, ny), WALK(nmax)(nz, zero));
+        nvec tf = WALK(nmin)(WALK(nmin)(fx, fy), WALK(nmin)(fz, cull));
+        WALK(nstore)(tnear + i, tn);
+        bits |= WALK(nle_bits)(tn, WALK(nmul)(tf, widen)) << i;
+    }
+    return bits;
+}
+
+/* The lanes of a leaf's vertex `vtx`, axis at byte offset `off`. */
+WALK_TARGET static inline lfloat WALK(leaf_row)(const wide_leaf *l, int vtx, size_t off) {
+    return *(const lfloat *)((const char *)l->v[vtx] + off);
+}
+
+/* Test leaf l's primitives with the caller's tmax and fold every hit into
+ * *h by hit_before (h->t starts at tmax). Returns 1 if some primitive hit
+ * (with any_hit: as soon as one does). */
+WALK_TARGET __attribute__((always_inline)) static inline int WALK(leaf_test)(const wide_leaf *l, const scene *s, const WALK(ray) *w, float tmax,
+                                              hit *h, int any_hit) {
+    const ray_prep *r = &w->r;
+    int found = 0;
+    if (l->tris) {
+        lint ids = *(const lint *)l->id;
+        WALK(f4_group) g;
+        /* Lanes past the triangles have NaN vertices: never candidates. */
+        WALK(f4_test_loaded)(WALK(leaf_row)(l, 0, w->k[0]), WALK(leaf_row)(l, 0, w->k[1]),
+                             WALK(leaf_row)(l, 0, w->k[2]), WALK(leaf_row)(l, 1, w->k[0]),
+                             WALK(leaf_row)(l, 1, w->k[1]), WALK(leaf_row)(l, 1, w->k[2]),
+                             WALK(leaf_row)(l, 2, w->k[0]), WALK(leaf_row)(l, 2, w->k[1]),
+                             WALK(leaf_row)(l, 2, w->k[2]), &w->lanes, ids != w->lanes.skip, tmax, &g);
+        for (unsigned bits = WALK(f4_vbits)(g.ok | g.edge); bits; bits &= bits - 1) {
+            int k = __builtin_ctz(bits);
+            uint32_t id = l->id[k];
+            float t, b1, b2;
+            if (g.edge[k]) {
+                if (!triangle_intersect(r, &s->triangles[id], tmax, &t, &b1, &b2)) continue;
+            } else {
+                float inv = 1.0f / g.det[k];
+                t = g.T[k] * inv;
+                b1 = g.V[k] * inv;
+                b2 = g.W[k] * inv;
+            }
+            if (any_hit) return 1;
+            if (hit_before(t, id, h)) *h = (hit){t, id, b1, b2}, found = 1;
+        }
+    }
+    if (!l->spheres) return found;
+    for (uint32_t i = l->tris; i < l->tris + l->spheres; i++) {
+        uint32_t id = l->id[i];
+        float t;
+        if (!sphere_intersect(r, &s->spheres[id - s->triangle_count], id == r->skip, tmax, &t)) continue;
+        if (any_hit) return 1;
+        if (hit_before(t, id, h)) *h = (hit){t, id, 0.0f, 0.0f}, found = 1;
+    }
+    return found;
+}
+
+/* Walk the tree; with any_hit, stop at the first hit. Of a node's children
+ * hit, the nearest is visited next and the others pushed, the farthest
+ * deepest; an entry popped behind the culling distance is dropped (the
+ * condition the node test would apply). */
+WALK_TARGET __attribute__((always_inline)) static inline int WALK(walk)(const accel_wide *wb, const scene *s,
+                                                                     const ray *in, float tmax, hit *h, int any_hit) {
+    h->t = tmax;
+    h->prim = PRIM_NONE;
+    h->b1 = h->b2 = 0.0f;
+    uintptr_t cur = wb->root;
+    if (!cur) return 0;
+    WALK(ray) w;
+    WALK(prepare)(in, &w);
+    float cull = accel_cull_distance(tmax), cull_wide = cull * SLAB_WIDEN;
+    nvec cullv = WALK(nsplat)(cull);
+    stack_entry stack[WIDE_STACK];
+    int sp = 0, found = 0;
+    for (;;) {
+        if (!(cur & LEAF_TAG)) {
+            const wide_node *n = (const wide_node *)cur;
+            float tn[NODE_W] __attribute__((aligned(32)));
+            unsigned bits = WALK(node_test)(n, &w, cullv, tn);
+            if (bits) {
+                int k = __builtin_ctz(bits);
+                cur = n->child[k];
+                unsigned rest = bits & (bits - 1);
+                if (!rest) continue;
+                if (!(rest & (rest - 1))) { /* two: keep the farther */
+                    int j = __builtin_ctz(rest);
+                    uintptr_t other = n->child[j];
+                    float t = tn[j];
+                    if (tn[j] < tn[k]) t = tn[k], other = cur, cur = n->child[j];
+                    stack[sp++] = (stack_entry){other, t};
+                    continue;
+                }
+                sp = push_sorted(stack, sp, n, bits, tn);
+                cur = stack[--sp].ref;
+                continue;
+            }
+        } else if (WALK(leaf_test)((const wide_leaf *)(cur & ~LEAF_TAG), s, &w, tmax, h, any_hit)) {
+            found = 1;
+            if (any_hit) return 1;
+            cull = accel_cull_distance(h->t);
+            cull_wide = cull * SLAB_WIDEN;
+            cullv = WALK(nsplat)(cull);
+        }
+        /* Next: the nearest kept child still in front of the culling distance. */
+        do {
+            if (sp == 0) return found;
+        } while (!(stack[--sp].tnear <= cull_wide));
+        cur = stack[sp].ref;
+    }
+}
+
+WALK_TARGET static int WALK(intersect)(const accel_wide *w, const scene *s, const ray *r, float tmax, hit *h) {
+    return WALK(walk)(w, s, r, tmax, h, 0);
+}
+
+WALK_TARGET static int WALK(occluded)(const accel_wide *w, const scene *s, const ray *r, float tmax) {
+    hit h;
+    return WALK(walk)(w, s, r, tmax, &h, 1);
+}
+
+#undef nvec
+#undef lfloat
+#undef lint
+#undef WALK
+#undef WALK_TARGET
+#undef WALK_LANES
