@@ -95,39 +95,45 @@ typedef struct {
     size_t k[3];
 } WALK(ray);
 
-/* safe_inverse (intersect.h) of in's direction, the same bits: lane-wise
- * IEEE division where the direction is nonzero, else +-3e38. */
-WALK_TARGET static inline void WALK(safe_inverse3)(const ray *in, float inv[3]) {
+/* Fill w for the ray `in`. The shear constants are intersect.h's; the
+ * inverse direction is safe_inverse's, the same bits: lane-wise IEEE
+ * division where the direction is nonzero, else +-3e38 (its sign that of
+ * the direction, also for -0). */
+WALK_TARGET __attribute__((always_inline)) static inline void WALK(prepare)(const ray *in, WALK(ray) *w) {
+    ray_prepare_shear(in, &w->r); /* inv_d is left unset: only the node test reads it, from w->inv */
+    const ray_prep *r = &w->r;
+    const float o[3] = {in->o.x, in->o.y, in->o.z};
+    float inv[4];
+    unsigned down; /* bit a: the ray goes down axis a */
 #ifdef __SSE2__
     __m128 d = _mm_setr_ps(in->d.x, in->d.y, in->d.z, 1.0f);
     __m128 q = _mm_div_ps(_mm_set1_ps(1.0f), d), zero = _mm_cmpeq_ps(d, _mm_setzero_ps());
     __m128 huge = _mm_or_ps(_mm_set1_ps(3.0e38f), _mm_and_ps(d, _mm_set1_ps(-0.0f)));
-    float out[4];
-    _mm_storeu_ps(out, _mm_or_ps(_mm_andnot_ps(zero, q), _mm_and_ps(zero, huge)));
-    inv[0] = out[0], inv[1] = out[1], inv[2] = out[2];
+    _mm_storeu_ps(inv, _mm_or_ps(_mm_andnot_ps(zero, q), _mm_and_ps(zero, huge)));
+    down = (unsigned)_mm_movemask_ps(d);
 #else
     inv[0] = safe_inverse(in->d.x), inv[1] = safe_inverse(in->d.y), inv[2] = safe_inverse(in->d.z);
+    down = (signbit(inv[0]) != 0) | (signbit(inv[1]) != 0) << 1 | (signbit(inv[2]) != 0) << 2;
 #endif
-}
-
-WALK_TARGET __attribute__((always_inline)) static inline void WALK(prepare)(const ray *in, WALK(ray) *w) {
-    ray_prepare_shear(in, &w->r); /* inv_d: below, only the node test reads it */
-    WALK(f4_ray_splat)(&w->r, 0, &w->lanes);
-    const float o[3] = {in->o.x, in->o.y, in->o.z};
-    float inv[3];
-    WALK(safe_inverse3)(in, inv);
     /* Row 2a of a node holds axis a's lower bounds, row 2a + 1 its upper
-     * ones; the ray enters by the lower where it goes up (inv >= +0). */
+     * ones: the ray enters by the lower where it goes up. */
     const size_t row = sizeof(float) * NODE_W;
-    for (int a = 0; a < 3; a++) {
-        w->o[a] = WALK(nsplat)(o[a]);
-        w->inv[a] = WALK(nsplat)(inv[a]);
-        w->near[a] = row * (2 * (size_t)a + (signbit(inv[a]) != 0));
-        w->far[a] = w->near[a] ^ row;
-    }
-    w->k[0] = sizeof(float) * 4 * (size_t)w->r.kx;
-    w->k[1] = sizeof(float) * 4 * (size_t)w->r.ky;
-    w->k[2] = sizeof(float) * 4 * (size_t)w->r.kz;
+    w->near[0] = row * (0 + (down & 1)), w->far[0] = w->near[0] ^ row;
+    w->near[1] = row * (2 + (down >> 1 & 1)), w->far[1] = w->near[1] ^ row;
+    w->near[2] = row * (4 + (down >> 2 & 1)), w->far[2] = w->near[2] ^ row;
+    w->o[0] = WALK(nsplat)(o[0]), w->o[1] = WALK(nsplat)(o[1]), w->o[2] = WALK(nsplat)(o[2]);
+    w->inv[0] = WALK(nsplat)(inv[0]), w->inv[1] = WALK(nsplat)(inv[1]), w->inv[2] = WALK(nsplat)(inv[2]);
+    /* The leaves' lanes (accel_flat.h's ray_splat, without a count). */
+    w->lanes.ox = WALK(f4_vsplat)(o[r->kx]);
+    w->lanes.oy = WALK(f4_vsplat)(o[r->ky]);
+    w->lanes.oz = WALK(f4_vsplat)(o[r->kz]);
+    w->lanes.sx = WALK(f4_vsplat)(r->sx);
+    w->lanes.sy = WALK(f4_vsplat)(r->sy);
+    w->lanes.sz = WALK(f4_vsplat)(r->sz);
+    w->lanes.skip = (lint)WALK(f4_vsplat)(0.0f) + (int32_t)r->skip;
+    w->k[0] = sizeof(float) * 4 * (size_t)r->kx;
+    w->k[1] = sizeof(float) * 4 * (size_t)r->ky;
+    w->k[2] = sizeof(float) * 4 * (size_t)r->kz;
 }
 
 /* The slab test of n's children against [0, cull]: returns the bits of the
