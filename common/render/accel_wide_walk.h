@@ -82,13 +82,13 @@ WALK_TARGET static inline unsigned WALK(nle_bits)(lfloat a, lfloat b) {
 #endif
 #define nvec WALK(nvec)
 
-/* A ray prepared for the walk: the test constants (intersect.h) and the
- * leaves' lanes (accel_flat.h), the slab test's origin and inverse
+/* A ray prepared for the vector tests (its scalar constants are a
+ * ray_prep, apart: only this stays in registers): the leaves' lanes
+ * (accel_flat.h), the slab test's origin and inverse
  * direction splatted, for each axis the byte offsets in a node of the row
  * the ray enters by (the lower bounds where it goes up) and of the row it
  * leaves by, and the byte offsets of axes kx, ky, kz in a leaf's vertex. */
 typedef struct {
-    ray_prep r;
     WALK(f4_ray) lanes;
     nvec o[3], inv[3];
     size_t near[3], far[3];
@@ -99,9 +99,9 @@ typedef struct {
  * inverse direction is safe_inverse's, the same bits: lane-wise IEEE
  * division where the direction is nonzero, else +-3e38 (its sign that of
  * the direction, also for -0). */
-WALK_TARGET __attribute__((always_inline)) static inline void WALK(prepare)(const ray *in, WALK(ray) *w) {
-    ray_prepare_shear(in, &w->r); /* inv_d is left unset: only the node test reads it, from w->inv */
-    const ray_prep *r = &w->r;
+WALK_TARGET __attribute__((always_inline)) static inline void WALK(prepare)(const ray *in, ray_prep *r,
+                                                                          WALK(ray) *w) {
+    ray_prepare_shear(in, r); /* inv_d is left unset: only the node test reads it, from w->inv */
     const float o[3] = {in->o.x, in->o.y, in->o.z};
     float inv[4];
     unsigned down; /* bit a: the ray goes down axis a */
@@ -166,9 +166,9 @@ WALK_TARGET static inline lfloat WALK(leaf_row)(const wide_leaf *l, int vtx, siz
 /* Test leaf l's primitives with the caller's tmax and fold every hit into
  * *h by hit_before (h->t starts at tmax). Returns 1 if some primitive hit
  * (with any_hit: as soon as one does). */
-WALK_TARGET __attribute__((always_inline)) static inline int WALK(leaf_test)(const wide_leaf *l, const scene *s, const WALK(ray) *w, float tmax,
-                                              hit *h, int any_hit) {
-    const ray_prep *r = &w->r;
+WALK_TARGET __attribute__((always_inline)) static inline int WALK(leaf_test)(const wide_leaf *l, const scene *s,
+                                                                            const ray_prep *r, const WALK(ray) *w,
+                                                                            float tmax, hit *h, int any_hit) {
     int found = 0;
     if (l->tris) {
         lint ids = *(const lint *)l->id;
@@ -217,8 +217,9 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(walk)(const ac
     h->b1 = h->b2 = 0.0f;
     uintptr_t cur = wb->root;
     if (!cur) return 0;
-    WALK(ray) w;
-    WALK(prepare)(in, &w);
+    ray_prep r; /* what the scalar tests read (edge lanes, spheres) */
+    WALK(ray) w; /* what the vector tests read */
+    WALK(prepare)(in, &r, &w);
     float cull = accel_cull_distance(tmax), cull_wide = cull * SLAB_WIDEN;
     nvec cullv = WALK(nsplat)(cull);
     stack_entry stack[WIDE_STACK];
@@ -245,7 +246,7 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(walk)(const ac
                 cur = stack[--sp].ref;
                 continue;
             }
-        } else if (WALK(leaf_test)((const wide_leaf *)(cur & ~LEAF_TAG), s, &w, tmax, h, any_hit)) {
+        } else if (WALK(leaf_test)((const wide_leaf *)(cur & ~LEAF_TAG), s, &r, &w, tmax, h, any_hit)) {
             found = 1;
             if (any_hit) return 1;
             cull = accel_cull_distance(h->t);
