@@ -232,6 +232,19 @@ void accel_wide_free(accel_wide *w) {
 
 void accel_wide_get_stats(const accel_wide *w, accel_wide_stats *out) { *out = w->stats; }
 
+/* For each octant of a ray's direction (bit a set: it goes down axis a),
+ * the byte offsets in a wide_node of the rows of boxes it enters by on
+ * axes x, y, z, then of those it leaves by. Row 2a holds axis a's lower
+ * bounds, row 2a + 1 its upper ones: a ray going up axis a enters by the
+ * lower. */
+#define ROW(a, up) (sizeof(float) * NODE_W * (2 * (a) + !(up)))
+#define OCTANT(o)                                                                                                   \
+    {ROW(0, !((o) & 1)), ROW(1, !((o) & 2)), ROW(2, !((o) & 4)), ROW(0, (o) & 1), ROW(1, (o) & 2), ROW(2, (o) & 4)}
+static const size_t octant_rows[8][6] = {OCTANT(0), OCTANT(1), OCTANT(2), OCTANT(3),
+                                         OCTANT(4), OCTANT(5), OCTANT(6), OCTANT(7)};
+#undef OCTANT
+#undef ROW
+
 typedef struct {
     uintptr_t ref;
     float tnear;

@@ -85,13 +85,12 @@ WALK_TARGET static inline unsigned WALK(nle_bits)(lfloat a, lfloat b) {
 /* A ray prepared for the vector tests (its scalar constants are a
  * ray_prep, apart: only this stays in registers): the leaves' lanes
  * (accel_flat.h), the slab test's origin and inverse
- * direction splatted, for each axis the byte offsets in a node of the row
- * the ray enters by (the lower bounds where it goes up) and of the row it
+ * direction splatted, the offsets of the rows of a node it enters and
  * leaves by, and the byte offsets of axes kx, ky, kz in a leaf's vertex. */
 typedef struct {
     WALK(f4_ray) lanes;
     nvec o[3], inv[3];
-    size_t near[3], far[3];
+    const size_t *rows; /* octant_rows[the direction's octant] */
     size_t k[3];
 } WALK(ray);
 
@@ -115,12 +114,7 @@ WALK_TARGET __attribute__((always_inline)) static inline void WALK(prepare)(cons
     inv[0] = safe_inverse(in->d.x), inv[1] = safe_inverse(in->d.y), inv[2] = safe_inverse(in->d.z);
     down = (signbit(inv[0]) != 0) | (signbit(inv[1]) != 0) << 1 | (signbit(inv[2]) != 0) << 2;
 #endif
-    /* Row 2a of a node holds axis a's lower bounds, row 2a + 1 its upper
-     * ones: the ray enters by the lower where it goes up. */
-    const size_t row = sizeof(float) * NODE_W;
-    w->near[0] = row * (0 + (down & 1)), w->far[0] = w->near[0] ^ row;
-    w->near[1] = row * (2 + (down >> 1 & 1)), w->far[1] = w->near[1] ^ row;
-    w->near[2] = row * (4 + (down >> 2 & 1)), w->far[2] = w->near[2] ^ row;
+    w->rows = octant_rows[down & 7];
     w->o[0] = WALK(nsplat)(o[0]), w->o[1] = WALK(nsplat)(o[1]), w->o[2] = WALK(nsplat)(o[2]);
     w->inv[0] = WALK(nsplat)(inv[0]), w->inv[1] = WALK(nsplat)(inv[1]), w->inv[2] = WALK(nsplat)(inv[2]);
     /* The leaves' lanes (accel_flat.h's ray_splat, without a count). */
@@ -144,12 +138,12 @@ WALK_TARGET static inline unsigned WALK(node_test)(const wide_node *n, const WAL
     unsigned bits = 0;
     for (int i = 0; i < NODE_W; i += WALK_LANES) {
         const char *b = (const char *)&n->box[0][i];
-        nvec nx = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->near[0]), w->o[0]), w->inv[0]);
-        nvec ny = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->near[1]), w->o[1]), w->inv[1]);
-        nvec nz = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->near[2]), w->o[2]), w->inv[2]);
-        nvec fx = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->far[0]), w->o[0]), w->inv[0]);
-        nvec fy = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->far[1]), w->o[1]), w->inv[1]);
-        nvec fz = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->far[2]), w->o[2]), w->inv[2]);
+        nvec nx = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->rows[0]), w->o[0]), w->inv[0]);
+        nvec ny = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->rows[1]), w->o[1]), w->inv[1]);
+        nvec nz = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->rows[2]), w->o[2]), w->inv[2]);
+        nvec fx = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->rows[3]), w->o[0]), w->inv[0]);
+        nvec fy = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->rows[4]), w->o[1]), w->inv[1]);
+        nvec fz = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->rows[5]), w->o[2]), w->inv[2]);
         nvec tn = WALK(nmax)(WALK(nmax)(nx, ny), WALK(nmax)(nz, zero));
         nvec tf = WALK(nmin)(WALK(nmin)(fx, fy), WALK(nmin)(fz, cull));
         WALK(nstore)(tnear + i, tn);
@@ -208,8 +202,8 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(leaf_test)(con
 
 /* Walk the tree; with any_hit, stop at the first hit. Of a node's children
  * hit, the nearest is visited next and the others pushed, the farthest
- * deepest; an entry popped behind the culling distance is dropped (the
- * condition the node test would apply). */
+ * deepest (for any_hit, in any order); an entry popped behind the culling
+ * distance is dropped (the condition the node test would apply). */
 WALK_TARGET __attribute__((always_inline)) static inline int WALK(walk)(const accel_wide *wb, const scene *s,
                                                                      const ray *in, float tmax, hit *h, int any_hit) {
     h->t = tmax;
@@ -234,6 +228,10 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(walk)(const ac
                 cur = n->child[k];
                 unsigned rest = bits & (bits - 1);
                 if (!rest) continue;
+                if (any_hit) { /* any order will do: keep the others as they come */
+                    for (; rest; rest &= rest - 1) stack[sp++].ref = n->child[__builtin_ctz(rest)];
+                    continue;
+                }
                 if (!(rest & (rest - 1))) { /* two: keep the farther */
                     int j = __builtin_ctz(rest);
                     uintptr_t other = n->child[j];
@@ -253,7 +251,14 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(walk)(const ac
             cull_wide = cull * SLAB_WIDEN;
             cullv = WALK(nsplat)(cull);
         }
-        /* Next: the nearest kept child still in front of the culling distance. */
+        /* Next: the nearest kept child still in front of the culling
+         * distance. A shadow ray's never shrinks, and every child kept
+         * passed tnear <= min(tfar, cull) * SLAB_WIDEN: none to drop. */
+        if (any_hit) {
+            if (sp == 0) return 0;
+            cur = stack[--sp].ref;
+            continue;
+        }
         do {
             if (sp == 0) return found;
         } while (!(stack[--sp].tnear <= cull_wide));
