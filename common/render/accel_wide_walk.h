@@ -173,18 +173,21 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(leaf_test)(con
                              WALK(leaf_row)(l, 1, w->k[1]), WALK(leaf_row)(l, 1, w->k[2]),
                              WALK(leaf_row)(l, 2, w->k[0]), WALK(leaf_row)(l, 2, w->k[1]),
                              WALK(leaf_row)(l, 2, w->k[2]), &w->lanes, ids != w->lanes.skip, tmax, &g);
-        for (unsigned bits = WALK(f4_vbits)(g.ok | g.edge); bits; bits &= bits - 1) {
+        /* Lanes off the edges that hit: triangle_intersect's numbers, without calling it. */
+        unsigned edge = WALK(f4_vbits)(g.edge);
+        for (unsigned bits = WALK(f4_vbits)(g.ok) & ~edge; bits; bits &= bits - 1) {
+            if (any_hit) return 1;
             int k = __builtin_ctz(bits);
             uint32_t id = l->id[k];
+            float inv = 1.0f / g.det[k], t = g.T[k] * inv;
+            if (hit_before(t, id, h)) *h = (hit){t, id, g.V[k] * inv, g.W[k] * inv}, found = 1;
+        }
+        /* Lanes on an edge (rare): the scalar test decides, in a loop of its
+         * own so that the one above calls nothing. */
+        for (; edge; edge &= edge - 1) {
+            uint32_t id = l->id[__builtin_ctz(edge)];
             float t, b1, b2;
-            if (g.edge[k]) {
-                if (!triangle_intersect(r, &s->triangles[id], tmax, &t, &b1, &b2)) continue;
-            } else {
-                float inv = 1.0f / g.det[k];
-                t = g.T[k] * inv;
-                b1 = g.V[k] * inv;
-                b2 = g.W[k] * inv;
-            }
+            if (!triangle_intersect(r, &s->triangles[id], tmax, &t, &b1, &b2)) continue;
             if (any_hit) return 1;
             if (hit_before(t, id, h)) *h = (hit){t, id, b1, b2}, found = 1;
         }
