@@ -59,21 +59,26 @@ typedef struct {
     uintptr_t child[NODE_W]; /* node pointer, or leaf pointer | LEAF_TAG */
 } wide_node;
 
-/* A leaf: triangles in lanes [0, tris) (vertex k's axis a at v[k][a][lane];
- * the other lanes' vertices are NaN), spheres' primitive ids after them in
- * id[tris, tris + spheres). */
-typedef struct {
-    float v[3][3][4];
-    uint32_t id[4];
-    uint32_t tris, spheres;
-} wide_leaf;
+/* A leaf of up to L primitives: triangles in lanes [0, tris) (vertex k's
+ * axis a at v[k][a][lane]; the other lanes' vertices are NaN), spheres'
+ * primitive ids after them in id[tris, tris + spheres). The SSE walk's
+ * leaves hold 4, the 8-lane walks' 8: one leaf test each. */
+#define WIDE_LEAF(L)             \
+    struct {                     \
+        float v[3][3][L];        \
+        uint32_t id[L];          \
+        uint32_t tris, spheres;  \
+    }
+typedef WIDE_LEAF(4) wide_leaf4;
+typedef WIDE_LEAF(8) wide_leaf8;
 
 struct accel_wide {
     accel_embree_device dev;
     RTCBVH bvh;
     uintptr_t root; /* 0 for a scene without primitives */
     accel_wide_stats stats;
-    /* The walk this CPU runs (choose_walk). */
+    /* The walk this CPU runs (choose_walk), and its leaves' lanes. */
+    unsigned leaf_lanes;
     int (*intersect)(const accel_wide *w, const scene *s, const ray *r, float tmax, hit *h);
     int (*occluded)(const accel_wide *w, const scene *s, const ray *r, float tmax);
 };
@@ -83,6 +88,7 @@ static void choose_walk(accel_wide *w);
 /* What the build callbacks share. */
 typedef struct {
     const scene *s;
+    unsigned leaf_lanes; /* 4 (wide_leaf4) or 8 (wide_leaf8) */
     atomic_size_t nodes, leaves;
 } build_ctx;
 
@@ -119,32 +125,43 @@ static void cb_set_bounds(void *node, const struct RTCBounds **bounds, unsigned 
     }
 }
 
+/* Fill a leaf of `lanes` lanes (v: its 3 x 3 x lanes floats) with the
+ * build's primitives, triangles first. */
+static void fill_leaf(const scene *s, const struct RTCBuildPrimitive *prims, size_t count, unsigned lanes, float *v,
+                      uint32_t *id, uint32_t *tris, uint32_t *spheres) {
+    for (unsigned i = 0; i < 9 * lanes; i++) v[i] = NAN; /* lanes without a triangle: no test accepts NaN */
+    for (unsigned i = 0; i < lanes; i++) id[i] = 0;
+    *tris = *spheres = 0;
+    for (size_t i = 0; i < count && i < lanes; i++) {
+        uint32_t p = prims[i].primID;
+        if (p >= s->triangle_count) continue;
+        const triangle *t = &s->triangles[p];
+        const vec3 *vs[3] = {&t->v0, &t->v1, &t->v2};
+        for (int k = 0; k < 3; k++) {
+            v[(3 * k + 0) * lanes + *tris] = vs[k]->x;
+            v[(3 * k + 1) * lanes + *tris] = vs[k]->y;
+            v[(3 * k + 2) * lanes + *tris] = vs[k]->z;
+        }
+        id[(*tris)++] = p;
+    }
+    for (size_t i = 0; i < count && i < lanes; i++)
+        if (prims[i].primID >= s->triangle_count) id[*tris + (*spheres)++] = prims[i].primID;
+}
+
 static void *cb_create_leaf(RTCThreadLocalAllocator alloc, const struct RTCBuildPrimitive *prims, size_t count,
                             void *user) {
     build_ctx *b = user;
-    const scene *s = b->s;
-    wide_leaf *l = rtcThreadLocalAlloc(alloc, sizeof *l, 16);
-    if (!l) return NULL;
-    memset(l, 0, sizeof *l);
-    for (int k = 0; k < 3; k++) /* lanes without a triangle: NaN, which no test accepts */
-        for (int a = 0; a < 3; a++)
-            for (int i = 0; i < 4; i++) l->v[k][a][i] = NAN;
-    for (size_t i = 0; i < count && i < 4; i++) { /* triangles first */
-        uint32_t id = prims[i].primID;
-        if (id >= s->triangle_count) continue;
-        const triangle *t = &s->triangles[id];
-        const vec3 *vs[3] = {&t->v0, &t->v1, &t->v2};
-        for (int k = 0; k < 3; k++) {
-            l->v[k][0][l->tris] = vs[k]->x;
-            l->v[k][1][l->tris] = vs[k]->y;
-            l->v[k][2][l->tris] = vs[k]->z;
-        }
-        l->id[l->tris++] = id;
+    void *leaf;
+    if (b->leaf_lanes == 8) {
+        wide_leaf8 *l = leaf = rtcThreadLocalAlloc(alloc, sizeof *l, 32);
+        if (l) fill_leaf(b->s, prims, count, 8, &l->v[0][0][0], l->id, &l->tris, &l->spheres);
+    } else {
+        wide_leaf4 *l = leaf = rtcThreadLocalAlloc(alloc, sizeof *l, 16);
+        if (l) fill_leaf(b->s, prims, count, 4, &l->v[0][0][0], l->id, &l->tris, &l->spheres);
     }
-    for (size_t i = 0; i < count && i < 4; i++)
-        if (prims[i].primID >= s->triangle_count) l->id[l->tris + l->spheres++] = prims[i].primID;
+    if (!leaf) return NULL;
     atomic_fetch_add_explicit(&b->leaves, 1, memory_order_relaxed);
-    return (void *)((uintptr_t)l | LEAF_TAG);
+    return (void *)((uintptr_t)leaf | LEAF_TAG);
 }
 
 /* The build primitives: every primitive's padded box. Returns NULL when out
@@ -189,14 +206,19 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
         accel_wide_free(w);
         return NULL;
     }
-    build_ctx b = {.s = s};
+    build_ctx b = {.s = s, .leaf_lanes = w->leaf_lanes};
     struct RTCBuildArguments args = rtcDefaultBuildArguments();
     args.buildQuality = RTC_BUILD_QUALITY_MEDIUM; /* binned SAH */
     args.maxBranchingFactor = NODE_W;
     args.maxDepth = WIDE_MAX_DEPTH;
-    args.sahBlockSize = 4; /* 1 to 4 primitives cost one leaf test */
-    args.minLeafSize = 3;  /* measured: 6.5% fewer instructions than 1 at 655k triangles */
-    args.maxLeafSize = 4;
+    args.sahBlockSize = w->leaf_lanes; /* 1 to leaf_lanes primitives cost one leaf test */
+    args.maxLeafSize = w->leaf_lanes;
+    /* Measured (docs/meshes.md): leaves of 4 from 3 primitives up, 6.5%
+     * fewer instructions than from 1 at 655k triangles; leaves of 8 from 8
+     * up (3 to 7: 10-35% more instructions), which take 40% fewer bytes
+     * and 4-10% less render CPU than leaves of 4 from 41k to 2.6M
+     * triangles with the AVX walks, though 11% more instructions at 41k. */
+    args.minLeafSize = w->leaf_lanes == 8 ? 8 : 3;
     args.traversalCost = 1.0f;
     args.intersectionCost = 1.0f;
     args.bvh = w->bvh;
@@ -291,16 +313,16 @@ static inline int push_sorted(stack_entry *stack, int sp, const wide_node *n, un
  * kernel (accel.c) stop it lower: TESSERA_NO_AVX512 at AVX2,
  * TESSERA_NO_AVX2 at SSE (for tests: every walk on one machine). */
 static void choose_walk(accel_wide *w) {
-    w->intersect = walk4_intersect, w->occluded = walk4_occluded, w->stats.walk_isa = "sse2";
+    w->intersect = walk4_intersect, w->occluded = walk4_occluded, w->stats.walk_isa = "sse2", w->leaf_lanes = 4;
 #ifdef HAVE_WALK8
     if (getenv("TESSERA_NO_AVX2") != NULL) return;
     if (getenv("TESSERA_NO_AVX512") == NULL && __builtin_cpu_supports("avx512f") &&
         __builtin_cpu_supports("avx512vl")) {
-        w->intersect = walk16_intersect, w->occluded = walk16_occluded, w->stats.walk_isa = "avx512";
+        w->intersect = walk16_intersect, w->occluded = walk16_occluded, w->stats.walk_isa = "avx512", w->leaf_lanes = 8;
         return;
     }
     if (__builtin_cpu_supports("avx2"))
-        w->intersect = walk8_intersect, w->occluded = walk8_occluded, w->stats.walk_isa = "avx2";
+        w->intersect = walk8_intersect, w->occluded = walk8_occluded, w->stats.walk_isa = "avx2", w->leaf_lanes = 8;
 #endif
 }
 

@@ -17,11 +17,16 @@
  * lanes of the node test's vectors; NODE_W must be a multiple). This file
  * undefines them at its end. Not a public header. */
 
-/* The leaves' 4-lane kernel, compiled for this walk's target. */
+/* The leaves' kernel at WALK_LANES lanes, compiled for this walk's target. */
 #define FLAT_LANES_ONLY
-#define FLAT_LANES 4
+#define FLAT_LANES WALK_LANES
 #define FLAT(name) WALK(f4_##name)
 #define FLAT_TARGET WALK_TARGET
+#if WALK_LANES == 8
+#define FLAT_SPLAT(x) {x, x, x, x, x, x, x, x}
+#define FLAT_LANE_IDS {0, 1, 2, 3, 4, 5, 6, 7}
+#define FLAT_BITS(m) _mm256_movemask_ps((__m256)(m))
+#else
 #define FLAT_SPLAT(x) {x, x, x, x}
 #define FLAT_LANE_IDS {0, 1, 2, 3}
 #ifdef __SSE2__
@@ -29,10 +34,17 @@
 #else
 #define FLAT_BITS(m) (((m)[0] & 1) | ((m)[1] & 2) | ((m)[2] & 4) | ((m)[3] & 8))
 #endif
+#endif
 #include "accel_flat.h"
 #undef FLAT_LANES_ONLY
 #define lfloat WALK(f4_vfloat)
 #define lint WALK(f4_vint)
+/* Leaves of WALK_LANES primitives: one leaf test. */
+#if WALK_LANES == 8
+typedef wide_leaf8 WALK(leaf);
+#else
+typedef wide_leaf4 WALK(leaf);
+#endif
 
 /* The node test's vectors: WALK_LANES children's floats. */
 #if WALK_LANES == 8
@@ -63,7 +75,7 @@ WALK_TARGET static inline unsigned WALK(nle_bits)(__m128 a, __m128 b) {
 #else /* no SSE: the compiler's 16-byte vectors, min and max as SSE defines them */
 typedef lfloat WALK(nvec);
 WALK_TARGET static inline lfloat WALK(nload)(const char *p) { return *(const lfloat *)p; }
-WALK_TARGET static inline lfloat WALK(nsplat)(float x) { return (lfloat){x, x, x, x}; }
+WALK_TARGET static inline lfloat WALK(nsplat)(float x) { return (lfloat)FLAT_SPLAT(x); }
 WALK_TARGET static inline lfloat WALK(nsub)(lfloat a, lfloat b) { return a - b; }
 WALK_TARGET static inline lfloat WALK(nmul)(lfloat a, lfloat b) { return a * b; }
 WALK_TARGET static inline lfloat WALK(nmin)(lfloat a, lfloat b) {
@@ -125,9 +137,9 @@ WALK_TARGET __attribute__((always_inline)) static inline void WALK(prepare)(cons
     w->lanes.sy = WALK(f4_vsplat)(r->sy);
     w->lanes.sz = WALK(f4_vsplat)(r->sz);
     w->lanes.skip = (lint)WALK(f4_vsplat)(0.0f) + (int32_t)r->skip;
-    w->k[0] = sizeof(float) * 4 * (size_t)r->kx;
-    w->k[1] = sizeof(float) * 4 * (size_t)r->ky;
-    w->k[2] = sizeof(float) * 4 * (size_t)r->kz;
+    w->k[0] = sizeof(float) * WALK_LANES * (size_t)r->kx;
+    w->k[1] = sizeof(float) * WALK_LANES * (size_t)r->ky;
+    w->k[2] = sizeof(float) * WALK_LANES * (size_t)r->kz;
 }
 
 /* The slab test of n's children against [0, cull]: returns the bits of the
@@ -153,14 +165,14 @@ WALK_TARGET static inline unsigned WALK(node_test)(const wide_node *n, const WAL
 }
 
 /* The lanes of a leaf's vertex `vtx`, axis at byte offset `off`. */
-WALK_TARGET static inline lfloat WALK(leaf_row)(const wide_leaf *l, int vtx, size_t off) {
+WALK_TARGET static inline lfloat WALK(leaf_row)(const WALK(leaf) *l, int vtx, size_t off) {
     return *(const lfloat *)((const char *)l->v[vtx] + off);
 }
 
 /* Test leaf l's primitives with the caller's tmax and fold every hit into
  * *h by hit_before (h->t starts at tmax). Returns 1 if some primitive hit
  * (with any_hit: as soon as one does). */
-WALK_TARGET __attribute__((always_inline)) static inline int WALK(leaf_test)(const wide_leaf *l, const scene *s,
+WALK_TARGET __attribute__((always_inline)) static inline int WALK(leaf_test)(const WALK(leaf) *l, const scene *s,
                                                                             const ray_prep *r, const WALK(ray) *w,
                                                                             float tmax, hit *h, int any_hit) {
     int found = 0;
@@ -247,7 +259,7 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(walk)(const ac
                 cur = stack[--sp].ref;
                 continue;
             }
-        } else if (WALK(leaf_test)((const wide_leaf *)(cur & ~LEAF_TAG), s, &r, &w, tmax, h, any_hit)) {
+        } else if (WALK(leaf_test)((const WALK(leaf) *)(cur & ~LEAF_TAG), s, &r, &w, tmax, h, any_hit)) {
             found = 1;
             if (any_hit) return 1;
             cull = accel_cull_distance(h->t);
