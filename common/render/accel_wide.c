@@ -215,9 +215,8 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
     args.maxLeafSize = w->leaf_lanes;
     /* Measured (docs/meshes.md): leaves of 4 from 3 primitives up, 6.5%
      * fewer instructions than from 1 at 655k triangles; leaves of 8 from 8
-     * up (3 to 7: 10-35% more instructions), which take 40% fewer bytes
-     * and 4-10% less render CPU than leaves of 4 from 41k to 2.6M
-     * triangles with the AVX walks, though 11% more instructions at 41k. */
+     * up (from 3: 5-7% more instructions per ray, from 6: 7%), which also
+     * take 40% fewer bytes than leaves of 4. */
     args.minLeafSize = w->leaf_lanes == 8 ? 8 : 3;
     args.traversalCost = 1.0f;
     args.intersectionCost = 1.0f;
