@@ -6,14 +6,16 @@
  * create the nodes and leaves below in Embree's thread-local allocator,
  * which the RTCBVH owns and frees.
  *
- * Walk: a node holds its children's boxes as structure of arrays, so one
- * 8-lane slab test (two SSE registers) covers all eight; the children hit
- * are visited nearest
+ * Walk (accel_wide_walk.h, compiled for SSE, AVX2 and AVX-512VL; the
+ * widest the CPU runs is chosen at build time): a node holds its children's
+ * boxes as structure of arrays, so one 8-lane slab test (one AVX register,
+ * or two SSE ones) covers all eight; the children hit are visited nearest
  * first, the others kept on a fixed-size stack with their entry distance
- * and dropped when they come up behind the culling distance. A leaf holds up
- * to 4 primitives: its triangles' vertices as 4 lanes for the flat kernel's
- * watertight test (test_lanes in accel_flat.h: per lane exactly the IEEE
- * operations of triangle_intersect), its spheres by index.
+ * and dropped when they come up behind the culling distance. A leaf holds
+ * up to 8 primitives for the AVX walks, 4 for the SSE walk: its triangles'
+ * vertices as that many lanes for the flat kernel's watertight test
+ * (test_loaded in accel_flat.h: per lane exactly the IEEE operations of
+ * triangle_intersect), its spheres by index.
  *
  * Why no candidate that could win is culled: the slab test is exact up to
  * rounding of a few ulps of the distances (pbrt, 3rd ed., 3.9.2); its far

@@ -1,21 +1,22 @@
 /* accel_wide_walk.h - the wide BVH's walk (accel_wide.c), written once for
- * any vector width of the node test: accel_wide.c includes it for 4 lanes
- * (two SSE registers per row of 8 children; any x86-64) and for 8 lanes
- * (one AVX register per row; compiled for AVX2 and, for its 32 registers,
- * for AVX-512VL), and picks the widest the CPU has at run time.
+ * any vector width: accel_wide.c includes it for 4 lanes (two SSE
+ * registers per row of a node's 8 children, leaves of 4 triangles; any
+ * x86-64) and for 8 lanes (one AVX register per row, leaves of 8; compiled
+ * for AVX2 and, for its 32 registers, for AVX-512VL), and picks the widest
+ * the CPU has at run time.
  *
  * Every width computes the same numbers: each lane of the node test is the
- * scalar (box - o) * inv_d, max, min and tnear <= tfar * SLAB_WIDEN (IEEE
- * operations without FMA: the same result on any ISA), and the leaves run
- * the flat kernel's 4-lane watertight test (accel_flat.h) on every width.
- * Nor would a different walk change the answer, which hit_before and the
- * margins define (accel_wide.h); the tests check both
- * (mesh_wide_walk_isas_match_bvh).
+ * scalar (box - o) * inv_d, max, min and tnear <= tfar * SLAB_WIDEN, and
+ * each lane of the leaf test is triangle_intersect's (the flat kernel's
+ * watertight test, accel_flat.h): IEEE operations without FMA, the same
+ * result on any ISA. Nor would a different walk or tree change the answer,
+ * which hit_before and the margins define (accel_wide.h); the tests check
+ * every walk against the BVH (mesh_wide_walk_isas_match_bvh).
  *
  * Before including, define WALK(name) (the name with a width suffix),
  * WALK_TARGET (a function attribute or nothing) and WALK_LANES (4 or 8:
- * lanes of the node test's vectors; NODE_W must be a multiple). This file
- * undefines them at its end. Not a public header. */
+ * lanes of the node test's vectors and of a leaf; NODE_W must be a
+ * multiple). This file undefines them at its end. Not a public header. */
 
 /* The leaves' kernel at WALK_LANES lanes, compiled for this walk's target. */
 #define FLAT_LANES_ONLY
