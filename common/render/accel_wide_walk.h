@@ -95,11 +95,12 @@ WALK_TARGET static inline unsigned WALK(nle_bits)(lfloat a, lfloat b) {
 #endif
 #define nvec WALK(nvec)
 
-/* A ray prepared for the vector tests (its scalar constants are a
- * ray_prep, apart: only this stays in registers): the leaves' lanes
- * (accel_flat.h), the slab test's origin and inverse
- * direction splatted, the offsets of the rows of a node it enters and
- * leaves by, and the byte offsets of axes kx, ky, kz in a leaf's vertex. */
+/* A ray prepared for the vector tests: the leaves' lanes (accel_flat.h),
+ * the slab test's origin and inverse direction splatted, the byte offsets
+ * of the rows of a node the ray enters and leaves by, and those of axes
+ * kx, ky, kz in a leaf's vertex. The scalar tests' constants are a
+ * ray_prep apart, whose address escapes to them: kept out of this struct,
+ * they let the compiler keep this one in registers. */
 typedef struct {
     WALK(f4_ray) lanes;
     nvec o[3], inv[3];
