@@ -104,6 +104,7 @@ TEST(mesh_wide_matches_bvh_features) { matches_bvh("scenes/features.json", ACCEL
 TEST(mesh_wide_walk_isas_match_bvh) {
     static const char *const scenes[] = {ICO_SCENE, "scenes/features.json"};
     const char *seen[3] = {NULL, NULL, NULL};
+    int node_width = 0;
     for (size_t p = 0; p < 2; p++) {
         char err[512];
         scene *s = scene_load(scenes[p], NULL, err, sizeof err);
@@ -119,7 +120,7 @@ TEST(mesh_wide_walk_isas_match_bvh) {
             accel_wide_stats st = {0};
             CHECK(wide && accel_get_wide_stats(wide, &st) == 0, "build: %s", err);
             if (!wide) continue;
-            seen[e] = st.walk_isa;
+            seen[e] = st.walk_isa, node_width = st.node_width;
             int hits = 0, differ = tree ? count_differences(s, tree, wide, 60000, &hits) : -1;
             CHECK(differ == 0 && hits > 20000, "%s, %s walk: %d of 60000 rays differ from the BVH, %d hit", scenes[p],
                   st.walk_isa, differ, hits);
@@ -128,9 +129,11 @@ TEST(mesh_wide_walk_isas_match_bvh) {
         accel_free(tree);
         scene_free(s);
     }
-    /* The walks the environment asked for, where the CPU has them. */
+    /* The walks the environment asked for, where the CPU has them (and the
+     * tree has 8 children: a -DNODE_W=4 build has the SSE walk only). */
     CHECK(seen[2] && strcmp(seen[2], "sse2") == 0, "TESSERA_NO_AVX2: walk %s", seen[2] ? seen[2] : "?");
 #if defined(__x86_64__) && defined(__GNUC__)
+    if (node_width != 8) return;
     const char *want1 = __builtin_cpu_supports("avx2") ? "avx2" : "sse2";
     const char *want0 = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") ? "avx512" : want1;
     CHECK(seen[1] && strcmp(seen[1], want1) == 0, "TESSERA_NO_AVX512: walk %s, not %s", seen[1] ? seen[1] : "?", want1);
