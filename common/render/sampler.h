@@ -87,6 +87,23 @@ static inline uint32_t sampler_reverse_bits(uint32_t x) {
     return ((x & 0x55555555u) << 1) | ((x & 0xaaaaaaaau) >> 1);
 }
 
+/* Reverse the 64 bits of x: the low half reversed becomes the high half and
+ * the high half reversed the low one, so one call reverses two 32-bit
+ * numbers for little more than the price of one. Can't fail. */
+static inline uint64_t sampler_reverse_bits64(uint64_t x) {
+    x = __builtin_bswap64(x);
+    x = ((x & 0x0f0f0f0f0f0f0f0full) << 4) | ((x >> 4) & 0x0f0f0f0f0f0f0f0full);
+    x = ((x & 0x3333333333333333ull) << 2) | ((x >> 2) & 0x3333333333333333ull);
+    return ((x & 0x5555555555555555ull) << 1) | ((x >> 1) & 0x5555555555555555ull);
+}
+
+/* sampler_reverse_bits of x and of y at once: *rx and *ry. Can't fail. */
+static inline void sampler_reverse_bits2(uint32_t x, uint32_t y, uint32_t *rx, uint32_t *ry) {
+    uint64_t r = sampler_reverse_bits64((uint64_t)y << 32 | x);
+    *rx = (uint32_t)(r >> 32);
+    *ry = (uint32_t)r;
+}
+
 /* Burley's Laine-Karras-style hash: each output bit is the input bit
  * flipped by a function of the seed and the bits below it (even multipliers
  * and addition only carry upwards). Applied to bit-reversed fixed-point
@@ -153,8 +170,8 @@ static inline void sampler_pair_bits(const sampler_stream *s, uint32_t pair, uin
          * pixel's shuffled index, reversed (as dimension 0's index and
          * sampler_sobol1_rev below), Owen-scrambled. */
         uint64_t r = sampler_global_point(pair, s->global_index);
-        *a = sampler_reverse_bits(sampler_lk_hash((uint32_t)r, (uint32_t)h));
-        *b = sampler_reverse_bits(sampler_lk_hash((uint32_t)(r >> 32), (uint32_t)(h >> 32)));
+        sampler_reverse_bits2(sampler_lk_hash((uint32_t)r, (uint32_t)h),
+                              sampler_lk_hash((uint32_t)(r >> 32), (uint32_t)(h >> 32)), a, b);
         return;
     }
     if (s->kind == SAMPLER_RANDOM) {
@@ -169,8 +186,8 @@ static inline void sampler_pair_bits(const sampler_stream *s, uint32_t pair, uin
      * keeps power-of-two prefixes stratified. Below, dimension 0's own
      * reversal cancels the one inside Owen scrambling. */
     uint32_t shuffled = sampler_reverse_bits(sampler_lk_hash(s->index_rev, seed_index));
-    *a = sampler_reverse_bits(sampler_lk_hash(shuffled, seed_a));
-    *b = sampler_reverse_bits(sampler_lk_hash(sampler_sobol1_rev(shuffled), seed_b));
+    sampler_reverse_bits2(sampler_lk_hash(shuffled, seed_a), sampler_lk_hash(sampler_sobol1_rev(shuffled), seed_b), a,
+                          b);
 }
 
 /* The two numbers in [0, 1) of dimensions dim and dim + 1 (dim even),
