@@ -90,7 +90,8 @@ static vec3 direct_light(const scene *s, const integrator_options *opt, const ma
     if (!lights_sample(s, sf->p, u1, u2, &ls)) return vec3_splat(0.0f);
     vec3 wi_local = frame_to_local(fr, ls.wi);
     if (sf->smooth && !shading_sides_agree(sf->ng, fr->n, wo, ls.wi)) return vec3_splat(0.0f); /* no leaks */
-    vec3 f = bsdf_eval(m, wo_local, wi_local);
+    float bsdf_density;
+    vec3 f = bsdf_eval_pdf(m, wo_local, wi_local, &bsdf_density);
     if (vec3_is_zero(f)) return vec3_splat(0.0f);
     /* Shadow ray between the two offset end points, so it neither starts
      * inside this surface nor ends inside the light's. */
@@ -104,7 +105,7 @@ static vec3 direct_light(const scene *s, const integrator_options *opt, const ma
     st->shadow_rays++;
     if ((s->features & FEATURE_CUTOUT) ? shading_occluded(s, &sh, len) : accel_occluded(s->accel, s, &sh, len))
         return vec3_splat(0.0f);
-    float w = (ls.is_delta || opt->no_mis) ? 1.0f : mis_power(ls.pdf, bsdf_pdf(m, wo_local, wi_local));
+    float w = (ls.is_delta || opt->no_mis) ? 1.0f : mis_power(ls.pdf, bsdf_density);
     return vec3_scale(vec3_mul(f, ls.radiance), fabsf(wi_local.z) * w / ls.pdf);
 }
 
