@@ -281,6 +281,30 @@ TEST(sampler_paired_reversal_matches_single) {
     CHECK(bad == 0, "%d padded pairs differ from the definition", bad);
 }
 
+/* A pixel's shared seeds change no number: streams started from a
+ * sampler_pixel give the bits of sampler_start's, for every kind, for pairs
+ * asked in any order, below and beyond the pairs it keeps. */
+TEST(sampler_pixel_streams_match_plain_streams) {
+    const sampler_kind kinds[] = {SAMPLER_SOBOL_GLOBAL, SAMPLER_SOBOL, SAMPLER_RANDOM};
+    int bad = 0, checked = 0;
+    for (size_t k = 0; k < sizeof kinds / sizeof kinds[0]; k++)
+        for (uint64_t pixel = 0; pixel < 30; pixel++) {
+            sampler_pixel px;
+            sampler_pixel_start(&px, kinds[k], 7, pixel * 613);
+            for (uint32_t i = 0; i < 40; i++) {
+                sampler_stream c = sampler_start_pixel(&px, i), p = sampler_start(kinds[k], 7, pixel * 613, i);
+                for (uint32_t j = 0; j < SAMPLER_PIXEL_PAIRS + 20; j++) {
+                    uint32_t pair = (j * 37u + i) % (SAMPLER_PIXEL_PAIRS + 20), a, b, ra, rb;
+                    sampler_pair_bits(&c, pair, &a, &b);
+                    sampler_pair_bits(&p, pair, &ra, &rb);
+                    bad += a != ra || b != rb;
+                    checked++;
+                }
+            }
+        }
+    CHECK(bad == 0, "%d of %d pairs differ with the pixel's shared seeds", bad, checked);
+}
+
 TEST(sampler_names_parse) {
     sampler_kind k;
     CHECK(sampler_parse("sobol", &k) == 0 && k == SAMPLER_SOBOL, "sobol");
