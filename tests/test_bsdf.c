@@ -284,3 +284,30 @@ TEST(bsdf_pbr_white_furnace) {
     }
     CHECK(prev_loss > 0.02 && prev_loss < 0.8, "roughness 1 loses %.4f at normal incidence", prev_loss);
 }
+
+/* bsdf_eval_pdf is bsdf_eval and bsdf_pdf, bit for bit, for every non-delta
+ * kind (Phong's shared powf, PBR's shared half vector, D and L(wo)), over
+ * directions on both sides of the surface, grazing ones and wi = -wo (a
+ * zero half vector) included; and bsdf_sample_wi's pdf and weight are
+ * those two's. */
+TEST(bsdf_eval_pdf_matches_eval_and_pdf) {
+    material ms[] = {diffuse(), glossy(0.4f, 0.5f, 5), glossy(0.1f, 0.8f, 40), pbr(0.8f, 0.5f, 0.2f, 0, 0.5f),
+                     pbr(1, 0.8f, 0.4f, 1, 0.2f), pbr(0.5f, 0.5f, 0.5f, 0.5f, 0.0f)};
+    int bad = 0, sampled = 0;
+    for (size_t i = 0; i < sizeof ms / sizeof ms[0]; i++)
+        for (int k = 0; k < 20000; k++) {
+            rng_stream r = rng_stream_start(23, i, (uint64_t)k);
+            vec3 wo = dir_from(k % 5 == 0 ? 1e-4 : rng_next(&r), 2 * M_PI * rng_next(&r));
+            vec3 wi = k % 97 == 0 ? vec3_neg(wo) : dir_from(2.0 * rng_next(&r) - 1.0, 2 * M_PI * rng_next(&r));
+            float pdf, want_pdf = bsdf_pdf(&ms[i], wo, wi);
+            vec3 f = bsdf_eval_pdf(&ms[i], wo, wi, &pdf), want_f = bsdf_eval(&ms[i], wo, wi);
+            bad += memcmp(&f, &want_f, sizeof f) != 0 || memcmp(&pdf, &want_pdf, sizeof pdf) != 0;
+            bsdf_sample bs;
+            if (!bsdf_sample_wi(&ms[i], wo, rng_next(&r), rng_next(&r), rng_next(&r), &bs)) continue;
+            sampled++;
+            float sp = bsdf_pdf(&ms[i], wo, bs.wi);
+            vec3 w = vec3_scale(bsdf_eval(&ms[i], wo, bs.wi), bs.wi.z / sp);
+            bad += memcmp(&sp, &bs.pdf, sizeof sp) != 0 || memcmp(&w, &bs.weight, sizeof w) != 0;
+        }
+    CHECK(bad == 0 && sampled > 50000, "%d evaluations differ (%d samples)", bad, sampled);
+}
