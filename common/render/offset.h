@@ -23,9 +23,12 @@
  * (or by OFFSET_FLOAT_SCALE n near the origin). offset_ray_origin does the
  * same to three at once. */
 static inline float offset_one(float p, float n) {
-    int32_t bits, of = (int32_t)(OFFSET_INT_SCALE * n);
+    /* The integer step in unsigned arithmetic: it wraps (for p = -0, whose
+     * bits are INT32_MIN, moved inward) where a signed sum would overflow;
+     * the wrapped value is never picked, the near-origin one is. */
+    uint32_t bits, of = (uint32_t)(int32_t)(OFFSET_INT_SCALE * n);
     memcpy(&bits, &p, sizeof bits);
-    bits += p < 0.0f ? -of : of;
+    bits += p < 0.0f ? 0u - of : of;
     float moved;
     memcpy(&moved, &bits, sizeof moved);
     /* Picked without a branch: hit points near a coordinate plane through
