@@ -43,8 +43,8 @@ typedef int32_t offset_v4i __attribute__((vector_size(16)));
 /* p moved off its surface to the side n points to (n: unit geometric normal
  * on the side the new ray leaves by): offset_one on each coordinate, the
  * three in the lanes of one vector (the same IEEE operations, the
- * conversion truncating as the scalar cast does; unsigned lanes for the
- * integer step, which wraps as the scalar one does in practice). A few
+ * conversion truncating as the scalar cast does, the integer step
+ * unsigned and wrapping as the scalar one). A few
  * vector instructions instead of some sixty scalar ones. Can't fail. */
 static inline vec3 offset_ray_origin(vec3 p, vec3 n) {
     offset_v4f pv = {p.x, p.y, p.z, 0.0f}, nv = {n.x, n.y, n.z, 0.0f};

@@ -108,7 +108,7 @@ static inline uint32_t sampler_reverse_bits(uint32_t x) {
 
 /* Reverse the 64 bits of x: the low half reversed becomes the high half and
  * the high half reversed the low one, so one call reverses two 32-bit
- * numbers for little more than the price of one. Can't fail. */
+ * numbers in fewer instructions than two 32-bit reversals. Can't fail. */
 static inline uint64_t sampler_reverse_bits64(uint64_t x) {
     x = __builtin_bswap64(x);
     x = ((x & 0x0f0f0f0f0f0f0f0full) << 4) | ((x >> 4) & 0x0f0f0f0f0f0f0f0full);
