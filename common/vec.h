@@ -8,6 +8,8 @@
 #define TESSERA_VEC_H
 
 #include <math.h>
+#include <stdint.h>
+#include <string.h>
 
 #define TS_PI 3.14159265358979323846f
 #define TS_INV_PI 0.31830988618379067154f
@@ -42,6 +44,19 @@ static inline vec3 vec3_max(vec3 a, vec3 b) { return vec3_make(max_f(a.x, b.x), 
 /* sqrt of x clamped at 0 (x < 0, -0 or NaN give +0): exactly
  * sqrtf(fmaxf(0.0f, x)) with glibc's fmaxf, without its library call. */
 static inline float sqrt_clamped(float x) { return sqrtf(max_f(x, 0.0f)); }
+/* c ? a : b without a branch: both a and b are computed anyway, and the
+ * pick is a bit mask. For the picks that depend on random numbers (which
+ * half of a warp, which side of zero), where a branch is mispredicted half
+ * the time. The result is a or b bit for bit. */
+static inline float select_f(int c, float a, float b) {
+    uint32_t ia, ib, m = 0u - (uint32_t)(c != 0);
+    memcpy(&ia, &a, sizeof ia);
+    memcpy(&ib, &b, sizeof ib);
+    uint32_t r = (ia & m) | (ib & ~m);
+    float out;
+    memcpy(&out, &r, sizeof out);
+    return out;
+}
 static inline float vec3_max_comp(vec3 a) { return max_f(a.x, max_f(a.y, a.z)); }
 static inline float vec3_comp(vec3 a, int axis) { return axis == 0 ? a.x : axis == 1 ? a.y : a.z; }
 static inline int vec3_is_zero(vec3 a) { return a.x == 0.0f && a.y == 0.0f && a.z == 0.0f; }

@@ -5,7 +5,9 @@
 #include <string.h>
 
 #include "render/bsdf.h"
+#include "render/bsdf_pbr.h"
 #include "render/rng.h"
+#include "render/warp.h"
 #include "harness.h"
 
 #define THETA_BINS 20
@@ -283,4 +285,54 @@ TEST(bsdf_pbr_white_furnace) {
         prev_loss = loss[0];
     }
     CHECK(prev_loss > 0.02 && prev_loss < 0.8, "roughness 1 loses %.4f at normal incidence", prev_loss);
+}
+
+/* f and pdf by the formulas as written before bsdf.c shared the Phong
+ * lobe's powf between them (bsdf.c's header comment; warp.h's densities),
+ * and by bsdf_pbr.h's two functions for PBR. */
+static vec3 reference_eval(const material *m, vec3 wo, vec3 wi, float *pdf) {
+    *pdf = 0.0f;
+    if (wi.z <= 0.0f || wo.z <= 0.0f) return vec3_splat(0.0f);
+    if (m->kind == MATERIAL_PBR) {
+        *pdf = bsdf_pbr_pdf(m, wo, wi);
+        return bsdf_pbr_eval(m, wo, wi);
+    }
+    if (m->kind == MATERIAL_DIFFUSE) {
+        *pdf = warp_cosine_hemisphere_pdf(wi.z);
+        return vec3_scale(m->kd, TS_INV_PI);
+    }
+    float ca = vec3_dot(vec3_make(-wo.x, -wo.y, wo.z), wi);
+    float lobe = ca > 0.0f ? (m->exponent + 2.0f) * (0.5f * TS_INV_PI) * powf(ca, m->exponent) : 0.0f;
+    *pdf = (1.0f - m->p_specular) * warp_cosine_hemisphere_pdf(wi.z) +
+           m->p_specular * warp_power_cosine_pdf(ca, m->exponent);
+    return vec3_add(vec3_scale(m->kd, TS_INV_PI), vec3_scale(m->ks, lobe));
+}
+
+/* bsdf_eval, bsdf_pdf and bsdf_eval_pdf give the reference's f and pdf bit
+ * for bit for every non-delta kind, over directions on both sides of the
+ * surface, grazing ones and wi = -wo (a zero half vector) included; and
+ * bsdf_sample_wi's pdf and weight are the reference's at the direction it
+ * drew. */
+TEST(bsdf_eval_pdf_matches_eval_and_pdf) {
+    material ms[] = {diffuse(), glossy(0.4f, 0.5f, 5), glossy(0.1f, 0.8f, 40), pbr(0.8f, 0.5f, 0.2f, 0, 0.5f),
+                     pbr(1, 0.8f, 0.4f, 1, 0.2f), pbr(0.5f, 0.5f, 0.5f, 0.5f, 0.0f)};
+    int bad = 0, sampled = 0;
+    for (size_t i = 0; i < sizeof ms / sizeof ms[0]; i++)
+        for (int k = 0; k < 20000; k++) {
+            rng_stream r = rng_stream_start(23, i, (uint64_t)k);
+            vec3 wo = dir_from(k % 5 == 0 ? 1e-4 : rng_next(&r), 2 * M_PI * rng_next(&r));
+            vec3 wi = k % 97 == 0 ? vec3_neg(wo) : dir_from(2.0 * rng_next(&r) - 1.0, 2 * M_PI * rng_next(&r));
+            float pdf, want_pdf, one_pdf = bsdf_pdf(&ms[i], wo, wi);
+            vec3 f = bsdf_eval_pdf(&ms[i], wo, wi, &pdf), want_f = reference_eval(&ms[i], wo, wi, &want_pdf);
+            vec3 one_f = bsdf_eval(&ms[i], wo, wi);
+            bad += memcmp(&f, &want_f, sizeof f) != 0 || memcmp(&pdf, &want_pdf, sizeof pdf) != 0 ||
+                   memcmp(&one_f, &want_f, sizeof f) != 0 || memcmp(&one_pdf, &want_pdf, sizeof pdf) != 0;
+            bsdf_sample bs;
+            if (!bsdf_sample_wi(&ms[i], wo, rng_next(&r), rng_next(&r), rng_next(&r), &bs)) continue;
+            sampled++;
+            float sp;
+            vec3 sf = reference_eval(&ms[i], wo, bs.wi, &sp), w = vec3_scale(sf, bs.wi.z / sp);
+            bad += memcmp(&sp, &bs.pdf, sizeof sp) != 0 || memcmp(&w, &bs.weight, sizeof w) != 0;
+        }
+    CHECK(bad == 0 && sampled > 50000, "%d evaluations differ (%d samples)", bad, sampled);
 }

@@ -1,9 +1,10 @@
-/* test_math.c - vectors, frames, the counter-based RNG, camera mappings. */
+/* test_math.c - vectors, frames, ray offsets, the counter-based RNG, camera mappings. */
 #include <math.h>
 #include <stdint.h>
 #include <string.h>
 
 #include "render/camera.h"
+#include "render/offset.h"
 #include "render/rng.h"
 #include "vec.h"
 #include "render/warp.h"
@@ -89,6 +90,34 @@ TEST(camera_perspective_mapping) {
     CHECK(vec3_length(vec3_sub(tl, want)) < 1e-5f, "top-left corner (%g,%g,%g)", tl.x, tl.y, tl.z);
     vec3 wide = camera_direction(&c, 200, 100, 200, 50, 0, 0);
     CHECK(fabsf(wide.x / wide.z + 2.0f) < 1e-5f, "aspect ratio not applied: %g", wide.x / wide.z);
+}
+
+/* offset_ray_origin moves the three coordinates exactly as offset_one
+ * does each: bit for bit, on both sides of zero, near and far from the
+ * origin, for signed zeros and for normals of every direction. */
+TEST(offset_ray_origin_matches_offset_one) {
+    const float special[] = {0.0f, -0.0f, 1e-30f, -1e-30f, 0.03125f, -0.03125f, 0.0312499f, -0.0312499f, 1.0f, -1.0f,
+                             3.5e4f, -3.5e4f};
+    int bad = 0, n_special = (int)(sizeof special / sizeof special[0]);
+    rng_stream r = rng_stream_start(9, 0, 0);
+    for (int i = 0; i < 200000; i++) {
+        float c[3], m[3];
+        for (int k = 0; k < 3; k++) {
+            float u = rng_next(&r);
+            c[k] = i % 4 == 0 ? special[(int)(u * (float)n_special) % n_special]
+                              : (2.0f * rng_next(&r) - 1.0f) * (i % 4 == 1 ? 0.05f : 2.0f);
+        }
+        vec3 n = vec3_normalize(vec3_make(2.0f * rng_next(&r) - 1.0f, 2.0f * rng_next(&r) - 1.0f,
+                                          2.0f * rng_next(&r) - 1.0f));
+        m[0] = n.x, m[1] = n.y, m[2] = n.z;
+        vec3 o = offset_ray_origin(vec3_make(c[0], c[1], c[2]), n);
+        float got[3] = {o.x, o.y, o.z};
+        for (int k = 0; k < 3; k++) {
+            float want = offset_one(c[k], m[k]);
+            bad += memcmp(&want, &got[k], sizeof want) != 0;
+        }
+    }
+    CHECK(bad == 0, "%d coordinates differ from offset_one", bad);
 }
 
 TEST(warp_triangle_is_uniform) {

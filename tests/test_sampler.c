@@ -244,6 +244,67 @@ TEST(sampler_global_matches_definition) {
     CHECK(bad == 0, "%d sobol-global pairs differ from the definition", bad);
 }
 
+/* The padded sampler's numbers by the definition, one 32-bit reversal at a
+ * time (sampler.h reverses two at once). */
+static void padded_pair_reference(const sampler_stream *s, uint32_t pair, uint32_t *a, uint32_t *b) {
+    uint64_t h = sampler_hash(s->key, pair);
+    uint32_t shuffled = sampler_reverse_bits(sampler_lk_hash(s->index_rev, (uint32_t)rng_mix64(h)));
+    *a = sampler_reverse_bits(sampler_lk_hash(shuffled, (uint32_t)h));
+    *b = sampler_reverse_bits(sampler_lk_hash(sampler_sobol1_rev(shuffled), (uint32_t)(h >> 32)));
+}
+
+TEST(sampler_paired_reversal_matches_single) {
+    int bad = 0;
+    uint64_t x = 1;
+    for (int i = 0; i < 100000; i++) {
+        x = rng_mix64(x + (uint64_t)i);
+        uint32_t rx, ry;
+        sampler_reverse_bits2((uint32_t)x, (uint32_t)(x >> 32), &rx, &ry);
+        bad += rx != sampler_reverse_bits((uint32_t)x) || ry != sampler_reverse_bits((uint32_t)(x >> 32));
+    }
+    CHECK(bad == 0, "%d paired reversals differ", bad);
+    for (uint64_t pixel = 0; pixel < 40; pixel++)
+        for (uint32_t i = 0; i < 300; i += 7) {
+            sampler_stream s = sampler_start(SAMPLER_SOBOL, 5, pixel * 977, i * 131u);
+            sampler_stream g = sampler_start(SAMPLER_SOBOL_GLOBAL, 5, pixel * 977, i * 131u);
+            for (uint32_t pair = 0; pair < 40; pair++) {
+                uint32_t a, b, ra, rb;
+                sampler_pair_bits(&s, pair, &a, &b);
+                padded_pair_reference(&s, pair, &ra, &rb);
+                bad += a != ra || b != rb;
+                if (pair < SAMPLER_GLOBAL_PAIRS) continue; /* sobol-global pads the later pairs */
+                sampler_pair_bits(&g, pair, &a, &b);
+                padded_pair_reference(&g, pair, &ra, &rb);
+                bad += a != ra || b != rb;
+            }
+        }
+    CHECK(bad == 0, "%d padded pairs differ from the definition", bad);
+}
+
+/* A pixel's shared seeds change no number: streams started from a
+ * sampler_pixel give the bits of sampler_start's, for every kind, for pairs
+ * asked in any order, below and beyond the pairs it keeps. */
+TEST(sampler_pixel_streams_match_plain_streams) {
+    const sampler_kind kinds[] = {SAMPLER_SOBOL_GLOBAL, SAMPLER_SOBOL, SAMPLER_RANDOM};
+    int bad = 0, checked = 0;
+    for (size_t k = 0; k < sizeof kinds / sizeof kinds[0]; k++)
+        for (uint64_t pixel = 0; pixel < 30; pixel++) {
+            sampler_pixel px;
+            sampler_pixel_start(&px, kinds[k], 7, pixel * 613);
+            for (uint32_t i = 0; i < 40; i++) {
+                sampler_stream c = sampler_start_pixel(&px, i), p = sampler_start(kinds[k], 7, pixel * 613, i);
+                for (uint32_t j = 0; j < SAMPLER_PIXEL_PAIRS + 20; j++) {
+                    uint32_t pair = (j * 37u + i) % (SAMPLER_PIXEL_PAIRS + 20), a, b, ra, rb;
+                    sampler_pair_bits(&c, pair, &a, &b);
+                    sampler_pair_bits(&p, pair, &ra, &rb);
+                    bad += a != ra || b != rb;
+                    checked++;
+                }
+            }
+        }
+    CHECK(bad == 0, "%d of %d pairs differ with the pixel's shared seeds", bad, checked);
+}
+
 TEST(sampler_names_parse) {
     sampler_kind k;
     CHECK(sampler_parse("sobol", &k) == 0 && k == SAMPLER_SOBOL, "sobol");

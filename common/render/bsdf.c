@@ -15,37 +15,48 @@ static inline vec3 reflect_local(vec3 wo) { return vec3_make(-wo.x, -wo.y, wo.z)
 
 static float phong_cos_alpha(vec3 wo, vec3 wi) { return vec3_dot(reflect_local(wo), wi); }
 
-vec3 bsdf_eval(const material *m, vec3 wo, vec3 wi) {
+/* f(wo, wi) and, into *pdf, the density bsdf_sample_wi gives wi, for a
+ * material of the given kind (a constant where this is inlined, so that
+ * only that kind's code remains). The Phong lobe's powf serves both: f's
+ * lobe is ks (n + 2) / (2 pi) cos^n and the density's (n + 1) / (2 pi)
+ * cos^n, with the same cos^n. */
+static inline __attribute__((always_inline)) vec3 eval_pdf(material_kind kind, const material *m, vec3 wo, vec3 wi,
+                                                           float *pdf) {
+    *pdf = 0.0f;
     if (wi.z <= 0.0f || wo.z <= 0.0f) return vec3_splat(0.0f);
-    switch (m->kind) {
+    switch (kind) {
     case MATERIAL_DIFFUSE:
+        *pdf = warp_cosine_hemisphere_pdf(wi.z);
         return vec3_scale(m->kd, TS_INV_PI);
     case MATERIAL_GLOSSY: {
-        float ca = phong_cos_alpha(wo, wi);
-        float lobe = ca > 0.0f ? (m->exponent + 2.0f) * (0.5f * TS_INV_PI) * powf(ca, m->exponent) : 0.0f;
+        float ca = phong_cos_alpha(wo, wi), pw = ca > 0.0f ? powf(ca, m->exponent) : 0.0f;
+        float lobe = ca > 0.0f ? (m->exponent + 2.0f) * (0.5f * TS_INV_PI) * pw : 0.0f;
+        float lobe_pdf = ca > 0.0f ? (m->exponent + 1.0f) * (0.5f * TS_INV_PI) * pw : 0.0f;
+        *pdf = (1.0f - m->p_specular) * warp_cosine_hemisphere_pdf(wi.z) + m->p_specular * lobe_pdf;
         return vec3_add(vec3_scale(m->kd, TS_INV_PI), vec3_scale(m->ks, lobe));
     }
     case MATERIAL_PBR:
+        *pdf = bsdf_pbr_pdf(m, wo, wi);
         return bsdf_pbr_eval(m, wo, wi);
     default:
         return vec3_splat(0.0f);
     }
 }
 
-float bsdf_pdf(const material *m, vec3 wo, vec3 wi) {
-    if (wi.z <= 0.0f || wo.z <= 0.0f) return 0.0f;
-    switch (m->kind) {
-    case MATERIAL_DIFFUSE:
-        return warp_cosine_hemisphere_pdf(wi.z);
-    case MATERIAL_GLOSSY:
-        return (1.0f - m->p_specular) * warp_cosine_hemisphere_pdf(wi.z) +
-               m->p_specular * warp_power_cosine_pdf(phong_cos_alpha(wo, wi), m->exponent);
-    case MATERIAL_PBR:
-        return bsdf_pbr_pdf(m, wo, wi);
-    default:
-        return 0.0f;
-    }
+vec3 bsdf_eval(const material *m, vec3 wo, vec3 wi) {
+    if (m->kind == MATERIAL_PBR) return wi.z <= 0.0f || wo.z <= 0.0f ? vec3_splat(0.0f) : bsdf_pbr_eval(m, wo, wi);
+    float pdf;
+    return eval_pdf(m->kind, m, wo, wi, &pdf);
 }
+
+float bsdf_pdf(const material *m, vec3 wo, vec3 wi) {
+    if (m->kind == MATERIAL_PBR) return wi.z <= 0.0f || wo.z <= 0.0f ? 0.0f : bsdf_pbr_pdf(m, wo, wi);
+    float pdf;
+    eval_pdf(m->kind, m, wo, wi, &pdf);
+    return pdf;
+}
+
+vec3 bsdf_eval_pdf(const material *m, vec3 wo, vec3 wi, float *pdf) { return eval_pdf(m->kind, m, wo, wi, pdf); }
 
 float bsdf_fresnel_dielectric(float cos_i, float eta) {
     if (cos_i < 0.0f) { /* inside: swap the media */
@@ -86,27 +97,36 @@ static int sample_glass(const material *m, vec3 wo, float u, bsdf_sample *out) {
     return 1;
 }
 
+/* Lambert or Phong (kind, a constant where inlined): the lobe by u3, the
+ * direction by (u1, u2), f and the density once each. */
+static inline __attribute__((always_inline)) int sample_lambert_phong(material_kind kind, const material *m, vec3 wo,
+                                                                      float u1, float u2, float u3,
+                                                                      bsdf_sample *out) {
+    if (wo.z <= 0.0f) return 0;
+    vec3 wi;
+    if (u3 < m->p_specular) {
+        frame lobe = frame_from_normal(reflect_local(wo));
+        wi = frame_to_world(&lobe, warp_power_cosine(u1, u2, m->exponent));
+    } else {
+        wi = warp_cosine_hemisphere(u1, u2);
+    }
+    float pdf;
+    vec3 f = eval_pdf(kind, m, wo, wi, &pdf);
+    if (!(pdf > 0.0f)) return 0;
+    out->wi = wi;
+    out->pdf = pdf;
+    out->is_delta = 0;
+    out->weight = vec3_scale(f, wi.z / pdf);
+    return 1;
+}
+
 int bsdf_sample_wi(const material *m, vec3 wo, float u1, float u2, float u3, bsdf_sample *out) {
     out->eta = 1.0f;
     switch (m->kind) {
     case MATERIAL_DIFFUSE:
-    case MATERIAL_GLOSSY: {
-        if (wo.z <= 0.0f) return 0;
-        vec3 wi;
-        if (u3 < m->p_specular) {
-            frame lobe = frame_from_normal(reflect_local(wo));
-            wi = frame_to_world(&lobe, warp_power_cosine(u1, u2, m->exponent));
-        } else {
-            wi = warp_cosine_hemisphere(u1, u2);
-        }
-        float pdf = bsdf_pdf(m, wo, wi);
-        if (!(pdf > 0.0f)) return 0;
-        out->wi = wi;
-        out->pdf = pdf;
-        out->is_delta = 0;
-        out->weight = vec3_scale(bsdf_eval(m, wo, wi), wi.z / pdf);
-        return 1;
-    }
+        return sample_lambert_phong(MATERIAL_DIFFUSE, m, wo, u1, u2, u3, out);
+    case MATERIAL_GLOSSY:
+        return sample_lambert_phong(MATERIAL_GLOSSY, m, wo, u1, u2, u3, out);
     case MATERIAL_MIRROR:
         if (wo.z <= 0.0f) return 0;
         out->wi = reflect_local(wo);

@@ -32,6 +32,10 @@ vec3 bsdf_eval(const material *m, vec3 wo, vec3 wi);
  * materials. */
 float bsdf_pdf(const material *m, vec3 wo, vec3 wi);
 
+/* bsdf_eval, and bsdf_pdf into *pdf, in one call: what light sampling
+ * needs, for less than the two calls. */
+vec3 bsdf_eval_pdf(const material *m, vec3 wo, vec3 wi, float *pdf);
+
 /* Draw wi given wo from three uniform numbers. Returns 1 and fills *out, or
  * 0 when the sample is lost (absorbed, or a lobe sample below the surface):
  * the path ends. Can't fail otherwise. */

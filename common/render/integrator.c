@@ -90,7 +90,8 @@ static vec3 direct_light(const scene *s, const integrator_options *opt, const ma
     if (!lights_sample(s, sf->p, u1, u2, &ls)) return vec3_splat(0.0f);
     vec3 wi_local = frame_to_local(fr, ls.wi);
     if (sf->smooth && !shading_sides_agree(sf->ng, fr->n, wo, ls.wi)) return vec3_splat(0.0f); /* no leaks */
-    vec3 f = bsdf_eval(m, wo_local, wi_local);
+    float bsdf_density;
+    vec3 f = bsdf_eval_pdf(m, wo_local, wi_local, &bsdf_density);
     if (vec3_is_zero(f)) return vec3_splat(0.0f);
     /* Shadow ray between the two offset end points, so it neither starts
      * inside this surface nor ends inside the light's. */
@@ -104,7 +105,7 @@ static vec3 direct_light(const scene *s, const integrator_options *opt, const ma
     st->shadow_rays++;
     if ((s->features & FEATURE_CUTOUT) ? shading_occluded(s, &sh, len) : accel_occluded(s->accel, s, &sh, len))
         return vec3_splat(0.0f);
-    float w = (ls.is_delta || opt->no_mis) ? 1.0f : mis_power(ls.pdf, bsdf_pdf(m, wo_local, wi_local));
+    float w = (ls.is_delta || opt->no_mis) ? 1.0f : mis_power(ls.pdf, bsdf_density);
     return vec3_scale(vec3_mul(f, ls.radiance), fabsf(wi_local.z) * w / ls.pdf);
 }
 
@@ -135,6 +136,15 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
      * refraction, which a path inside glass undoes when it leaves. */
     float eta_scale = 1.0f;
     for (int depth = 0;; depth++) {
+        /* The vertex's lobe and direction numbers before its ray is traced:
+         * they do not depend on the hit, and their chain of multiplications
+         * then runs alongside the traversal instead of delaying the BSDF
+         * sample after it (the light's pair stays with the light sample,
+         * which only smooth vertices make). */
+        uint32_t dim = INTEGRATOR_CAMERA_DIMS + (uint32_t)depth * INTEGRATOR_DIMS_PER_BOUNCE;
+        float u_lobe, u_roulette, u1, u2;
+        sampler_get_2d(rng, dim + DIM_LOBE, &u_lobe, &u_roulette);
+        sampler_get_2d(rng, dim + DIM_BSDF_DIR, &u1, &u2);
         hit h;
         st->rays++;
         if (!accel_intersect(s->accel, s, &r, INFINITY, &h)) {
@@ -148,7 +158,6 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
         const material *m = &s->materials[sf.info->material];
         if (depth >= s->settings.max_depth || m->kind == MATERIAL_NONE) break;
 
-        uint32_t dim = INTEGRATOR_CAMERA_DIMS + (uint32_t)depth * INTEGRATOR_DIMS_PER_BOUNCE;
         vec3 wo = vec3_neg(r.d);
         /* Opaque materials reflect on whichever side the ray arrived. */
         vec3 n = (m->kind != MATERIAL_GLASS && vec3_dot(sf.ng, wo) < 0.0f) ? vec3_neg(sf.ng) : sf.ng;
@@ -170,17 +179,18 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
         }
         frame fr = frame_from_normal(n);
         vec3 wo_local = frame_to_local(&fr, wo);
-        /* Only the numbers a vertex uses are computed. */
-        float u_lobe, u_roulette, u1, u2;
-        sampler_get_2d(rng, dim + DIM_LOBE, &u_lobe, &u_roulette);
+        /* The BSDF's direction before the light sample, which does not
+         * depend on it: the direction is a chain of divisions, square roots
+         * and a sincos that the next ray waits for, and the CPU completes
+         * it while it works on the light sample and its shadow ray, instead
+         * of after them. The sums are the same, in the same order. */
+        bsdf_sample bs;
+        int scattered = bsdf_sample_wi(m, wo_local, u_lobe, u1, u2, &bs);
+        vec3 wi = scattered ? vec3_normalize(frame_to_world(&fr, bs.wi)) : wo;
         if (has_lights && bsdf_is_smooth(m) && !opt->no_nee)
             L = vec3_add(L,
                          vec3_mul(beta, direct_light(s, opt, m, &sf, h.prim, &fr, wo, wo_local, rng, dim, st)));
-
-        bsdf_sample bs;
-        sampler_get_2d(rng, dim + DIM_BSDF_DIR, &u1, &u2);
-        if (!bsdf_sample_wi(m, wo_local, u_lobe, u1, u2, &bs)) break;
-        vec3 wi = vec3_normalize(frame_to_world(&fr, bs.wi));
+        if (!scattered) break;
         if (sf.smooth && !shading_sides_agree(sf.ng, n, wo, wi)) break; /* would leak through the surface */
         beta = vec3_mul(beta, bs.weight);
         prev_pdf = bs.pdf;

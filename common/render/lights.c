@@ -15,7 +15,9 @@ static uint32_t pick_light(const scene *s, float u) {
         else
             hi = mid;
     }
-    while (lo > 0 && s->lights[lo].select_pdf == 0.0f) lo--;
+    /* The weight first: it is almost never 0, so the loop's branch is
+     * predicted, where lo > 0 is a coin toss with two lights. */
+    while (s->lights[lo].select_pdf == 0.0f && lo > 0) lo--;
     return lo;
 }
 

@@ -14,13 +14,19 @@
 #include "adaptive.h"
 #include "camera.h"
 
-/* Radiance of sample i of pixel (x, y): the camera ray through the sample's
- * jittered position, traced. */
-static inline vec3 render_sample(const scene *s, const integrator_options *opt, int x, int y, uint32_t i,
-                                 trace_stats *stats) {
+/* Start px, the sampler's seeds shared by the samples of pixel (x, y). */
+static inline void render_pixel_start(const scene *s, const integrator_options *opt, int x, int y,
+                                      sampler_pixel *px) {
     const render_settings *rs = &s->settings;
-    uint64_t pixel = (uint64_t)y * (uint64_t)rs->width + (uint64_t)x;
-    sampler_stream rng = sampler_start(opt->sampler, rs->seed, pixel, i);
+    sampler_pixel_start(px, opt->sampler, rs->seed, (uint64_t)y * (uint64_t)rs->width + (uint64_t)x);
+}
+
+/* Radiance of sample i of pixel (x, y), whose sampler seeds px holds: the
+ * camera ray through the sample's jittered position, traced. */
+static inline vec3 render_sample(const scene *s, const integrator_options *opt, int x, int y, uint32_t i,
+                                 sampler_pixel *px, trace_stats *stats) {
+    const render_settings *rs = &s->settings;
+    sampler_stream rng = sampler_start_pixel(px, i);
     float u, v;
     sampler_get_2d(&rng, 0, &u, &v);
     ray r = {s->cam.position, camera_direction(&s->cam, rs->width, rs->height, x, y, u, v), PRIM_NONE};
@@ -33,8 +39,10 @@ void render_tile(const scene *s, const integrator_options *opt, const tile_rect 
     for (int y = tile->y0; y < tile->y1; y++) {
         for (int x = tile->x0; x < tile->x1; x++) {
             double *sum = accum + 3 * ((size_t)(y - tile->y0) * (size_t)tw + (size_t)(x - tile->x0));
+            sampler_pixel px;
+            render_pixel_start(s, opt, x, y, &px);
             for (uint32_t i = first; i < first + count; i++) {
-                vec3 L = render_sample(s, opt, x, y, i, stats);
+                vec3 L = render_sample(s, opt, x, y, i, &px, stats);
                 sum[0] += L.x;
                 sum[1] += L.y;
                 sum[2] += L.z;
@@ -52,8 +60,10 @@ int render_tile_sums(const scene *s, const integrator_options *opt, const tile_r
             size_t k = (size_t)(y - tile->y0) * (size_t)tw + (size_t)(x - tile->x0);
             double sum[ADAPTIVE_CHANNELS] = {0};
             uint32_t split = ADAPTIVE_SPLIT(first, count);
+            sampler_pixel px;
+            render_pixel_start(s, opt, x, y, &px);
             for (uint32_t i = first; mask[k] && i < first + count; i++) {
-                vec3 L = render_sample(s, opt, x, y, i, stats);
+                vec3 L = render_sample(s, opt, x, y, i, &px, stats);
                 sum[0] += L.x;
                 sum[1] += L.y;
                 sum[2] += L.z;

@@ -70,6 +70,24 @@ static inline uint64_t sampler_global_point(uint32_t pair, uint32_t x) {
            t[5][x >> 20 & 15u] ^ t[6][x >> 24 & 15u] ^ t[7][x >> 28];
 }
 
+/* How many pairs' seeds a sampler_pixel keeps: the camera's and 21
+ * bounces' (3 pairs each); later pairs hash theirs every time. */
+#define SAMPLER_PIXEL_PAIRS 64u
+
+/* What the samples of one pixel share under the Sobol samplers: its key,
+ * sobol-global's index-shuffle seed, and each pair's hash and
+ * index-scramble seed, filled in when a sample first asks for the pair.
+ * Only a speed-up: the numbers are those sampler_start's streams give.
+ * Plain struct, owned by the caller (one per pixel at a time). */
+typedef struct {
+    uint64_t key;         /* hash of (seed, pixel) */
+    uint32_t global_seed; /* SOBOL_GLOBAL: the seed of the pixel's index shuffle */
+    sampler_kind kind;
+    uint64_t filled;      /* bit p: pair p's seeds below are set */
+    uint64_t hash[SAMPLER_PIXEL_PAIRS];
+    uint32_t index_seed[SAMPLER_PIXEL_PAIRS];
+} sampler_pixel;
+
 /* The numbers of one camera sample. Plain struct, owned by the caller,
  * usually on the stack. */
 typedef struct {
@@ -77,6 +95,7 @@ typedef struct {
     uint32_t index_rev; /* the sample index with its bits reversed */
     uint32_t global_index; /* SOBOL_GLOBAL: the index after the pixel's shuffle */
     sampler_kind kind;
+    sampler_pixel *pixel; /* the pixel's shared seeds, or NULL: hash them every time */
 } sampler_stream;
 
 /* Reverse the 32 bits of x; can't fail. */
@@ -85,6 +104,23 @@ static inline uint32_t sampler_reverse_bits(uint32_t x) {
     x = ((x & 0x0f0f0f0fu) << 4) | ((x & 0xf0f0f0f0u) >> 4);
     x = ((x & 0x33333333u) << 2) | ((x & 0xccccccccu) >> 2);
     return ((x & 0x55555555u) << 1) | ((x & 0xaaaaaaaau) >> 1);
+}
+
+/* Reverse the 64 bits of x: the low half reversed becomes the high half and
+ * the high half reversed the low one, so one call reverses two 32-bit
+ * numbers in fewer instructions than two 32-bit reversals. Can't fail. */
+static inline uint64_t sampler_reverse_bits64(uint64_t x) {
+    x = __builtin_bswap64(x);
+    x = ((x & 0x0f0f0f0f0f0f0f0full) << 4) | ((x >> 4) & 0x0f0f0f0f0f0f0f0full);
+    x = ((x & 0x3333333333333333ull) << 2) | ((x >> 2) & 0x3333333333333333ull);
+    return ((x & 0x5555555555555555ull) << 1) | ((x >> 1) & 0x5555555555555555ull);
+}
+
+/* sampler_reverse_bits of x and of y at once: *rx and *ry. Can't fail. */
+static inline void sampler_reverse_bits2(uint32_t x, uint32_t y, uint32_t *rx, uint32_t *ry) {
+    uint64_t r = sampler_reverse_bits64((uint64_t)y << 32 | x);
+    *rx = (uint32_t)(r >> 32);
+    *ry = (uint32_t)r;
 }
 
 /* Burley's Laine-Karras-style hash: each output bit is the input bit
@@ -122,21 +158,62 @@ static inline uint64_t sampler_hash(uint64_t key, uint32_t salt) {
     return rng_mix64(key + (uint64_t)(salt + 1) * 0x9E3779B97F4A7C15ull);
 }
 
-/* Start the numbers of sample `sample` of pixel `pixel` under `seed`. */
-static inline sampler_stream sampler_start(sampler_kind kind, uint64_t seed, uint64_t pixel, uint32_t sample) {
+/* Start the shared seeds of pixel `pixel` under `seed`; can't fail. */
+static inline void sampler_pixel_start(sampler_pixel *px, sampler_kind kind, uint64_t seed, uint64_t pixel) {
+    px->kind = kind;
+    px->key = rng_mix64(rng_mix64(seed) ^ pixel);
+    /* One index shuffle per pixel, shared by the first pairs. */
+    px->global_seed = kind == SAMPLER_SOBOL_GLOBAL ? (uint32_t)rng_mix64(sampler_hash(px->key, 0xfffffffeu)) : 0;
+    px->filled = 0;
+}
+
+/* Start the numbers of sample `sample` of the pixel px was started for.
+ * px must outlive the stream; it is written to as pairs are first asked
+ * for (under SAMPLER_RANDOM, whose keys are per sample, never). */
+static inline sampler_stream sampler_start_pixel(sampler_pixel *px, uint32_t sample) {
     sampler_stream s;
-    s.kind = kind;
+    s.kind = px->kind;
     s.index_rev = sampler_reverse_bits(sample);
-    uint64_t pixel_key = rng_mix64(rng_mix64(seed) ^ pixel);
-    s.key = kind != SAMPLER_RANDOM ? pixel_key : rng_mix64(pixel_key ^ ((uint64_t)sample * 0x9E3779B97F4A7C15ull));
+    s.key = px->key;
+    s.pixel = px;
     s.global_index = 0;
-    if (kind == SAMPLER_SOBOL_GLOBAL) {
-        /* One index shuffle per pixel, shared by the first pairs: done once
-         * per sample here rather than once per pair. */
-        uint32_t si = (uint32_t)rng_mix64(sampler_hash(pixel_key, 0xfffffffeu));
-        s.global_index = sampler_reverse_bits(sampler_lk_hash(s.index_rev, si));
+    if (s.kind == SAMPLER_RANDOM) {
+        s.key = rng_mix64(px->key ^ ((uint64_t)sample * 0x9E3779B97F4A7C15ull));
+        s.pixel = NULL;
+    } else if (s.kind == SAMPLER_SOBOL_GLOBAL) {
+        s.global_index = sampler_reverse_bits(sampler_lk_hash(s.index_rev, px->global_seed));
     }
     return s;
+}
+
+/* Start the numbers of sample `sample` of pixel `pixel` under `seed`, with
+ * nothing shared between samples: each pair's seeds are hashed when asked
+ * for. */
+static inline sampler_stream sampler_start(sampler_kind kind, uint64_t seed, uint64_t pixel, uint32_t sample) {
+    sampler_pixel px;
+    sampler_pixel_start(&px, kind, seed, pixel);
+    sampler_stream s = sampler_start_pixel(&px, sample);
+    s.pixel = NULL;
+    return s;
+}
+
+/* Pair `pair`'s hash of the pixel key, and into *index_seed the seed of
+ * its index scramble (padded pairs): from the pixel's shared seeds when
+ * the stream has them, filling them in on first use. */
+static inline uint64_t sampler_pair_seeds(const sampler_stream *s, uint32_t pair, uint32_t *index_seed) {
+    sampler_pixel *px = s->pixel;
+    if (px && pair < SAMPLER_PIXEL_PAIRS) {
+        if (!(px->filled >> pair & 1u)) {
+            px->hash[pair] = sampler_hash(s->key, pair);
+            px->index_seed[pair] = (uint32_t)rng_mix64(px->hash[pair]);
+            px->filled |= 1ull << pair;
+        }
+        *index_seed = px->index_seed[pair];
+        return px->hash[pair];
+    }
+    uint64_t h = sampler_hash(s->key, pair);
+    *index_seed = (uint32_t)rng_mix64(h);
+    return h;
 }
 
 /* A 32-bit fixed-point number as a float in [0, 1): its top 24 bits, so the
@@ -147,30 +224,32 @@ static inline float sampler_to_float(uint32_t x) { return (float)(x >> 8) * 0x1p
  * fixed point. One hash of (pixel key, pair) gives the pair's three seeds:
  * the index shuffle's and the two output scrambles'. */
 static inline void sampler_pair_bits(const sampler_stream *s, uint32_t pair, uint32_t *a, uint32_t *b) {
-    uint64_t h = sampler_hash(s->key, pair);
+    if (s->kind == SAMPLER_RANDOM) {
+        uint64_t h = sampler_hash(s->key, pair);
+        *a = (uint32_t)h;
+        *b = (uint32_t)(h >> 32);
+        return;
+    }
+    uint32_t seed_index;
+    uint64_t h = sampler_pair_seeds(s, pair, &seed_index);
     if (s->kind == SAMPLER_SOBOL_GLOBAL && pair < SAMPLER_GLOBAL_PAIRS) {
         /* Dimensions 2 pair and 2 pair + 1 of the Sobol point at the
          * pixel's shuffled index, reversed (as dimension 0's index and
          * sampler_sobol1_rev below), Owen-scrambled. */
         uint64_t r = sampler_global_point(pair, s->global_index);
-        *a = sampler_reverse_bits(sampler_lk_hash((uint32_t)r, (uint32_t)h));
-        *b = sampler_reverse_bits(sampler_lk_hash((uint32_t)(r >> 32), (uint32_t)(h >> 32)));
+        sampler_reverse_bits2(sampler_lk_hash((uint32_t)r, (uint32_t)h),
+                              sampler_lk_hash((uint32_t)(r >> 32), (uint32_t)(h >> 32)), a, b);
         return;
     }
-    if (s->kind == SAMPLER_RANDOM) {
-        *a = (uint32_t)h;
-        *b = (uint32_t)(h >> 32);
-        return;
-    }
-    uint32_t seed_index = (uint32_t)rng_mix64(h), seed_a = (uint32_t)h, seed_b = (uint32_t)(h >> 32);
+    uint32_t seed_a = (uint32_t)h, seed_b = (uint32_t)(h >> 32);
     /* The index, Owen-scrambled as if it were a reversed fixed-point number
      * (Burley's nested uniform scramble): a permutation under which any 2^k
      * consecutive indices still cover every residue modulo 2^k, which is what
      * keeps power-of-two prefixes stratified. Below, dimension 0's own
      * reversal cancels the one inside Owen scrambling. */
     uint32_t shuffled = sampler_reverse_bits(sampler_lk_hash(s->index_rev, seed_index));
-    *a = sampler_reverse_bits(sampler_lk_hash(shuffled, seed_a));
-    *b = sampler_reverse_bits(sampler_lk_hash(sampler_sobol1_rev(shuffled), seed_b));
+    sampler_reverse_bits2(sampler_lk_hash(shuffled, seed_a), sampler_lk_hash(sampler_sobol1_rev(shuffled), seed_b), a,
+                          b);
 }
 
 /* The two numbers in [0, 1) of dimensions dim and dim + 1 (dim even),

@@ -8,15 +8,13 @@
 /* Cosine-weighted hemisphere around +z (Malley's method on the concentric
  * disk). pdf(w) = cos(theta) / pi. */
 static inline vec3 warp_cosine_hemisphere(float u1, float u2) {
-    float a = 2.0f * u1 - 1.0f, b = 2.0f * u2 - 1.0f, r, phi;
+    float a = 2.0f * u1 - 1.0f, b = 2.0f * u2 - 1.0f;
     if (a == 0.0f && b == 0.0f) return vec3_make(0, 0, 1);
-    if (a * a > b * b) {
-        r = a;
-        phi = (TS_PI / 4.0f) * (b / a);
-    } else {
-        r = b;
-        phi = (TS_PI / 2.0f) - (TS_PI / 4.0f) * (a / b);
-    }
+    /* Both wedges are computed and one is picked without a branch: which
+     * one is a coin toss per sample (the unused quotient may be inf). */
+    int a_major = a * a > b * b;
+    float r = select_f(a_major, a, b);
+    float phi = select_f(a_major, (TS_PI / 4.0f) * (b / a), (TS_PI / 2.0f) - (TS_PI / 4.0f) * (a / b));
     float x = r * cosf(phi), y = r * sinf(phi);
     return vec3_make(x, y, sqrt_clamped(1.0f - x * x - y * y));
 }
@@ -38,13 +36,11 @@ static inline float warp_power_cosine_pdf(float cos_t, float n) {
 /* Uniform point on a triangle, as barycentrics (b1, b2) of v1 and v2 (the
  * square-to-triangle map of Heitz 2019, no sqrt). pdf = 1 / area. */
 static inline void warp_uniform_triangle(float u1, float u2, float *b1, float *b2) {
-    if (u2 > u1) {
-        *b1 = 0.5f * u1;
-        *b2 = u2 - *b1;
-    } else {
-        *b2 = 0.5f * u2;
-        *b1 = u1 - *b2;
-    }
+    /* Both halves, picked without a branch (a coin toss per sample). */
+    int upper = u2 > u1;
+    float h1 = 0.5f * u1, h2 = 0.5f * u2;
+    *b1 = select_f(upper, h1, u1 - h2);
+    *b2 = select_f(upper, u2 - h1, h2);
 }
 
 /* Uniform direction in the cone of half-angle acos(cos_max) around +z.
