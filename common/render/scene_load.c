@@ -574,6 +574,17 @@ static int parse_mesh_file(loader *L, const scene_bundle_file *f, const char *fi
  * growing them took a copy, and on huge pages a slow one (0.3 s at 2.6M
  * triangles, 3.6 s at 10.5M). Room is only a hint: when it cannot be made,
  * the shapes make theirs, and report their errors, as they go. */
+/* Free the parsed mesh files (the last one a shape used, and any no shape
+ * took); it can be called again. */
+static void free_parsed(loader *L) {
+    obj_mesh_free(&L->obj);
+    L->obj_file = NULL;
+    for (size_t i = 0; i < L->parsed_count; i++) obj_mesh_free(&L->parsed[i].m);
+    free(L->parsed);
+    L->parsed = NULL;
+    L->parsed_count = L->parsed_cap = 0;
+}
+
 static void plan_shapes(loader *L, const cJSON *shapes) {
     size_t verts = 0, tris = 0;
     for (const cJSON *sh = shapes->child; sh; sh = sh->next) {
@@ -758,6 +769,7 @@ static int load_shapes(loader *L, const cJSON *root) {
         snprintf(where, sizeof where, "shapes[%d]", i);
         if (load_shape(L, sh, where)) return -1;
     }
+    free_parsed(L); /* before the scene is assembled, the peak of the load */
     return 0;
 }
 
@@ -1035,9 +1047,7 @@ static void loader_free(loader *L) {
                      L->shade_flags, L->vn, L->vt, L->tri_vn, L->tri_vt};
     for (size_t i = 0; i < sizeof temps / sizeof temps[0]; i++) free(temps[i]);
     name_index_free(&L->material_index);
-    obj_mesh_free(&L->obj);
-    for (size_t i = 0; i < L->parsed_count; i++) obj_mesh_free(&L->parsed[i].m);
-    free(L->parsed);
+    free_parsed(L);
     json_ctx j = L->j;
     scene *s = L->s;
     memset(L, 0, sizeof *L);
