@@ -3,10 +3,14 @@
  * Parsing happens in double precision into temporary lists (vertices in
  * world coordinates, triangles as three vertex indices, spheres, emitters);
  * once the bounds of all geometry are known the whole scene is moved into
- * internal units (see scene.h) and only then rounded to float, each vertex
- * once. A mesh's triangles share its vertices, so a mesh costs 24 bytes per
- * vertex and 24 per triangle while loading. Every refusal names the file
- * and the field; docs/scene-format.md describes the format. */
+ * internal units (see scene.h) and only then rounded to float (a vertex
+ * gives the same float at each corner that uses it). A mesh's triangles
+ * share its vertices, so a mesh costs 24 bytes per vertex and 24 per
+ * triangle while loading. The mesh files are parsed before the shapes are
+ * read, to allocate those lists once; the loops over a big mesh's vertices
+ * and triangles run in ranges on every core (par.h), with the same result.
+ * Every refusal names the file and the field; docs/scene-format.md
+ * describes the format. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -567,13 +571,6 @@ static int parse_mesh_file(loader *L, const scene_bundle_file *f, const char *fi
     return obj_parse(f->data, f->len, file, out, err, err_len);
 }
 
-/* Parse every mesh file the shapes name (each once, in the order they are
- * first named; a failure is kept for its shape to report, after whatever
- * comes before it) and make room for all the vertices and triangles the
- * shapes will add, so that the pool and the records are allocated once:
- * growing them took a copy, and on huge pages a slow one (0.3 s at 2.6M
- * triangles, 3.6 s at 10.5M). Room is only a hint: when it cannot be made,
- * the shapes make theirs, and report their errors, as they go. */
 /* Free the parsed mesh files (the last one a shape used, and any no shape
  * took); it can be called again. */
 static void free_parsed(loader *L) {
@@ -585,6 +582,14 @@ static void free_parsed(loader *L) {
     L->parsed_count = L->parsed_cap = 0;
 }
 
+/* Parse every mesh file the shapes name (each once, in the order they are
+ * first named; a failure is kept for its shape to report, after whatever
+ * comes before it) and make room for all the vertices and triangles the
+ * shapes will add, so that the pool and the records are allocated once:
+ * growing them took a copy, and on huge pages a slow one (0.3 s at 2.6M
+ * triangles, 3.6 s at 10.5M). Room is only a hint: when it cannot be made,
+ * the shapes make theirs, and report their errors, as they go. The parsed
+ * files are alive together until their shapes take them. */
 static void plan_shapes(loader *L, const cJSON *shapes) {
     size_t verts = 0, tris = 0;
     for (const cJSON *sh = shapes->child; sh; sh = sh->next) {
