@@ -18,11 +18,16 @@ static void *par_thread(void *arg) {
     return NULL;
 }
 
-int par_parts(size_t n, size_t min_per_part) {
+/* The cores to use: TESSERA_LOAD_THREADS, else the online ones, within 1
+ * to PAR_MAX_PARTS. */
+static long par_cores(void) {
     const char *env = getenv("TESSERA_LOAD_THREADS");
     long cores = env ? atol(env) : sysconf(_SC_NPROCESSORS_ONLN);
-    if (cores < 1) cores = 1;
-    if (cores > PAR_MAX_PARTS) cores = PAR_MAX_PARTS;
+    return cores < 1 ? 1 : cores > PAR_MAX_PARTS ? PAR_MAX_PARTS : cores;
+}
+
+int par_parts(size_t n, size_t min_per_part) {
+    long cores = par_cores();
     size_t most = min_per_part ? n / min_per_part : n;
     return (size_t)cores < most ? (int)cores : most > 1 ? (int)most : 1;
 }
@@ -42,7 +47,8 @@ void par_run(size_t n, int parts, par_fn fn, void *ctx) {
         job[k] = (par_job){fn, ctx, 0, 0, k};
         par_range(n, parts, k, &job[k].begin, &job[k].end);
     }
-    for (int k = 1; k < parts; k++) started[k] = pthread_create(&thread[k], NULL, par_thread, &job[k]) == 0;
+    int threads = par_cores() > 1;
+    for (int k = 1; k < parts && threads; k++) started[k] = pthread_create(&thread[k], NULL, par_thread, &job[k]) == 0;
     par_thread(&job[0]);
     for (int k = 1; k < parts; k++) {
         if (started[k]) pthread_join(thread[k], NULL);

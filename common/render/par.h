@@ -23,8 +23,9 @@ int par_parts(size_t n, size_t min_per_part);
 void par_range(size_t n, int parts, int part, size_t *begin, size_t *end);
 
 /* Run fn over [0, n) in `parts` ranges (1 <= parts <= PAR_MAX_PARTS), range
- * 0 on the calling thread, the others on threads of their own (on the caller
- * too when a thread cannot be started). Returns when all are done. */
+ * 0 on the calling thread, the others on threads of their own; on the
+ * caller too, in order, when a thread cannot be started or only one core is
+ * to be used (TESSERA_LOAD_THREADS=1). Returns when all are done. */
 void par_run(size_t n, int parts, par_fn fn, void *ctx);
 
 #endif
