@@ -45,7 +45,7 @@ static text strips(int rows, int attr_from, int degenerate, int open_end) {
     add(&t, "# strips\ng all\n");
     for (int r = 0; r < rows; r++) {
         for (int c = 0; c < 4; c++) add(&t, "v %d.%d %d -0.%03d\n", c, r % 10, r, (r * 7 + c) % 1000);
-        if (r >= attr_from) add(&t, "vn 0 %d 1\r\nvt 0.%d %d\n", r % 3, r % 10, r % 2);
+        if (r >= attr_from) add(&t, "vn 0 %d %d\r\nvt 0.%d %d\n", r % 3, r % 11 != 0, r % 10, r % 2); /* some (0, 0, 0) */
         if (r == 0) continue;
         if (degenerate && r % 97 == 0) add(&t, "f %d %d %d\n", 4 * r, 4 * r, 4 * r + 1);
         else if (r % 5 == 0) add(&t, "f -8 -7 -3 -4\n");
@@ -159,11 +159,12 @@ static scene *load_with(const char *path, const char *threads, char *err, size_t
     return s;
 }
 
-/* Two instances of a mesh without attributes (the loader's parallel path,
- * with skipped degenerate faces), one of a mesh with them, a quad: the
- * scene on 3 loader threads is the scene on 1, bit for bit. */
+/* Two instances of a mesh without attributes and one of a mesh with
+ * normals (some unusable: zero) and uvs from its middle on, all with
+ * skipped degenerate faces, and a quad: the scene on 3 loader threads (the
+ * loader's ranges) is the scene on 1 (one by one), bit for bit. */
 TEST(load_scene_same_on_any_threads) {
-    text plain = strips(30000, 30000, 1, 0), attr = strips(3000, 1500, 1, 0);
+    text plain = strips(30000, 30000, 1, 0), attr = strips(30000, 15000, 1, 0);
     util_write_temp("strips-plain.obj", plain.s);
     util_write_temp("strips-attr.obj", attr.s);
     const char *path = util_write_temp(
@@ -192,7 +193,10 @@ TEST(load_scene_same_on_any_threads) {
                       memcmp(a->triangle_info, b->triangle_info, n * sizeof(prim_info)) == 0 &&
                       memcmp(a->world_center, b->world_center, sizeof a->world_center) == 0 &&
                       a->world_scale == b->world_scale &&
-                      same_array(a->triangle_vertex_normals, b->triangle_vertex_normals, 3 * n * sizeof(uint32_t)),
+                      a->triangle_vertex_normals && a->triangle_uvs &&
+                      same_array(a->triangle_vertex_normals, b->triangle_vertex_normals, 3 * n * sizeof(uint32_t)) &&
+                      same_array(a->triangle_uvs, b->triangle_uvs, 3 * n * sizeof(uint32_t)) &&
+                      a->vertex_normal_count == b->vertex_normal_count && a->uv_count == b->uv_count,
                   "the scenes loaded on 1 and 3 threads differ");
     }
     scene_free(a);

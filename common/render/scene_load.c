@@ -624,10 +624,13 @@ typedef struct {
     double scale, translate[3];
     double *w;         /* the mesh's vertices in L->wv */
     tri_r *out;        /* its first triangle slot in L->tris */
+    uint32_t *src;     /* NULL, or per kept triangle (as out) its number in the mesh */
     uint32_t base, mat; /* base: index of w's first vertex */
     int emitter;
     size_t kept[PAR_MAX_PARTS], skipped[PAR_MAX_PARTS];
     double lo[PAR_MAX_PARTS][3], hi[PAR_MAX_PARTS][3];
+    size_t first;                                /* L->tri_count before the mesh */
+    size_t vn_end[PAR_MAX_PARTS], vt_end[PAR_MAX_PARTS]; /* 1 + the last triangle given normals, uvs (0: none) */
 } mesh_add;
 
 /* Vertices [b, e) of the mesh in world coordinates. */
@@ -650,6 +653,7 @@ static void mesh_add_triangles(void *ctx, size_t b, size_t e, int part) {
         const uint32_t *idx = A->m->indices + 3 * t;
         const double *p[3] = {A->w + 3 * (size_t)idx[0], A->w + 3 * (size_t)idx[1], A->w + 3 * (size_t)idx[2]};
         if (!triangle_has_area(p[0], p[1], p[2])) continue;
+        if (A->src) A->src[b + kept] = (uint32_t)t;
         tri_r *r = &A->out[b + kept++];
         for (int k = 0; k < 3; k++) {
             r->v[k] = A->base + idx[k];
@@ -676,6 +680,7 @@ static void add_mesh_triangles(mesh_add *A) {
         size_t b, e;
         par_range(A->m->triangle_count, parts, k, &b, &e);
         if (kept != b) memmove(A->out + kept, A->out + b, A->kept[k] * sizeof *A->out);
+        if (kept != b && A->src) memmove(A->src + kept, A->src + b, A->kept[k] * sizeof *A->src);
         kept += A->kept[k];
         L->s->degenerate_triangles += A->skipped[k];
         for (int a = 0; a < 3; a++) { /* as bounds_grow, by the range's bounds in order */
@@ -684,6 +689,80 @@ static void add_mesh_triangles(mesh_add *A) {
         }
     }
     L->tri_count += kept;
+}
+
+/* Kept triangles [b, e) of the mesh (numbers A->first + b on): their
+ * normal and uv indices into L->tri_vn and L->tri_vt (made long enough), as
+ * add_triangle_attributes gives them one by one, SCENE_NONE for a triangle
+ * without; the range's last triangle that got any is noted. */
+static void mesh_add_attributes(void *ctx, size_t b, size_t e, int part) {
+    mesh_add *A = ctx;
+    loader *L = A->L;
+    const obj_mesh *m = A->m;
+    A->vn_end[part] = A->vt_end[part] = 0;
+    for (size_t j = b; j < e; j++) {
+        size_t t = A->src[j], tri = A->first + j;
+        if (m->normal_indices) {
+            uint32_t idx[3] = {SCENE_NONE, SCENE_NONE, SCENE_NONE};
+            int usable = m->normal_indices[3 * t] != OBJ_NONE;
+            for (int k = 0; k < 3 && usable; k++) {
+                idx[k] = (uint32_t)(L->obj_vn_base + m->normal_indices[3 * t + k]);
+                usable &= !vec3_is_zero(L->vn[idx[k]]);
+            }
+            for (int k = 0; k < 3; k++) L->tri_vn[3 * tri + k] = usable ? idx[k] : SCENE_NONE;
+            if (usable) A->vn_end[part] = tri + 1;
+        }
+        if (m->uv_indices) {
+            int has = m->uv_indices[3 * t] != OBJ_NONE;
+            for (int k = 0; k < 3; k++)
+                L->tri_vt[3 * tri + k] = has ? (uint32_t)(L->obj_vt_base + m->uv_indices[3 * t + k]) : SCENE_NONE;
+            if (has) A->vt_end[part] = tri + 1;
+        }
+    }
+}
+
+/* The per-corner list *arr (*len triangles long, capacity *cap entries)
+ * made room for `tris` triangles. Returns 0 or -1 when out of memory. */
+static int corners_room(uint32_t **arr, size_t *cap, size_t tris) {
+    if (3 * tris <= *cap) return 0;
+    uint32_t *p = realloc(*arr, 3 * tris * sizeof *p);
+    if (!p) return -1;
+    *arr = p;
+    *cap = 3 * tris;
+    return 0;
+}
+
+/* After mesh_add_attributes: a list that got entries is SCENE_NONE from its
+ * old end to the mesh's first triangle and now ends after its last entry. */
+static void corners_close(uint32_t *arr, size_t *len, size_t first, const size_t end[PAR_MAX_PARTS], int parts) {
+    size_t last = 0;
+    for (int k = 0; k < parts; k++) last = end[k] > last ? end[k] : last;
+    if (!last) return;
+    for (size_t i = 3 * *len; i < 3 * first; i++) arr[i] = SCENE_NONE;
+    *len = last;
+}
+
+/* Add the mesh's triangles with their normals and uvs in ranges: the
+ * triangles as add_mesh_triangles, noting where each kept one came from,
+ * then their attribute indices. Returns 0 or -1 when out of memory. */
+static int add_mesh_triangles_with_attributes(mesh_add *A) {
+    loader *L = A->L;
+    A->first = L->tri_count;
+    A->src = malloc((A->m->triangle_count + 1) * sizeof *A->src);
+    if (!A->src) return -1;
+    add_mesh_triangles(A);
+    size_t kept = L->tri_count - A->first;
+    int rc = (A->m->normal_indices && corners_room(&L->tri_vn, &L->tri_vn_cap, L->tri_count)) ||
+             (A->m->uv_indices && corners_room(&L->tri_vt, &L->tri_vt_cap, L->tri_count));
+    if (rc == 0) {
+        int parts = par_parts(kept, 1 << 14);
+        par_run(kept, parts, mesh_add_attributes, A);
+        if (A->m->normal_indices) corners_close(L->tri_vn, &L->tri_vn_len, A->first, A->vn_end, parts);
+        if (A->m->uv_indices) corners_close(L->tri_vt, &L->tri_vt_len, A->first, A->vt_end, parts);
+    }
+    free(A->src);
+    A->src = NULL;
+    return rc ? -1 : 0;
 }
 
 static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat, int em) {
@@ -715,8 +794,8 @@ static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat
     double *w = reserve_vertices(L, m.vertex_count);
     if (!w || reserve_triangles(L, m.triangle_count))
         return jf_fail(&L->j, where, NULL, "out of memory (%zu triangles)", L->tri_count + m.triangle_count);
-    mesh_add A = {L, &m, scale, {translate[0], translate[1], translate[2]}, w, L->tris + L->tri_count,
-                  (uint32_t)L->wv_count, mat, em, {0}, {0}, {{0}}, {{0}}};
+    mesh_add A = {L, &m, scale, {translate[0], translate[1], translate[2]}, w, L->tris + L->tri_count, NULL,
+                  (uint32_t)L->wv_count, mat, em, {0}, {0}, {{0}}, {{0}}, 0, {0}, {0}};
     par_run(m.vertex_count, par_parts(m.vertex_count, 1 << 14), mesh_add_vertices, &A); /* once per vertex */
     size_t base = L->wv_count;
     L->wv_count += m.vertex_count;
@@ -724,6 +803,8 @@ static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat
         add_mesh_triangles(&A);
         return 0;
     }
+    if (par_parts(m.triangle_count, 1 << 14) > 1)
+        return add_mesh_triangles_with_attributes(&A) ? jf_fail(&L->j, where, NULL, "out of memory") : 0;
     for (size_t t = 0; t < m.triangle_count; t++) {
         const uint32_t *idx = m.indices + 3 * t;
         if (!triangle_has_area(w + 3 * (size_t)idx[0], w + 3 * (size_t)idx[1], w + 3 * (size_t)idx[2])) {
