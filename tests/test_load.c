@@ -159,9 +159,9 @@ static scene *load_with(const char *path, const char *threads, char *err, size_t
     return s;
 }
 
-/* Two instances of a mesh without attributes and one of a mesh with
- * normals (some unusable: zero) and uvs from its middle on, all with
- * skipped degenerate faces, and a quad: the scene on 3 loader threads (the
+/* Two instances of a mesh without attributes, one of it smoothed
+ * (`smooth_angle`), one of a mesh with normals (some unusable: zero) and
+ * uvs from its middle on, all with skipped degenerate faces, and a quad: the scene on 3 loader threads (the
  * loader's ranges) is the scene on 1 (one by one), bit for bit. */
 TEST(load_scene_same_on_any_threads) {
     text plain = strips(30000, 30000, 1, 0), attr = strips(30000, 15000, 1, 0);
@@ -175,7 +175,9 @@ TEST(load_scene_same_on_any_threads) {
         "{\"type\": \"mesh\", \"file\": \"strips-plain.obj\", \"material\": \"m\", \"scale\": 0.01},"
         "{\"type\": \"mesh\", \"file\": \"strips-attr.obj\", \"material\": \"m\", \"translate\": [-0.0, 3, 0]},"
         "{\"type\": \"mesh\", \"file\": \"strips-plain.obj\", \"material\": \"m\", \"scale\": 0.02, "
-        "\"translate\": [-1, 0, 0.5], \"emission\": [1, 1, 1]}]}");
+        "\"translate\": [-1, 0, 0.5], \"emission\": [1, 1, 1]},"
+        "{\"type\": \"mesh\", \"file\": \"strips-plain.obj\", \"material\": \"m\", \"smooth_angle\": 50, "
+        "\"translate\": [2, 0, 0]}]}");
     char err[512];
     scene *a = load_with(path, "1", err, sizeof err), *b = a ? load_with(path, "3", err, sizeof err) : NULL;
     CHECK(a && b, "%s", err);
@@ -196,7 +198,9 @@ TEST(load_scene_same_on_any_threads) {
                       a->triangle_vertex_normals && a->triangle_uvs &&
                       same_array(a->triangle_vertex_normals, b->triangle_vertex_normals, 3 * n * sizeof(uint32_t)) &&
                       same_array(a->triangle_uvs, b->triangle_uvs, 3 * n * sizeof(uint32_t)) &&
-                      a->vertex_normal_count == b->vertex_normal_count && a->uv_count == b->uv_count,
+                      a->vertex_normal_count == b->vertex_normal_count && a->uv_count == b->uv_count &&
+                      memcmp(a->vertex_normals, b->vertex_normals, a->vertex_normal_count * sizeof(vec3)) == 0 &&
+                      memcmp(a->uvs, b->uvs, a->uv_count * 2 * sizeof(float)) == 0,
                   "the scenes loaded on 1 and 3 threads differ");
     }
     scene_free(a);

@@ -474,6 +474,24 @@ static int set_corners(uint32_t **arr, size_t *len, size_t *cap, size_t tri, con
     return 0;
 }
 
+/* Normals in[b, e) (3 floats each) made unit into out (zero when they
+ * cannot be). */
+typedef struct {
+    const float *in;
+    vec3 *out;
+} unit_job;
+
+static void unit_normals(void *ctx, size_t b, size_t e, int part) {
+    const unit_job *J = ctx;
+    (void)part;
+    for (size_t i = b; i < e; i++) {
+        const float *n = J->in + 3 * i;
+        double len = sqrt((double)n[0] * n[0] + (double)n[1] * n[1] + (double)n[2] * n[2]);
+        J->out[i] = len > 1e-30 && isfinite(len) ? vec3_make((float)(n[0] / len), (float)(n[1] / len), (float)(n[2] / len))
+                                                 : vec3_make(0, 0, 0);
+    }
+}
+
 /* Append count normals (3 floats each; OBJ's or an imported model's) to the
  * loader's, made unit (zero when they cannot be). Returns 0 or -1 when out
  * of memory. */
@@ -482,13 +500,9 @@ static int append_normals(loader *L, const float *normals, size_t count) {
     vec3 *p = realloc(L->vn, (L->vn_count + count) * sizeof *p);
     if (!p) return -1;
     L->vn = p;
-    for (size_t i = 0; i < count; i++) {
-        const float *n = normals + 3 * i;
-        double len = sqrt((double)n[0] * n[0] + (double)n[1] * n[1] + (double)n[2] * n[2]);
-        L->vn[L->vn_count++] = len > 1e-30 && isfinite(len)
-                                   ? vec3_make((float)(n[0] / len), (float)(n[1] / len), (float)(n[2] / len))
-                                   : vec3_make(0, 0, 0);
-    }
+    unit_job J = {normals, L->vn + L->vn_count};
+    par_run(count, par_parts(count, 1 << 14), unit_normals, &J);
+    L->vn_count += count;
     return 0;
 }
 
