@@ -428,7 +428,8 @@ static int join_spans(obj_spans *S, int parts, obj_mesh *out) {
     for (int k = 0; k < parts; k++) {
         obj_mesh *m = &S->span[k].m;
         size_t t = out->triangle_count;
-        if (m->indices != out->indices + 3 * t) memmove(out->indices + 3 * t, m->indices, 3 * m->triangle_count * sizeof(uint32_t));
+        if (m->indices != out->indices + 3 * t)
+            memmove(out->indices + 3 * t, m->indices, 3 * m->triangle_count * sizeof(uint32_t));
         rc = rc || join_corners(&out->normal_indices, t, m->normal_indices, m->triangle_count) ||
              join_corners(&out->uv_indices, t, m->uv_indices, m->triangle_count);
         out->vertex_count += m->vertex_count;
@@ -437,6 +438,7 @@ static int join_spans(obj_spans *S, int parts, obj_mesh *out) {
         out->triangle_count += m->triangle_count;
         free(m->normal_indices);
         free(m->uv_indices);
+        m->normal_indices = m->uv_indices = NULL;
     }
     return rc ? -1 : 0;
 }
