@@ -8,7 +8,9 @@
  * once; each round renders the whole image as one tile on the calling
  * thread and reports that thread's CPU time (CLOCK_THREAD_CPUTIME_ID: the
  * builders' threads and the loading are not counted), rays per CPU second,
- * and whether the picture equals the first kind's bit for bit. */
+ * and whether the picture equals the first kind's bit for bit; for the wide
+ * BVH also its walk (the widest this CPU runs, or as TESSERA_NO_AVX512 /
+ * TESSERA_NO_AVX2 say), its nodes and leaves and bytes per primitive. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -58,6 +60,10 @@ int main(int argc, char **argv) {
     for (int k = 0; k < nk; k++) {
         built[k] = accel_build_err(s, kinds[k], err, sizeof err);
         if (!built[k]) return fprintf(stderr, "accel-speed: building %s: %s\n", names[k], err), 1;
+        accel_wide_stats ws;
+        if (accel_get_wide_stats(built[k], &ws) == 0)
+            printf("wide: %s walk, %zu nodes, %zu leaves, %.1f bytes per primitive\n", ws.walk_isa, ws.node_count,
+                   ws.leaf_count, (double)ws.memory_bytes / (double)(ws.primitive_count ? ws.primitive_count : 1));
     }
     tile_rect all = {0, 0, s->settings.width, s->settings.height};
     size_t px = (size_t)s->settings.width * (size_t)s->settings.height;

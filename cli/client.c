@@ -382,23 +382,6 @@ static void warn_partial(const cJSON *p, const char *out) {
             (int)num(p, "job"), str(p, "state"), total - done, total, out, str(p, "missing"), ts, ts);
 }
 
-/* The I frame of a partial fetch (u32 width, u32 height, floats) written
- * to out. Takes body. Returns 0 or 1 (printed). */
-static int write_image_frame(long job, int kind, uint8_t *body, size_t len, const char *out, image_write_options *wo) {
-    uint32_t w = len >= 8 ? wire_get_u32(body) : 0, h = len >= 8 ? wire_get_u32(body + 4) : 0;
-    image img;
-    if (kind != 'I' || w == 0 || h == 0 || len != 8 + (size_t)w * h * 12 || image_alloc(&img, (int)w, (int)h)) {
-        free(body);
-        return cli_fail("job %ld: the coordinator sent a malformed image", job);
-    }
-    for (size_t i = 0; i < (size_t)w * h * 3; i++) img.rgb[i] = wire_get_f32(body + 8 + 4 * i);
-    free(body);
-    char err[1024];
-    int rc = image_write(out, &img, wo, err, sizeof err);
-    image_free(&img);
-    return rc ? cli_fail("%s", err) : 0;
-}
-
 /* Receive the D frames of a streamed image into the open file fd (tmp
  * names it) until image_end, checking the byte count and BLAKE2b-256
  * against it and against the image message's size. Returns 0 or 1. */
@@ -491,7 +474,7 @@ static int fetch_image(cli *c, long job, const char *out, image_write_options *w
             cJSON_Delete(e);
             return rc;
         }
-        if (e && partial && strcmp(type, "partial") == 0) { /* the image follows */
+        if (e && partial && strcmp(type, "partial") == 0) { /* the image follows, streamed */
             warn_partial(e, out);
             cJSON_Delete(e);
             if ((kind = read_frame(c, &body, &len)) < 0) return 1;
@@ -503,7 +486,8 @@ static int fetch_image(cli *c, long job, const char *out, image_write_options *w
         cJSON_Delete(e);
         return 1;
     }
-    return write_image_frame(job, kind, body, len, out, wo);
+    free(body);
+    return cli_fail("job %ld: the coordinator sent a malformed answer to fetch", job);
 }
 
 /* fetch_image with the job's scene, spp and seed in the file's header
@@ -899,12 +883,13 @@ static void usage_logs(FILE *f) {
                "\n"
                "The job's event log: submitted, tiles handed out (and backup copies), done,\n"
                "requeued after a failure, workers joining and leaving, priority changes, the\n"
-               "end. The coordinator keeps the last 2000 lines of each job while it runs;\n"
+               "end. The coordinator keeps the last %d lines of each job while it runs;\n"
                "the dashboard's job page shows the same lines.\n"
                "\n"
                "options:\n"
                "      --last N             only the newest N lines\n"
-               COMMON_OPTIONS_HELP);
+               COMMON_OPTIONS_HELP,
+            PROTOCOL_LOG_LINES_MAX);
 }
 
 static void usage_fetch(FILE *f) {
@@ -996,7 +981,7 @@ int client_main(int argc, char **argv) {
         {.name = "png16", .kind = ARG_FLAG, .dest = &a.wo.png16},
         {.name = "partial", .kind = ARG_FLAG, .dest = &a.partial},
         {.name = "camera", .kind = ARG_STRING, .dest = &a.camera},
-        {.name = "last", .kind = ARG_INT, .dest = &a.last, .lo = 1, .hi = 2000},
+        {.name = "last", .kind = ARG_INT, .dest = &a.last, .lo = 1, .hi = PROTOCOL_LOG_LINES_MAX},
         {NULL}};
     const client_command *cmd = NULL;
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)

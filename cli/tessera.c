@@ -328,8 +328,8 @@ static void print_scene_info(const scene *s) {
     if (!s->accel)
         fprintf(stderr, "intersector: built by each worker (workers print theirs with -v)\n");
     else if (accel_get_wide_stats(s->accel, &ws) == 0)
-        fprintf(stderr, "intersector: wide (%d-wide BVH, Tessera's walk and tests; builder device \"%s\"), %zu nodes, "
-                "%zu leaves, %.1f KiB, peak %.1f KiB while building, built in %.3f ms\n", ws.node_width, ws.config, ws.node_count,
+        fprintf(stderr, "intersector: wide (%d-wide BVH, Tessera's %s walk and tests; builder device \"%s\"), %zu nodes, "
+                "%zu leaves, %.1f KiB, peak %.1f KiB while building, built in %.3f ms\n", ws.node_width, ws.walk_isa, ws.config, ws.node_count,
                 ws.leaf_count, (double)ws.memory_bytes / 1024.0, (double)ws.peak_bytes / 1024.0, ws.build_seconds * 1e3);
     else if (accel_get_embree_stats(s->accel, &es) == 0)
         fprintf(stderr, "intersector: embree (Tessera's tests at the leaves; device \"%s\"), %.1f KiB, peak %.1f KiB "
@@ -512,9 +512,8 @@ static int cmd_render(int argc, char **argv) {
     int farm_mode = a.listen || a.workers > 0;
     if (!farm_mode) {
         scene_bundle_free(&b); /* the scene has what it needs: the mesh files' text goes before the build */
-        s->accel = accel_build_err(s, s->settings.accel, err, sizeof err);
-        if (!s->accel) {
-            fprintf(stderr, "tessera: %s: shapes: building the intersector: %s\n", s->path, err);
+        if (scene_build_accel(s, err, sizeof err)) {
+            fprintf(stderr, "tessera: %s\n", err);
             rc = -1;
         }
     }

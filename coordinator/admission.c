@@ -12,7 +12,7 @@ uint64_t svc_memory_in_use(const service *s, int *jobs) {
     int n = 0;
     const sjob *j;
     TAILQ_FOREACH(j, &s->jobs, link)
-        if (j->rgb) { /* admitted and holding its frame (rendering, or waiting for disk space) */
+        if (j->rgb || j->admitting) { /* admitted: holding its frame (rendering, or waiting for disk space) or about to */
             sum += j->need;
             n++;
         }
@@ -38,22 +38,79 @@ int svc_admit_check(const service *s, const sjob *j, char *why, size_t why_len) 
     return 1;
 }
 
+/* An admitted job's scene, read and framed on the loop's thread pool: a
+ * scene of up to --max-upload bytes is no stall of the loop. */
+typedef struct {
+    uv_work_t work;
+    service *s;
+    sjob *j;
+    char path[4096];
+    size_t max_len;
+    conn_blob *framed; /* the scene as a frame, or NULL with err */
+    char err[600];
+} admit_read;
+
+static void admit_read_work(uv_work_t *w) {
+    admit_read *a = w->data;
+    size_t len = 0;
+    char *bundle = file_read_all(a->path, a->max_len, &len, a->err, sizeof a->err);
+    if (bundle && !(a->framed = conn_blob_frame(WIRE_KIND_SCENE, (const uint8_t *)bundle, len)))
+        snprintf(a->err, sizeof a->err, "out of memory for the scene's %zu bytes", len);
+    free(bundle);
+}
+
+/* Back on the loop: start the job unless it was cancelled (or the service
+ * began to stop) while its scene was read. */
+static void admit_read_done(uv_work_t *w, int status) {
+    admit_read *a = w->data;
+    sjob *j = a->j;
+    j->admitting = 0;
+    if (status == 0 && !a->s->stopping && j->state == SJOB_RUNNING) {
+        const uint8_t *bundle = a->framed ? a->framed->data + WIRE_HEADER_BYTES : NULL;
+        size_t len = a->framed ? a->framed->len - WIRE_HEADER_BYTES : 0;
+        store_job_resume_with(a->s, j, bundle, len, a->framed, a->err); /* a failure is recorded in the job */
+    } else {
+        svc_memory_released(a->s); /* its need no longer counts */
+    }
+    conn_blob_unref(a->framed);
+    free(a);
+}
+
 void svc_admit_waiting(service *s) {
     sjob *j;
     char why[300];
     TAILQ_FOREACH(j, &s->jobs, link) {
         if (!j->waiting || j->state != SJOB_RUNNING || svc_admit_check(s, j, why, sizeof why) != 0) continue;
+        admit_read *a = calloc(1, sizeof *a);
+        if (!a) return; /* out of memory: the job keeps waiting, tried again when memory is next released */
         char need[32];
         membudget_format(j->need, need, sizeof need);
         j->waiting = 0;
+        j->admitting = 1; /* its need counts from now on */
         j->error[0] = 0;
         svc_log("job %u admitted: its %s fit within --max-memory now", j->desc.id, need);
-        store_job_resume(s, j); /* a failure is recorded in the job */
+        a->s = s;
+        a->j = j;
+        a->max_len = s->o.max_upload;
+        a->work.data = a;
+        store_scene_path(s, j, a->path, sizeof a->path);
+        if (uv_queue_work(&s->loop, &a->work, admit_read_work, admit_read_done)) {
+            free(a);
+            j->admitting = 0;
+            store_job_resume(s, j); /* the pool refused: read here */
+        }
     }
 }
 
+static void on_admit_timer(uv_timer_t *t) { svc_admit_waiting(t->data); }
+
+void svc_memory_released(service *s) {
+    if (s->stopping || uv_is_closing((uv_handle_t *)&s->admit)) return;
+    uv_timer_start(&s->admit, on_admit_timer, 0, 0);
+}
+
 void svc_cancel_job(service *s, sjob *j) {
-    if (!j->waiting) {
+    if (!j->waiting && !j->admitting) {
         store_job_cancel(s, j); /* store_on_job_event records the state */
         return;
     }
@@ -63,6 +120,7 @@ void svc_cancel_job(service *s, sjob *j) {
     j->error[0] = 0;
     j->finished = svc_wall_now();
     if (store_save_job(j, err, sizeof err)) svc_log("job %u: %s", j->desc.id, err);
-    svc_log("job %u cancelled while waiting for memory", j->desc.id);
-    joblog_add(j->log, j->finished, "cancelled while waiting for memory");
+    const char *when = j->admitting ? "while its scene was read" : "while waiting for memory";
+    svc_log("job %u cancelled %s", j->desc.id, when);
+    joblog_add(j->log, j->finished, "cancelled %s", when);
 }

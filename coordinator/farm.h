@@ -114,9 +114,10 @@ typedef struct {
      * sample range; rgb then receives ADAPTIVE_CHANNELS sums per pixel. */
     const uint8_t *mask;
     uint32_t first, count;
-    /* The bundle already framed (a WIRE_KIND_SCENE frame of bundle_len
-     * bytes, e.g. built off the loop): the farm takes a reference instead
-     * of copying bundle. NULL: bundle is copied. */
+    /* The bundle already framed (a WIRE_KIND_SCENE frame, e.g. built off
+     * the loop, or shared by an adaptive job's rounds): the farm takes a
+     * reference, and farm_submit's bundle is not read (it may be NULL).
+     * NULL: bundle is copied. */
     conn_blob *scene;
 } farm_job_options;
 

@@ -349,15 +349,12 @@ static int audit_someone_may_take(const farm *f, job *j, uint32_t t) {
 }
 
 /* Pending tile t's audit copy is running far longer than the job's tiles
- * do (the backup criterion of farm_sched.c: BACKUP_AGE_FACTOR times the
- * mean, at least BACKUP_MIN_AGE_S), and no connected worker in good
- * standing that does not hold it may render it: a stuck or very slow
- * verifier in a farm with no third worker to back it up. */
+ * do (longer than job_backup_age, the backup criterion), and no connected
+ * worker in good standing that does not hold it may render it: a stuck or
+ * very slow verifier in a farm with no third worker to back it up. */
 static int audit_copy_stalled(const farm *f, job *j, uint32_t t) {
     if (!j->holders[t] || j->rep.tiles_done == 0) return 0;
-    double age = BACKUP_AGE_FACTOR * j->tile_seconds / j->rep.tiles_done;
-    if (age < BACKUP_MIN_AGE_S) age = BACKUP_MIN_AGE_S;
-    if (farm_now(f) - j->first_start[t] <= age) return 0;
+    if (farm_now(f) - j->first_start[t] <= job_backup_age(j)) return 0;
     peer *p;
     LIST_FOREACH(p, &f->peers, link) {
         lease *l = peer_find_lease(p, j->desc.id, t);

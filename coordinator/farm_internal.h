@@ -215,6 +215,11 @@ int farm_on_tile(peer *p, const uint8_t *body, size_t len);
 /* Queue tile t unless it is done, held, pending an audit or queued. */
 void farm_requeue_tile(job *j, uint32_t t);
 
+/* How long a tile of j may run before a backup copy pays: BACKUP_AGE_FACTOR
+ * times the job's mean tile time, at least BACKUP_MIN_AGE_S. Needs at least
+ * one tile done (farm_sched.c). */
+double job_backup_age(const job *j);
+
 /* ---- audited tiles (farm_audit.c) -------------------------------------------- */
 
 enum { AUDIT_ACCEPT, AUDIT_HOLD, AUDIT_DROP, AUDIT_FAILED };

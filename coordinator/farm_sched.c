@@ -132,13 +132,16 @@ lease *peer_find_lease(peer *p, uint32_t job_id, uint32_t tile) {
     return NULL;
 }
 
+double job_backup_age(const job *j) {
+    double age = BACKUP_AGE_FACTOR * j->tile_seconds / j->rep.tiles_done;
+    return age < BACKUP_MIN_AGE_S ? BACKUP_MIN_AGE_S : age;
+}
+
 /* A tile worth backing up for p: not done, held once, not by p, running
- * longer than BACKUP_AGE_FACTOR times the mean tile time. Oldest first. */
+ * longer than job_backup_age. Oldest first. */
 static int job_pick_backup(const farm *f, job *j, peer *p, uint32_t *out) {
-    int done = j->rep.tiles_done;
-    if (done == 0) return 0;
-    double mean = j->tile_seconds / done, now = farm_now(f), best_age = BACKUP_AGE_FACTOR * mean;
-    if (best_age < BACKUP_MIN_AGE_S) best_age = BACKUP_MIN_AGE_S;
+    if (j->rep.tiles_done == 0) return 0;
+    double now = farm_now(f), best_age = job_backup_age(j);
     int found = 0;
     for (int t = 0; t < j->tile_count; t++) {
         if (j->done[t] || j->holders[t] != 1 || now - j->first_start[t] <= best_age) continue;
@@ -248,16 +251,11 @@ int farm_submit(farm *f, const proto_job *desc, const uint8_t *bundle, size_t bu
     j->first_start = calloc(n, sizeof *j->first_start);
     j->queue = calloc(n, sizeof *j->queue);
     if (o->scene) o->scene->refs++; /* shared, not copied */
-    j->scene = o->scene ? o->scene : bundle_len < UINT32_MAX ? conn_blob_new(WIRE_HEADER_BYTES + bundle_len) : NULL;
+    j->scene = o->scene ? o->scene : conn_blob_frame(WIRE_KIND_SCENE, bundle, bundle_len);
     if (!j->rects || !j->done || !j->holders || !j->queued || !j->failures || !j->first_start || !j->queue ||
         !j->scene || audit_new(j, f->opt.audit)) {
         farm_job_free(j);
         return -1;
-    }
-    if (!o->scene) {
-        wire_put_u32(j->scene->data, (uint32_t)(bundle_len + 1));
-        j->scene->data[4] = WIRE_KIND_SCENE;
-        memcpy(j->scene->data + WIRE_HEADER_BYTES, bundle, bundle_len);
     }
     render_split_tiles(desc->width, desc->height, o->tile_size, j->rects, j->tile_count);
     for (int t = 0; t < j->tile_count; t++) {

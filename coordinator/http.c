@@ -10,6 +10,7 @@
 #include <strings.h>
 
 #include "list.h"
+#include "net/blob.h"
 
 /* ---- the request parser ------------------------------------------------- */
 
@@ -229,30 +230,16 @@ struct http_server {
     void *closed_ctx;
 };
 
-/* Bytes written to one or more connections: freed when the last write
- * that holds them ends (a broadcast shares one copy among its streams). */
-typedef struct {
-    int refs;
-    size_t len;
-    char data[];
-} http_blob;
-
 typedef struct {
     uv_write_t req;
-    http_blob *blob;
+    conn_blob *blob; /* bytes shared by every write that holds them (net/conn.h) */
 } http_write;
 
-static http_blob *blob_new(const char *data, size_t len) {
-    http_blob *b = malloc(sizeof *b + (len ? len : 1));
-    if (!b) return NULL;
-    b->refs = 1;
-    b->len = len;
-    memcpy(b->data, data, len);
+/* A blob holding a copy of len bytes, or NULL when out of memory. */
+static conn_blob *blob_copy(const char *data, size_t len) {
+    conn_blob *b = conn_blob_new(len);
+    if (b && len) memcpy(b->data, data, len);
     return b;
-}
-
-static void blob_unref(http_blob *b) {
-    if (b && --b->refs == 0) free(b);
 }
 
 static void server_maybe_done(http_server *s) {
@@ -291,7 +278,7 @@ static void conn_close(http_conn *c) {
 static void on_written(uv_write_t *req, int status) {
     http_write *w = (http_write *)req;
     http_conn *c = req->data;
-    blob_unref(w->blob);
+    conn_blob_unref(w->blob);
     free(w);
     if (status < 0 || (!c->streaming && uv_stream_get_write_queue_size((uv_stream_t *)&c->tcp) == 0))
         conn_close(c);
@@ -299,7 +286,7 @@ static void on_written(uv_write_t *req, int status) {
 
 /* Queue the blob's bytes (a reference is taken). Returns 0, or -1 (the
  * connection is closed). */
-static int conn_write_blob(http_conn *c, http_blob *b) {
+static int conn_write_blob(http_conn *c, conn_blob *b) {
     if (c->closing) return -1;
     if (c->streaming && uv_stream_get_write_queue_size((uv_stream_t *)&c->tcp) > c->s->o.max_queue) {
         c->s->dropped++;
@@ -314,9 +301,9 @@ static int conn_write_blob(http_conn *c, http_blob *b) {
     b->refs++;
     w->blob = b;
     w->req.data = c;
-    uv_buf_t buf = uv_buf_init(b->data, (unsigned)b->len);
+    uv_buf_t buf = uv_buf_init((char *)b->data, (unsigned)b->len);
     if (uv_write(&w->req, (uv_stream_t *)&c->tcp, &buf, 1, on_written)) {
-        blob_unref(b);
+        conn_blob_unref(b);
         free(w);
         conn_close(c);
         return -1;
@@ -326,13 +313,13 @@ static int conn_write_blob(http_conn *c, http_blob *b) {
 
 /* Queue len bytes (copied). Returns 0, or -1 (the connection is closed). */
 static int conn_write(http_conn *c, const char *data, size_t len) {
-    http_blob *b = c->closing ? NULL : blob_new(data, len);
+    conn_blob *b = c->closing ? NULL : blob_copy(data, len);
     if (!b) {
         conn_close(c);
         return -1;
     }
     int rc = conn_write_blob(c, b);
-    blob_unref(b);
+    conn_blob_unref(b);
     return rc;
 }
 
@@ -370,15 +357,15 @@ void http_respond(http_conn *c, int status, const char *content_type, const void
                      "Referrer-Policy: same-origin\r\n%s\r\n",
                      status, http_status_text(status), content_type, len, extra_headers ? extra_headers : "");
     if (n < 0 || (size_t)n >= sizeof head) n = 0;
-    char *all = malloc((size_t)n + len + 1);
-    if (!all) {
+    conn_blob *b = conn_blob_new((size_t)n + len); /* head and body, copied once */
+    if (!b) {
         conn_close(c);
         return;
     }
-    memcpy(all, head, (size_t)n);
-    if (len) memcpy(all + n, body, len);
-    conn_write(c, all, (size_t)n + len);
-    free(all);
+    memcpy(b->data, head, (size_t)n);
+    if (len) memcpy(b->data + n, body, len);
+    conn_write_blob(c, b);
+    conn_blob_unref(b);
 }
 
 int http_stream_start(http_conn *c) {
@@ -395,14 +382,14 @@ int http_stream_start(http_conn *c) {
 
 int http_server_broadcast(http_server *s, const char *data, size_t len) {
     int n = 0;
-    http_blob *b = NULL; /* one copy for every stream */
+    conn_blob *b = NULL; /* one copy for every stream */
     http_conn *c, *next;
     LIST_FOREACH_SAFE(c, &s->all, link, next) {
         if (!c->streaming || c->closing) continue;
-        if (!b && !(b = blob_new(data, len))) return n;
+        if (!b && !(b = blob_copy(data, len))) return n;
         if (conn_write_blob(c, b) == 0) n++;
     }
-    blob_unref(b);
+    conn_blob_unref(b);
     return n;
 }
 

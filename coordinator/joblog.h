@@ -14,8 +14,9 @@
 #include <stdint.h>
 
 #include "farm.h"
+#include "net/protocol.h"
 
-#define JOBLOG_MAX 2000  /* lines kept per job */
+#define JOBLOG_MAX PROTOCOL_LOG_LINES_MAX /* lines kept per job */
 #define JOBLOG_LINE 120  /* bytes per line, NUL included (longer lines are cut) */
 
 typedef struct joblog joblog;

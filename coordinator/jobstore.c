@@ -58,10 +58,12 @@ static void store_job_release(sjob *j) {
     free(j->sums);
     free(j->mask);
     free(j->skip);
-    free(j->bundle);
+    conn_blob_unref(j->scene);
+    j->scene = NULL;
     j->ad = NULL;
     j->sums = NULL;
-    j->mask = j->skip = j->bundle = NULL;
+    j->mask = j->skip = NULL;
+    if (j->rgb) svc_memory_released(j->svc); /* its need no longer counts (svc_memory_in_use) */
     free(j->rgb);
     free(j->journaled);
     j->rgb = NULL;
@@ -254,17 +256,14 @@ static int store_submit_round(sjob *j) {
         store_on_job_event(j, &rep, 1);
         return 0;
     }
-    tile_rect *tiles = malloc((size_t)j->tile_count * sizeof *tiles);
-    if (!tiles) return -1;
-    render_split_tiles(j->desc.width, j->desc.height, j->tile_size, tiles, j->tile_count);
-    for (int t = 0; t < j->tile_count; t++) j->skip[t] = !render_tile_has_active(&tiles[t], j->desc.width, j->mask);
-    free(tiles);
+    if (render_mark_idle_tiles(j->desc.width, j->desc.height, j->tile_size, j->mask, j->skip)) return -1;
     proto_job round = j->desc;
     round.id = j->farm_id = SVC_ROUND_IDS + (s->next_round++ & (SVC_ROUND_IDS - 1));
     round.adaptive = 1;
     farm_job_options fo = {.tile_size = j->tile_size, .priority = j->priority, .done = j->skip, .mask = j->mask,
-                           .first = first, .count = count, .on_first_assign = j->first_tile > 0 ? NULL : store_on_first_assign};
-    return farm_submit(s->f, &round, j->bundle, j->bundle_len, &fo, j->sums, store_on_round_event, j);
+                           .first = first, .count = count, .on_first_assign = j->first_tile > 0 ? NULL : store_on_first_assign,
+                           .scene = j->scene};
+    return farm_submit(s->f, &round, NULL, 0, &fo, j->sums, store_on_round_event, j);
 }
 
 /* The round timer: the last round is over and the farm done with it. */
@@ -296,25 +295,26 @@ static void store_on_round_event(void *ctx, const farm_report *r, int done) {
     uv_timer_start(j->round_timer, on_round_timer, 0, 0);
 }
 
-/* Set up an adaptive job's state and hand the farm its first round.
- * Returns 0, or -1 with err set. */
-static int store_adaptive_start(service *s, sjob *j, const uint8_t *bundle, size_t len, char *err, size_t err_len) {
+/* Set up an adaptive job's state and hand the farm its first round; every
+ * round shares one framed copy of the scene: framed (a reference is taken)
+ * or, when NULL, one made from bundle. Returns 0, or -1 with err set. */
+static int store_adaptive_start(service *s, sjob *j, const uint8_t *bundle, size_t len, conn_blob *framed,
+                                char *err, size_t err_len) {
     size_t px = (size_t)j->desc.width * (size_t)j->desc.height;
     j->desc.adaptive = 1;
     j->ad = adaptive_new(j->desc.width, j->desc.height, j->desc.spp, j->min_spp, j->noise_threshold);
     j->sums = calloc(px * ADAPTIVE_CHANNELS, sizeof(float));
     j->mask = malloc(px);
     j->skip = malloc((size_t)j->tile_count);
-    j->bundle = malloc(len ? len : 1);
+    if (framed) framed->refs++;
+    j->scene = framed ? framed : conn_blob_frame(WIRE_KIND_SCENE, bundle, len);
     j->round_timer = malloc(sizeof *j->round_timer);
-    if (!j->ad || !j->sums || !j->mask || !j->skip || !j->bundle || !j->round_timer) {
+    if (!j->ad || !j->sums || !j->mask || !j->skip || !j->scene || !j->round_timer) {
         free(j->round_timer);
         j->round_timer = NULL;
         snprintf(err, err_len, "out of memory for adaptive sampling of job %u", j->desc.id);
         return -1;
     }
-    memcpy(j->bundle, bundle, len);
-    j->bundle_len = len;
     uv_timer_init(&s->loop, j->round_timer);
     j->round_timer->data = j;
     j->round_stats = (trace_stats){0};
@@ -344,7 +344,7 @@ int store_job_start(service *s, sjob *j, const uint8_t *bundle, size_t len, conn
                     size_t err_len) {
     char path[4096];
     j->farm_id = j->desc.id;
-    if (j->noise_threshold > 0) return store_adaptive_start(s, j, bundle, len, err, err_len);
+    if (j->noise_threshold > 0) return store_adaptive_start(s, j, bundle, len, framed, err, err_len);
     store_job_path(s, j->desc.id, "tiles", path, sizeof path);
     j->journal = tjournal_open(&s->loop, path, store_on_batch, store_on_journal_pause, j, err, err_len);
     if (!j->journal) return -1;
@@ -471,7 +471,7 @@ static void load_job(service *s, const char *file) {
     j->tile_count = render_split_tiles(d.width, d.height, j->tile_size, NULL, 0);
     if (j->state != SJOB_RUNNING) return;
     struct stat sb;
-    snprintf(path, sizeof path, "%s/scenes/%s", s->o.data_dir, d.scene_hash);
+    store_scene_path(s, j, path, sizeof path);
     j->need = membudget_job_bytes(d.width, d.height, j->tile_count, stat(path, &sb) == 0 ? (uint64_t)sb.st_size : 0);
     int adm = svc_admit_check(s, j, err, sizeof err);
     if (adm == 0) {
@@ -485,20 +485,17 @@ static void load_job(service *s, const char *file) {
     if (adm < 0) store_save_job(j, err, sizeof err);
 }
 
-int store_job_resume(service *s, sjob *j) {
-    char path[4096], err[600];
-    size_t len = 0;
+int store_job_resume_with(service *s, sjob *j, const uint8_t *bundle, size_t len, conn_blob *framed,
+                          const char *read_err) {
+    char err[600];
     const proto_job d = j->desc;
-    /* The scene from its hash, the tiles from the journal. */
-    snprintf(path, sizeof path, "%s/scenes/%s", s->o.data_dir, d.scene_hash);
-    char *bundle = file_read_all(path, s->o.max_upload, &len, err, sizeof err);
     tile_rect *rects = calloc((size_t)j->tile_count, sizeof *rects);
     j->rgb = calloc((size_t)d.width * (size_t)d.height * 3, sizeof(float));
     j->journaled = calloc((size_t)j->tile_count, 1);
     int rc = 0;
     if (!bundle || !rects || !j->rgb || !j->journaled) {
         j->state = SJOB_FAILED;
-        snprintf(j->error, sizeof j->error, "cannot resume: %.480s", bundle ? "out of memory" : err);
+        snprintf(j->error, sizeof j->error, "cannot resume: %.480s", bundle ? "out of memory" : read_err);
         svc_log("job %u: %s", d.id, j->error);
         store_save_job(j, err, sizeof err);
         store_job_release(j);
@@ -509,7 +506,7 @@ int store_job_resume(service *s, sjob *j) {
         svc_log("job %u resumed: %d of %d tiles from the journal", d.id, j->tiles_resumed, j->tile_count);
         joblog_add(j->log, svc_wall_now(), "job resumed after a restart: %d of %d tiles from the journal",
                    j->tiles_resumed, j->tile_count);
-        if (store_job_start(s, j, (const uint8_t *)bundle, len, NULL, err, sizeof err)) {
+        if (store_job_start(s, j, bundle, len, framed, err, sizeof err)) {
             j->state = SJOB_FAILED;
             snprintf(j->error, sizeof j->error, "%.500s", err);
             store_save_job(j, err, sizeof err);
@@ -518,6 +515,19 @@ int store_job_resume(service *s, sjob *j) {
         }
     }
     free(rects);
+    return rc;
+}
+
+void store_scene_path(const service *s, const sjob *j, char *path, size_t path_len) {
+    snprintf(path, path_len, "%s/scenes/%s", s->o.data_dir, j->desc.scene_hash);
+}
+
+int store_job_resume(service *s, sjob *j) {
+    char path[4096], err[600];
+    size_t len = 0;
+    store_scene_path(s, j, path, sizeof path);
+    char *bundle = file_read_all(path, s->o.max_upload, &len, err, sizeof err);
+    int rc = store_job_resume_with(s, j, (const uint8_t *)bundle, len, NULL, err);
     free(bundle);
     return rc;
 }
@@ -538,6 +548,11 @@ void store_load_jobs(service *s) {
     struct dirent *e;
     while ((e = readdir(d)) != NULL) {
         size_t l = strlen(e->d_name);
+        if (strstr(e->d_name, ".partial-") && l > 4 && strcmp(e->d_name + l - 4, ".pfm") == 0) {
+            snprintf(path, sizeof path, "%s/jobs/%s", s->o.data_dir, e->d_name); /* a partial fetch cut short */
+            unlink(path);
+            continue;
+        }
         if (l < 6 || strcmp(e->d_name + l - 5, ".json") != 0 || strspn(e->d_name, "0123456789") != l - 5) continue;
         char **nn = realloc(names, (n + 1) * sizeof *names);
         if (!nn) break;

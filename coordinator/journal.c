@@ -2,11 +2,14 @@
 #include "journal.h"
 
 #include <errno.h>
+#include <fcntl.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
-#include "fileio.h"
 #include "net/wire.h"
 #include "render/render.h"
 
@@ -42,15 +45,23 @@ static int record_read(const uint8_t *p, size_t len, const tile_rect *rects, int
     return 0;
 }
 
-size_t journal_replay(const uint8_t *data, size_t len, const tile_rect *rects, int tile_count, film *f,
-                      uint8_t *done, int *found) {
+/* What to do with each good record: its tile's floats (3 per pixel, row
+ * by row). Returns 0, or -1 to stop the scan. */
+typedef int (*record_fn)(void *ctx, const tile_rect *r, const float *px);
+
+/* Walk the records of data[0..len) up to the first torn or corrupt one (or
+ * fn's refusal), marking done[tile] and counting in *found the tiles not
+ * yet done. Returns the length of the good prefix. */
+static size_t scan_records(const uint8_t *data, size_t len, const tile_rect *rects, int tile_count, uint8_t *done,
+                           int *found, record_fn fn, void *ctx) {
     size_t off = 0, rec_len;
     uint32_t tile;
     float *px;
     *found = 0;
     while (off < len && record_read(data + off, len - off, rects, tile_count, &tile, &px, &rec_len) == 0) {
-        film_put_tile(f, &rects[tile], px);
+        int rc = fn(ctx, &rects[tile], px);
         free(px);
+        if (rc) break;
         *found += !done[tile];
         done[tile] = 1;
         off += rec_len;
@@ -58,24 +69,92 @@ size_t journal_replay(const uint8_t *data, size_t len, const tile_rect *rects, i
     return off;
 }
 
-int journal_read_partial(const char *path, int width, int height, int tile_size, int tile_count, image *img,
-                         uint8_t *done, char *err, size_t err_len) {
-    tile_rect *rects = calloc((size_t)tile_count, sizeof *rects);
-    if (!rects || image_alloc(img, width, height)) {
-        free(rects);
-        snprintf(err, err_len, "%.400s: out of memory for a %dx%d image", path, width, height);
-        return -1;
+static int put_film(void *ctx, const tile_rect *r, const float *px) {
+    film_put_tile(ctx, r, px);
+    return 0;
+}
+
+size_t journal_replay(const uint8_t *data, size_t len, const tile_rect *rects, int tile_count, film *f,
+                      uint8_t *done, int *found) {
+    return scan_records(data, len, rects, tile_count, done, found, put_film, f);
+}
+
+/* The PFM being written by journal_write_partial_pfm. */
+typedef struct {
+    int fd, width, height;
+    size_t header;
+    uint8_t *row; /* one tile row, encoded */
+    int err_no;
+} pfm_out;
+
+/* A tile's rows into the PFM at their places (bottom row first). */
+static int put_pfm(void *ctx, const tile_rect *r, const float *px) {
+    pfm_out *o = ctx;
+    size_t w = (size_t)tile_width(r);
+    for (int y = r->y0; y < r->y1; y++, px += 3 * w) {
+        for (size_t i = 0; i < 3 * w; i++) wire_put_f32(o->row + 4 * i, px[i]);
+        off_t at = (off_t)(o->header + 12 * ((size_t)(o->height - 1 - y) * (size_t)o->width + (size_t)r->x0));
+        if (pwrite(o->fd, o->row, 12 * w, at) != (ssize_t)(12 * w)) {
+            o->err_no = errno ? errno : EIO;
+            return -1;
+        }
     }
-    render_split_tiles(width, height, tile_size, rects, tile_count);
-    memset(done, 0, (size_t)tile_count);
+    return 0;
+}
+
+/* The journal at path mapped read-only into *data (*len bytes; NULL and 0
+ * when it is missing or empty). Returns 0, or -1 with errno set. */
+static int map_journal(const char *path, uint8_t **data, size_t *len) {
+    *data = NULL;
+    *len = 0;
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return errno == ENOENT ? 0 : -1;
+    struct stat st;
+    int rc = fstat(fd, &st);
+    if (rc == 0 && st.st_size > 0) {
+        void *m = mmap(NULL, (size_t)st.st_size, PROT_READ, MAP_PRIVATE, fd, 0);
+        if (m == MAP_FAILED) rc = -1;
+        else *data = m, *len = (size_t)st.st_size;
+    }
+    int saved = errno;
+    close(fd);
+    errno = saved;
+    return rc;
+}
+
+int journal_write_partial_pfm(const char *path, const char *out, int width, int height, int tile_size,
+                              int tile_count, uint8_t *done, char *err, size_t err_len) {
+    char header[64];
+    int hl = snprintf(header, sizeof header, "PF\n%d %d\n-1.0\n", width, height); /* image.c's PFM */
+    pfm_out o = {.fd = -1, .width = width, .height = height, .header = (size_t)hl};
+    tile_rect *rects = calloc((size_t)tile_count, sizeof *rects);
+    o.row = malloc(12 * (size_t)(tile_size < width ? tile_size : width));
+    uint8_t *data = NULL;
     size_t len = 0;
-    char why[512];
-    uint8_t *data = (uint8_t *)file_read_all(path, (size_t)1 << 40, &len, why, sizeof why);
-    film f = {img->rgb, width, height, 3};
-    int found = 0;
-    if (data) journal_replay(data, len, rects, tile_count, &f, done, &found);
-    free(data);
+    int found = -1;
+    memset(done, 0, (size_t)tile_count);
+    if (!rects || !o.row) {
+        snprintf(err, err_len, "%.400s: out of memory", path);
+    } else if (map_journal(path, &data, &len)) {
+        snprintf(err, err_len, "%.400s: %s", path, strerror(errno));
+    } else if ((o.fd = open(out, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600)) < 0 ||
+               write(o.fd, header, (size_t)hl) != hl ||
+               ftruncate(o.fd, (off_t)(o.header + 12 * (size_t)width * (size_t)height)) != 0) {
+        /* (the tiles never written stay black: zeros, a sparse file's holes) */
+        snprintf(err, err_len, "%.400s: cannot write: %s", out, strerror(errno));
+    } else {
+        render_split_tiles(width, height, tile_size, rects, tile_count);
+        scan_records(data, len, rects, tile_count, done, &found, put_pfm, &o);
+        if (o.err_no) {
+            snprintf(err, err_len, "%.400s: cannot write: %s", out, strerror(o.err_no));
+            found = -1;
+        }
+    }
+    if (o.fd >= 0) close(o.fd);
+    if (found < 0 && o.fd >= 0) unlink(out);
+    if (data) munmap(data, len);
     free(rects);
+    free(o.row);
     return found;
 }
 

@@ -1,6 +1,6 @@
 /* journal.h - a job's tile journal (jobs/ID.tiles, docs/protocol.md): the
  * record check, and reading the records back, for the restart of a running
- * job (jobstore.c) and for `tessera fetch JOB --partial`.
+ * job (jobstore.c) and for `tessera fetch JOB --partial` (fetch.c).
  *
  * A record: u32 magic "TILE", u32 tile, u32 float count n, n floats, u32
  * check (FNV-1a of the floats' bytes seeded by the tile number), all
@@ -28,14 +28,16 @@ uint32_t journal_record_check(uint32_t tile, const float *px, size_t n);
 size_t journal_replay(const uint8_t *data, size_t len, const tile_rect *rects, int tile_count, film *f,
                       uint8_t *done, int *found);
 
-/* Read the journal at path of a width x height job cut into tile_count
- * tiles of tile_size pixels (render_split_tiles) into img, allocated here
- * black (free with image_free), and done[tile_count] (1 for each tile
- * found). Reading stops at the first torn or corrupt record and never
- * changes the file; a missing journal is an empty one. Returns the number
- * of tiles done, or -1 with "PATH: reason" in err (out of memory). */
-int journal_read_partial(const char *path, int width, int height, int tile_size, int tile_count, image *img,
-                         uint8_t *done, char *err, size_t err_len);
+/* Write what the journal at path holds of a width x height job cut into
+ * tile_count tiles of tile_size pixels (render_split_tiles) as a new PFM
+ * file out (created, mode 0600; the tiles not found are black), and
+ * done[tile_count] (1 for each tile found). The journal is mapped, not
+ * read into memory, and never changed; reading stops at its first torn or
+ * corrupt record; a missing journal is an empty one. Memory: one tile row.
+ * Returns the number of tiles done, or -1 with "PATH: reason" in err (out
+ * is then removed). */
+int journal_write_partial_pfm(const char *path, const char *out, int width, int height, int tile_size,
+                              int tile_count, uint8_t *done, char *err, size_t err_len);
 
 /* The tiles not done, as ranges ("3, 7-12, 40-63"), in out (truncated with
  * "..." when it does not fit). */

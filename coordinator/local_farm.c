@@ -220,17 +220,12 @@ static int submit_round(local_run *r) {
         render_stop(r);
         return 0;
     }
-    int ts = r->o->tile_size, n = render_split_tiles(job->width, job->height, ts, NULL, 0);
-    tile_rect *tiles = malloc((size_t)n * sizeof *tiles);
-    if (tiles) {
-        render_split_tiles(job->width, job->height, ts, tiles, n);
-        for (int t = 0; t < n; t++) r->done[t] = !render_tile_has_active(&tiles[t], job->width, r->mask);
-    }
-    free(tiles);
+    int ts = r->o->tile_size;
+    int marked = render_mark_idle_tiles(job->width, job->height, ts, r->mask, r->done);
     proto_job round = *job;
     round.id = ++r->round_id;
     farm_job_options fo = {.tile_size = ts, .done = r->done, .mask = r->mask, .first = first, .count = count};
-    if (!tiles || farm_submit(r->f, &round, r->bundle, r->bundle_len, &fo, r->sums, on_job, r)) {
+    if (marked || farm_submit(r->f, &round, r->bundle, r->bundle_len, &fo, r->sums, on_job, r)) {
         snprintf(r->err, sizeof r->err, "out of memory for adaptive round %u", r->round_id);
         r->failed = 1;
         render_stop(r);

@@ -54,7 +54,7 @@ int retention_sweep(service *s) {
     static char gone[RETENTION_MAX_PER_SWEEP][SCENE_BUNDLE_HASH_HEX];
     TAILQ_FOREACH_SAFE(j, &s->jobs, link, next) {
         if (deleted == RETENTION_MAX_PER_SWEEP) break;
-        if (j->state == SJOB_RUNNING || j->save_timer) continue;
+        if (j->state == SJOB_RUNNING || j->save_timer || j->admitting) continue;
         int old = now - j->finished >= s->o.keep_s;
         if (!old && excess <= 0) continue;
         memcpy(gone[deleted++], j->desc.scene_hash, SCENE_BUNDLE_HASH_HEX);

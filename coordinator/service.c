@@ -376,45 +376,22 @@ static void on_logs(client *cl, const cJSON *m) {
 }
 
 /* fetch with "partial": the tiles journaled so far of a running or
- * cancelled job (the others black): a "partial" message naming the missing
- * tiles, then the I frame. */
+ * cancelled job (the others black), made into a PFM and streamed as a
+ * finished image is (fetch.h), after a "partial" message naming the
+ * missing tiles; of any size, and off the loop. */
 static void fetch_partial(client *cl, sjob *j) {
-    char path[4096], err[600], missing[1024];
-    image img;
+    service *s = cl->svc;
     if (j->noise_threshold > 0)
         return client_error(cl, "job %u samples adaptively: its rounds cover the whole image, which exists only "
                                 "once the last round has ended (no partial image)", j->desc.id);
-    uint8_t *done = malloc((size_t)j->tile_count);
-    store_job_path(cl->svc, j->desc.id, "tiles", path, sizeof path);
-    int n = done ? journal_read_partial(path, j->desc.width, j->desc.height, j->tile_size, j->tile_count, &img, done,
-                                        err, sizeof err)
-                 : -1;
-    if (n < 0) {
-        free(done);
-        return client_error(cl, "%s", done ? err : "out of memory");
-    }
-    journal_missing_ranges(done, j->tile_count, missing, sizeof missing);
-    free(done);
-    cJSON *r = cJSON_CreateObject();
-    cJSON_AddStringToObject(r, "type", "partial");
-    cJSON_AddNumberToObject(r, "job", j->desc.id);
-    cJSON_AddStringToObject(r, "state", state_names[j->state]);
-    cJSON_AddNumberToObject(r, "tiles_done", n);
-    cJSON_AddNumberToObject(r, "tiles_total", j->tile_count);
-    cJSON_AddNumberToObject(r, "tile_size", j->tile_size);
-    cJSON_AddStringToObject(r, "missing", missing);
-    client_send_json(cl, r);
-    size_t px = (size_t)img.width * (size_t)img.height * 3, len;
-    uint8_t *f = wire_frame_new(WIRE_KIND_IMAGE, 8 + 4 * px, &len);
-    if (f) {
-        wire_put_u32(f + WIRE_HEADER_BYTES, (uint32_t)img.width);
-        wire_put_u32(f + WIRE_HEADER_BYTES + 4, (uint32_t)img.height);
-        for (size_t i = 0; i < px; i++) wire_put_f32(f + WIRE_HEADER_BYTES + 8 + 4 * i, img.rgb[i]);
-        conn_send(cl->c, f, len);
-    } else {
+    if (cl->fetch) return client_error(cl, "fetch: this connection is already receiving an image");
+    char journal[4096], tmp[4200], name[64];
+    store_job_path(s, j->desc.id, "tiles", journal, sizeof journal);
+    snprintf(name, sizeof name, "partial-%llu.pfm", (unsigned long long)s->next_partial++);
+    store_job_path(s, j->desc.id, name, tmp, sizeof tmp);
+    fetch_partial_spec p = {journal, state_names[j->state], j->desc.width, j->desc.height, j->tile_size, j->tile_count};
+    if (fetch_start_partial(&s->loop, cl->c, j->desc.id, &p, tmp, s->fetch_chunk, &cl->fetch))
         client_error(cl, "out of memory");
-    }
-    image_free(&img);
 }
 
 static void on_fetch(client *cl, const cJSON *m) {
@@ -538,7 +515,6 @@ static void on_expiry(uv_timer_t *t) {
  * or in --client-timeout when that is shorter). Each close is logged once, naming the client. */
 static void on_sweep(uv_timer_t *t) {
     service *s = t->data;
-    svc_admit_waiting(s); /* memory freed by jobs that ended since */
     double now = svc_mono_now(), limit = s->o.client_timeout_s > 0 ? s->o.client_timeout_s : 30;
     client *cl, *next;
     TAILQ_FOREACH_SAFE(cl, &s->clients, link, next) {
@@ -584,6 +560,7 @@ static void on_farm_closed(void *ctx) {
     loopstat_stop(&s->stat);
     uv_close((uv_handle_t *)&s->stat_timer, NULL);
     uv_close((uv_handle_t *)&s->sweep, NULL);
+    uv_close((uv_handle_t *)&s->admit, NULL);
     uv_close((uv_handle_t *)&s->expiry, NULL);
     uv_close((uv_handle_t *)&s->sigint, NULL);
     uv_close((uv_handle_t *)&s->sigterm, NULL);
@@ -702,6 +679,8 @@ int service_run(const service_options *o) {
         free(s);
         return 1;
     }
+    uv_timer_init(&s->loop, &s->admit); /* before the jobs: a failed resume releases memory */
+    s->admit.data = s;
     store_load_jobs(s);
     upload_queue_init(&s->uploads, &s->loop);
     uv_signal_init(&s->loop, &s->sigint);

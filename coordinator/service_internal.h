@@ -53,8 +53,6 @@
 #include "membudget.h"
 #include "service.h"
 
-#define WIRE_KIND_IMAGE 'I'
-
 typedef enum { SJOB_RUNNING, SJOB_DONE, SJOB_FAILED, SJOB_CANCELLED } sjob_state;
 static const char *const state_names[] = {"running", "done", "failed", "cancelled"};
 
@@ -89,12 +87,12 @@ typedef struct sjob {
     struct adaptive *ad;
     float *sums;             /* the round's sums (ADAPTIVE_CHANNELS per pixel) */
     uint8_t *mask, *skip;    /* the round's pixels, and its tiles without any */
-    uint8_t *bundle;         /* the scene, for every round */
-    size_t bundle_len;
+    conn_blob *scene;        /* the scene's frame, shared by every round (a reference) */
     trace_stats round_stats; /* of the rounds before the current one */
     uv_timer_t *round_timer;
     uint64_t need;            /* bytes it holds once admitted (membudget_job_bytes) */
     int waiting;              /* running but not admitted: waits for --max-memory (admission.c) */
+    int admitting;            /* admitted, its scene being read off the loop (admission.c) */
     TAILQ_ENTRY(sjob) link; /* on the service's jobs, oldest first */
 } sjob;
 
@@ -109,6 +107,7 @@ typedef struct service {
     loopstat stat;         /* loop stalls (loopstat.h); svc_longest_stall_ms */
     upload_queue uploads;  /* scenes being checked off the loop (upload.h) */
     uv_timer_t sweep;      /* closes idle and trickling clients every second */
+    uv_timer_t admit;      /* admits waiting jobs once a job has released its memory */
     TAILQ_HEAD(client_list, client) clients;
     TAILQ_HEAD(sjob_list, sjob) jobs;
     uint32_t next_id;
@@ -116,6 +115,7 @@ typedef struct service {
     int stopping;
     struct dashboard *web; /* --http, or NULL (service_web.c) */
     size_t fetch_chunk;    /* bytes per D frame of a fetched image (fetch.h) */
+    uint64_t next_partial; /* names jobs/ID.partial-N.pfm, a partial fetch's image while it is made */
 } service;
 
 /* Farm ids of adaptive rounds start here, above any job number the service
@@ -202,6 +202,16 @@ int store_running_jobs(const service *s);
  * handed to the farm. Returns 0, or -1 with the job failed and saved. */
 int store_job_resume(service *s, sjob *j);
 
+/* store_job_resume with the scene already read: bundle (len bytes; NULL
+ * when reading failed, read_err saying why) and, if not NULL, the same
+ * bytes framed for the farm (a reference is taken). The caller keeps and
+ * frees both. */
+int store_job_resume_with(service *s, sjob *j, const uint8_t *bundle, size_t len, conn_blob *framed,
+                          const char *read_err);
+
+/* The path of j's scene in the data dir: scenes/HASH. */
+void store_scene_path(const service *s, const sjob *j, char *path, size_t path_len);
+
 /* ---- admission.c ---- */
 
 /* Bytes held by admitted jobs (those with a frame), and how many (jobs may
@@ -215,6 +225,11 @@ int svc_admit_check(const service *s, const sjob *j, char *why, size_t why_len);
 
 /* Admit every waiting job that fits now, oldest first. */
 void svc_admit_waiting(service *s);
+
+/* A job released its frame: admit waiting jobs from the loop's next turn
+ * (not from inside the farm's or the store's callback that freed it).
+ * Nothing once the service stops. Can't fail. */
+void svc_memory_released(service *s);
 
 /* Cancel a running job: a waiting one at once, else through the farm. */
 void svc_cancel_job(service *s, sjob *j);

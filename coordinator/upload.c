@@ -50,11 +50,7 @@ static void validate(uv_work_t *w) {
     char path[4200];
     snprintf(path, sizeof path, "%s/%s", u->store_path_dir, u->hash);
     u->rc = file_write_atomic(path, u->bundle, u->len, u->err, sizeof u->err);
-    if (u->rc == 0 && u->len < UINT32_MAX && (u->blob = conn_blob_new(WIRE_HEADER_BYTES + u->len)) != NULL) {
-        wire_put_u32(u->blob->data, (uint32_t)(u->len + 1));
-        u->blob->data[4] = WIRE_KIND_SCENE;
-        memcpy(u->blob->data + WIRE_HEADER_BYTES, u->bundle, u->len); /* fresh pages fault here, not on the loop */
-    }
+    if (u->rc == 0) u->blob = conn_blob_frame(WIRE_KIND_SCENE, u->bundle, u->len); /* fresh pages fault here, not on the loop */
 }
 
 static void start_next(upload_queue *q);

@@ -1153,6 +1153,23 @@ static int job_of(const char *out) {
     return job;
 }
 
+/* The time of day in seconds of the first line of log holding text (the
+ * coordinator's "YYYY-MM-DDTHH:MM:SS.mmmZ" stamp), or -1. */
+static double log_stamp(const char *log, const char *text) {
+    FILE *f = fopen(log, "r");
+    char line[1024];
+    double t = -1;
+    int h, m;
+    double sec;
+    while (f && fgets(line, sizeof line, f))
+        if (strstr(line, text) && sscanf(line, "%*d-%*d-%*dT%d:%d:%lfZ", &h, &m, &sec) == 3) {
+            t = h * 3600.0 + m * 60.0 + sec;
+            break;
+        }
+    if (f) fclose(f);
+    return t;
+}
+
 /* A memory budget: four 32768 x 32768 jobs (24 GiB each: a 12 GiB frame
  * and the saved image's copy) are not all admitted under --max-memory
  * 60G: two wait, queued, with the reason in status; a small job still
@@ -1206,6 +1223,10 @@ TEST(hostile_memory_budget_admits_what_fits) {
     snprintf(want, sizeof want, "admitted: its %s fit", need);
     CHECK(util_wait_for_text(c.log, want, 10 * slack()) == 0, "no waiting job was admitted once memory was freed; log %s",
           c.log);
+    snprintf(args, sizeof args, "job %d cancelled", big[0]);
+    double freed = log_stamp(c.log, args), admitted = log_stamp(c.log, want);
+    CHECK(freed > 0 && admitted >= freed && admitted - freed < 0.25 * slack(),
+          "a waiting job was admitted %.3f s after memory was freed (at once expected); log %s", admitted - freed, c.log);
     for (int i = 2; i < 4; i++) {
         snprintf(args, sizeof args, "cancel %d", big[i]);
         cli(&c, out, sizeof out, args);

@@ -97,6 +97,50 @@ TEST(mesh_embree_matches_bvh_features) { matches_bvh("scenes/features.json", ACC
 TEST(mesh_wide_matches_bvh_icospheres) { matches_bvh(ICO_SCENE, ACCEL_WIDE); }
 TEST(mesh_wide_matches_bvh_features) { matches_bvh("scenes/features.json", ACCEL_WIDE); }
 
+/* Every walk of the wide BVH this CPU runs (accel_wide.c picks the widest;
+ * TESSERA_NO_AVX512 stops it at AVX2, TESSERA_NO_AVX2 at SSE): each gives
+ * the BVH's answers, bit for bit, on the icospheres (with a sphere) and on
+ * features.json, 60 000 rays each. */
+TEST(mesh_wide_walk_isas_match_bvh) {
+    static const char *const scenes[] = {ICO_SCENE, "scenes/features.json"};
+    const char *seen[3] = {NULL, NULL, NULL};
+    int node_width = 0;
+    for (size_t p = 0; p < 2; p++) {
+        char err[512];
+        scene *s = scene_load(scenes[p], NULL, err, sizeof err);
+        CHECK(s != NULL, "%s", err);
+        if (!s) continue;
+        accel *tree = accel_build(s, ACCEL_BVH);
+        for (int e = 0; e < 3; e++) {
+            if (e >= 1) setenv("TESSERA_NO_AVX512", "1", 1);
+            if (e == 2) setenv("TESSERA_NO_AVX2", "1", 1);
+            accel *wide = accel_build_err(s, ACCEL_WIDE, err, sizeof err);
+            unsetenv("TESSERA_NO_AVX512");
+            unsetenv("TESSERA_NO_AVX2");
+            accel_wide_stats st = {0};
+            CHECK(wide && accel_get_wide_stats(wide, &st) == 0, "build: %s", err);
+            if (!wide) continue;
+            seen[e] = st.walk_isa, node_width = st.node_width;
+            int hits = 0, differ = tree ? count_differences(s, tree, wide, 60000, &hits) : -1;
+            CHECK(differ == 0 && hits > 20000, "%s, %s walk: %d of 60000 rays differ from the BVH, %d hit", scenes[p],
+                  st.walk_isa, differ, hits);
+            accel_free(wide);
+        }
+        accel_free(tree);
+        scene_free(s);
+    }
+    /* The walks the environment asked for, where the CPU has them (and the
+     * tree has 8 children: a -DNODE_W=4 build has the SSE walk only). */
+    CHECK(seen[2] && strcmp(seen[2], "sse2") == 0, "TESSERA_NO_AVX2: walk %s", seen[2] ? seen[2] : "?");
+#if defined(__x86_64__) && defined(__GNUC__)
+    if (node_width != 8) return;
+    const char *want1 = __builtin_cpu_supports("avx2") ? "avx2" : "sse2";
+    const char *want0 = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") ? "avx512" : want1;
+    CHECK(seen[1] && strcmp(seen[1], want1) == 0, "TESSERA_NO_AVX512: walk %s, not %s", seen[1] ? seen[1] : "?", want1);
+    CHECK(seen[0] && strcmp(seen[0], want0) == 0, "default: walk %s, not %s", seen[0] ? seen[0] : "?", want0);
+#endif
+}
+
 /* Trees too small to have an inner node, or with spheres sharing a leaf
  * with triangles: a quad (2 triangles) and a sphere, then 3 quads and 2
  * spheres crossing each other, through the wide BVH and the BVH. */

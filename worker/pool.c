@@ -77,10 +77,15 @@ static int job_ensure_scene(pool_job *j) {
     if (j->load_state == 0) {
         const proto_job *d = &j->desc;
         scene_overrides ov = {d->width, d->height, d->spp, d->max_depth, 1, d->seed, 0};
+        ov.no_accel = 1; /* built below, once the bundle is gone */
         j->s = scene_memory_check(&j->bundle, j->load_error, sizeof j->load_error) ? NULL
                : scene_load_bundle(&j->bundle, &ov, j->load_error, sizeof j->load_error);
+        scene_bundle_free(&j->bundle); /* the scene holds what it needs: the meshes' text goes before the build */
+        if (j->s && scene_build_accel(j->s, j->load_error, sizeof j->load_error)) {
+            scene_free(j->s);
+            j->s = NULL;
+        }
         j->load_state = j->s ? 1 : -1;
-        scene_bundle_free(&j->bundle); /* the scene holds what it needs: no second copy of the meshes while rendering */
     }
     int rc = j->load_state == 1 ? 0 : -1;
     pthread_mutex_unlock(&j->load_lock);

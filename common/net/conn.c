@@ -34,18 +34,6 @@ typedef struct {
     conn_blob *blob;
 } write_req;
 
-conn_blob *conn_blob_new(size_t len) {
-    conn_blob *b = malloc(sizeof *b + len);
-    if (!b) return NULL;
-    b->refs = 1;
-    b->len = len;
-    return b;
-}
-
-void conn_blob_unref(conn_blob *b) {
-    if (b && --b->refs == 0) free(b);
-}
-
 conn *conn_new(uv_loop_t *loop, const conn_callbacks *cb, void *data, size_t max_frame) {
     conn *c = calloc(1, sizeof *c);
     if (!c) return NULL;

@@ -14,6 +14,8 @@
 #include <stdint.h>
 #include <uv.h>
 
+#include "blob.h"
+
 typedef struct conn conn;
 
 typedef struct {
@@ -24,17 +26,6 @@ typedef struct {
      * conn_close; reason says which. Called once. */
     void (*on_close)(conn *c, const char *reason);
 } conn_callbacks;
-
-/* A reference-counted byte buffer: data is a complete frame. */
-typedef struct {
-    int refs;
-    size_t len;
-    uint8_t data[];
-} conn_blob;
-
-/* A blob of len bytes with one reference, or NULL when out of memory. */
-conn_blob *conn_blob_new(size_t len);
-void conn_blob_unref(conn_blob *b);
 
 /* A connection on loop whose uv_tcp_t (conn_tcp) is initialised but neither
  * connected nor reading. max_frame bounds incoming frames (wire.h). Returns

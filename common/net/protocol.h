@@ -15,6 +15,10 @@
 
 #define PROTOCOL_VERSION 1
 
+/* Lines of a job's event log the coordinator keeps, hence the largest
+ * `last` a "logs" request may ask for (the CLI checks it before asking). */
+#define PROTOCOL_LOG_LINES_MAX 2000
+
 /* The build's identity, "0.1.0+<git commit>": peers must match exactly,
  * because bit-identical images need the same code on both sides. */
 const char *protocol_build_id(void);

@@ -10,8 +10,8 @@
  * suffix), FLAT_TARGET (a function attribute or nothing), FLAT_SPLAT(x),
  * FLAT_LANE_IDS and FLAT_BITS(mask) (bit k set where lane k of the mask is);
  * this file undefines them again at its end. With FLAT_LANES_ONLY defined,
- * only the lane kernel (test_lanes, no flat traversal) is defined: the wide
- * BVH's leaves use it (accel_wide.c). Not a public header. */
+ * only the lane kernel (test_loaded, test_lanes; no flat traversal) is
+ * defined: the wide BVH's leaves use it (accel_wide.c). Not a public header. */
 
 typedef float FLAT(vfloat) __attribute__((vector_size(FLAT_LANES * sizeof(float))));
 typedef int32_t FLAT(vint) __attribute__((vector_size(FLAT_LANES * sizeof(int32_t))));
@@ -59,21 +59,22 @@ typedef struct {
 } FLAT(group);
 
 /* The vector half of triangle_intersect() (intersect.h), term for term, for
- * the FLAT_LANES triangles whose vertex k's axis a is at p[k][a][lane];
- * lanes outside `real` are never candidates. */
-FLAT_TARGET static inline void FLAT(test_lanes)(const float *const p[3][3], const ray_prep *r, const FLAT(ray) *v,
-                                                  vint real, float tmax, FLAT(group) *g) {
-    const int kx = r->kx, ky = r->ky, kz = r->kz;
+ * FLAT_LANES triangles whose vertices A, B, C are loaded already, each axis
+ * in the ray's order kx, ky, kz; lanes outside `real` are never candidates
+ * (nor are lanes whose vertices are NaN: no test of theirs holds). */
+FLAT_TARGET static inline void FLAT(test_loaded)(vfloat Akx, vfloat Aky, vfloat Akz, vfloat Bkx, vfloat Bky,
+                                                   vfloat Bkz, vfloat Ckx, vfloat Cky, vfloat Ckz, const FLAT(ray) *v,
+                                                   vint real, float tmax, FLAT(group) *g) {
     vfloat sx = v->sx, sy = v->sy, sz = v->sz;
-    vfloat Az = FLAT(vload)(p[0][kz]) - v->oz;
-    vfloat Bz = FLAT(vload)(p[1][kz]) - v->oz;
-    vfloat Cz = FLAT(vload)(p[2][kz]) - v->oz;
-    vfloat Ax = (FLAT(vload)(p[0][kx]) - v->ox) - sx * Az;
-    vfloat Ay = (FLAT(vload)(p[0][ky]) - v->oy) - sy * Az;
-    vfloat Bx = (FLAT(vload)(p[1][kx]) - v->ox) - sx * Bz;
-    vfloat By = (FLAT(vload)(p[1][ky]) - v->oy) - sy * Bz;
-    vfloat Cx = (FLAT(vload)(p[2][kx]) - v->ox) - sx * Cz;
-    vfloat Cy = (FLAT(vload)(p[2][ky]) - v->oy) - sy * Cz;
+    vfloat Az = Akz - v->oz;
+    vfloat Bz = Bkz - v->oz;
+    vfloat Cz = Ckz - v->oz;
+    vfloat Ax = (Akx - v->ox) - sx * Az;
+    vfloat Ay = (Aky - v->oy) - sy * Az;
+    vfloat Bx = (Bkx - v->ox) - sx * Bz;
+    vfloat By = (Bky - v->oy) - sy * Bz;
+    vfloat Cx = (Ckx - v->ox) - sx * Cz;
+    vfloat Cy = (Cky - v->oy) - sy * Cz;
     vfloat U = Cx * By - Cy * Bx, V = Ax * Cy - Ay * Cx, W = Bx * Ay - By * Ax;
     vfloat zero = FLAT(vsplat)(0.0f);
     g->edge = real & ((U == zero) | (V == zero) | (W == zero));
@@ -92,6 +93,16 @@ FLAT_TARGET static inline void FLAT(test_lanes)(const float *const p[3][3], cons
     /* No det != 0 test: where U, V, W are nonzero with one sign, their sum
      * is nonzero; where one is zero the lane is an edge lane. */
     g->ok = real & ~outside & (g->T > zero) & (g->T < FLAT(vsplat)(tmax) * g->det);
+}
+
+/* test_loaded for the FLAT_LANES triangles whose vertex k's axis a is at
+ * p[k][a][lane]. */
+FLAT_TARGET static inline void FLAT(test_lanes)(const float *const p[3][3], const ray_prep *r, const FLAT(ray) *v,
+                                                  vint real, float tmax, FLAT(group) *g) {
+    const int kx = r->kx, ky = r->ky, kz = r->kz;
+    FLAT(test_loaded)(FLAT(vload)(p[0][kx]), FLAT(vload)(p[0][ky]), FLAT(vload)(p[0][kz]), FLAT(vload)(p[1][kx]),
+                      FLAT(vload)(p[1][ky]), FLAT(vload)(p[1][kz]), FLAT(vload)(p[2][kx]), FLAT(vload)(p[2][ky]),
+                      FLAT(vload)(p[2][kz]), v, real, tmax, g);
 }
 
 #ifndef FLAT_LANES_ONLY

@@ -6,14 +6,16 @@
  * create the nodes and leaves below in Embree's thread-local allocator,
  * which the RTCBVH owns and frees.
  *
- * Walk: a node holds its children's boxes as structure of arrays, so one
- * 8-lane slab test (two SSE registers) covers all eight; the children hit
- * are visited nearest
+ * Walk (accel_wide_walk.h, compiled for SSE, AVX2 and AVX-512VL; the
+ * widest the CPU runs is chosen at build time): a node holds its children's
+ * boxes as structure of arrays, so one 8-lane slab test (one AVX register,
+ * or two SSE ones) covers all eight; the children hit are visited nearest
  * first, the others kept on a fixed-size stack with their entry distance
- * and dropped when they come up behind the culling distance. A leaf holds up
- * to 4 primitives: its triangles' vertices as 4 lanes for the flat kernel's
- * watertight test (test_lanes in accel_flat.h: per lane exactly the IEEE
- * operations of triangle_intersect), its spheres by index.
+ * and dropped when they come up behind the culling distance. A leaf holds
+ * up to 8 primitives for the AVX walks, 4 for the SSE walk: its triangles'
+ * vertices as that many lanes for the flat kernel's watertight test
+ * (test_loaded in accel_flat.h: per lane exactly the IEEE operations of
+ * triangle_intersect), its spheres by index.
  *
  * Why no candidate that could win is culled: the slab test is exact up to
  * rounding of a few ulps of the distances (pbrt, 3rd ed., 3.9.2); its far
@@ -33,9 +35,11 @@
 #include "accel_embree.h"
 #include <embree3/rtcore_builder.h>
 
-#define FLAT_LANES_ONLY
-#define FLAT(name) wide4_##name
-#include "accel_flat4.h"
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#elif defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 /* Children per node: 8 measured 3-8% faster than 4 (docs/meshes.md). The
  * walk's bytes do not depend on it; -DNODE_W=4 builds the 4-wide tree. */
@@ -43,14 +47,6 @@
 #define NODE_W 8
 #endif
 
-typedef wide4_vfloat vfloat;
-typedef wide4_vint vint;
-/* Static functions pass 8-float vectors among themselves only, so the ABI
- * note for 32-byte vectors without AVX does not concern us. */
-#pragma GCC diagnostic ignored "-Wpsabi"
-/* A node's lanes: NODE_W floats (two SSE registers' worth for 8). */
-typedef float nfloat __attribute__((vector_size(NODE_W * sizeof(float))));
-typedef int32_t nint __attribute__((vector_size(NODE_W * sizeof(int32_t))));
 
 #define WIDE_MAX_DEPTH 40                       /* the builder's limit on the tree's depth */
 #define WIDE_STACK ((NODE_W - 1) * WIDE_MAX_DEPTH + NODE_W) /* NODE_W - 1 siblings kept per level at most */
@@ -65,24 +61,36 @@ typedef struct {
     uintptr_t child[NODE_W]; /* node pointer, or leaf pointer | LEAF_TAG */
 } wide_node;
 
-/* A leaf: triangles in lanes [0, tris) (vertex k's axis a at v[k][a][lane]),
- * spheres' primitive ids after them in id[tris, tris + spheres). */
-typedef struct {
-    float v[3][3][4];
-    uint32_t id[4];
-    uint32_t tris, spheres;
-} wide_leaf;
+/* A leaf of up to L primitives: triangles in lanes [0, tris) (vertex k's
+ * axis a at v[k][a][lane]; the other lanes' vertices are NaN), spheres'
+ * primitive ids after them in id[tris, tris + spheres). The SSE walk's
+ * leaves hold 4, the 8-lane walks' 8: one leaf test each. */
+#define WIDE_LEAF(L)             \
+    struct {                     \
+        float v[3][3][L];        \
+        uint32_t id[L];          \
+        uint32_t tris, spheres;  \
+    }
+typedef WIDE_LEAF(4) wide_leaf4;
+typedef WIDE_LEAF(8) wide_leaf8;
 
 struct accel_wide {
     accel_embree_device dev;
     RTCBVH bvh;
     uintptr_t root; /* 0 for a scene without primitives */
     accel_wide_stats stats;
+    /* The walk this CPU runs (choose_walk), and its leaves' lanes. */
+    unsigned leaf_lanes;
+    int (*intersect)(const accel_wide *w, const scene *s, const ray *r, float tmax, hit *h);
+    int (*occluded)(const accel_wide *w, const scene *s, const ray *r, float tmax);
 };
+
+static void choose_walk(accel_wide *w);
 
 /* What the build callbacks share. */
 typedef struct {
     const scene *s;
+    unsigned leaf_lanes; /* 4 (wide_leaf4) or 8 (wide_leaf8) */
     atomic_size_t nodes, leaves;
 } build_ctx;
 
@@ -119,29 +127,43 @@ static void cb_set_bounds(void *node, const struct RTCBounds **bounds, unsigned 
     }
 }
 
+/* Fill a leaf of `lanes` lanes (v: its 3 x 3 x lanes floats) with the
+ * build's primitives, triangles first. */
+static void fill_leaf(const scene *s, const struct RTCBuildPrimitive *prims, size_t count, unsigned lanes, float *v,
+                      uint32_t *id, uint32_t *tris, uint32_t *spheres) {
+    for (unsigned i = 0; i < 9 * lanes; i++) v[i] = NAN; /* lanes without a triangle: no test accepts NaN */
+    for (unsigned i = 0; i < lanes; i++) id[i] = 0;
+    *tris = *spheres = 0;
+    for (size_t i = 0; i < count && i < lanes; i++) {
+        uint32_t p = prims[i].primID;
+        if (p >= s->triangle_count) continue;
+        const triangle *t = &s->triangles[p];
+        const vec3 *vs[3] = {&t->v0, &t->v1, &t->v2};
+        for (int k = 0; k < 3; k++) {
+            v[(3 * k + 0) * lanes + *tris] = vs[k]->x;
+            v[(3 * k + 1) * lanes + *tris] = vs[k]->y;
+            v[(3 * k + 2) * lanes + *tris] = vs[k]->z;
+        }
+        id[(*tris)++] = p;
+    }
+    for (size_t i = 0; i < count && i < lanes; i++)
+        if (prims[i].primID >= s->triangle_count) id[*tris + (*spheres)++] = prims[i].primID;
+}
+
 static void *cb_create_leaf(RTCThreadLocalAllocator alloc, const struct RTCBuildPrimitive *prims, size_t count,
                             void *user) {
     build_ctx *b = user;
-    const scene *s = b->s;
-    wide_leaf *l = rtcThreadLocalAlloc(alloc, sizeof *l, 16);
-    if (!l) return NULL;
-    memset(l, 0, sizeof *l);
-    for (size_t i = 0; i < count && i < 4; i++) { /* triangles first */
-        uint32_t id = prims[i].primID;
-        if (id >= s->triangle_count) continue;
-        const triangle *t = &s->triangles[id];
-        const vec3 *vs[3] = {&t->v0, &t->v1, &t->v2};
-        for (int k = 0; k < 3; k++) {
-            l->v[k][0][l->tris] = vs[k]->x;
-            l->v[k][1][l->tris] = vs[k]->y;
-            l->v[k][2][l->tris] = vs[k]->z;
-        }
-        l->id[l->tris++] = id;
+    void *leaf;
+    if (b->leaf_lanes == 8) {
+        wide_leaf8 *l = leaf = rtcThreadLocalAlloc(alloc, sizeof *l, 32);
+        if (l) fill_leaf(b->s, prims, count, 8, &l->v[0][0][0], l->id, &l->tris, &l->spheres);
+    } else {
+        wide_leaf4 *l = leaf = rtcThreadLocalAlloc(alloc, sizeof *l, 16);
+        if (l) fill_leaf(b->s, prims, count, 4, &l->v[0][0][0], l->id, &l->tris, &l->spheres);
     }
-    for (size_t i = 0; i < count && i < 4; i++)
-        if (prims[i].primID >= s->triangle_count) l->id[l->tris + l->spheres++] = prims[i].primID;
+    if (!leaf) return NULL;
     atomic_fetch_add_explicit(&b->leaves, 1, memory_order_relaxed);
-    return (void *)((uintptr_t)l | LEAF_TAG);
+    return (void *)((uintptr_t)leaf | LEAF_TAG);
 }
 
 /* The build primitives: every primitive's padded box. Returns NULL when out
@@ -174,6 +196,7 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
     }
     w->stats.config = w->dev.config;
     w->stats.node_width = NODE_W;
+    choose_walk(w);
     size_t n = (size_t)s->triangle_count + s->sphere_count;
     w->stats.primitive_count = n;
     if (n == 0) return w; /* nothing to hit: root 0 */
@@ -185,14 +208,18 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
         accel_wide_free(w);
         return NULL;
     }
-    build_ctx b = {.s = s};
+    build_ctx b = {.s = s, .leaf_lanes = w->leaf_lanes};
     struct RTCBuildArguments args = rtcDefaultBuildArguments();
     args.buildQuality = RTC_BUILD_QUALITY_MEDIUM; /* binned SAH */
     args.maxBranchingFactor = NODE_W;
     args.maxDepth = WIDE_MAX_DEPTH;
-    args.sahBlockSize = 4; /* 1 to 4 primitives cost one leaf test */
-    args.minLeafSize = 3;  /* measured: 6.5% fewer instructions than 1 at 655k triangles */
-    args.maxLeafSize = 4;
+    args.sahBlockSize = w->leaf_lanes; /* 1 to leaf_lanes primitives cost one leaf test */
+    args.maxLeafSize = w->leaf_lanes;
+    /* Measured (docs/meshes.md): leaves of 4 from 3 primitives up, 6.5%
+     * fewer instructions than from 1 at 655k triangles; leaves of 8 from 8
+     * up (from 3: 5-7% more instructions per ray, from 6: 7%), which also
+     * take 40% fewer bytes than leaves of 4. */
+    args.minLeafSize = w->leaf_lanes == 8 ? 8 : 3;
     args.traversalCost = 1.0f;
     args.intersectionCost = 1.0f;
     args.bvh = w->bvh;
@@ -228,136 +255,18 @@ void accel_wide_free(accel_wide *w) {
 
 void accel_wide_get_stats(const accel_wide *w, accel_wide_stats *out) { *out = w->stats; }
 
-static inline nfloat nsplat(float x) {
-    nfloat v;
-    for (int k = 0; k < NODE_W; k++) v[k] = x;
-    return v;
-}
-
-/* A node's row of NODE_W floats (16-byte aligned). */
-static inline nfloat nload(const float *p) { return *(const nfloat *)p; }
-
-/* Lane-wise a < b ? a : b and a > b ? a : b (minps / maxps per half).
- * Vectors of 8 go by pointer: GCC notes an ABI change for passing them by
- * value without AVX (they are inlined either way). */
-static inline nfloat nmin(const nfloat *a, const nfloat *b) {
-#ifdef __SSE2__
-    union { nfloat n; __m128 h[NODE_W / 4]; } x = {*a}, y = {*b};
-    for (int i = 0; i < NODE_W / 4; i++) x.h[i] = _mm_min_ps(x.h[i], y.h[i]);
-    return x.n;
-#else
-    nint m = *a < *b;
-    return (nfloat)(((nint)*a & m) | ((nint)*b & ~m));
-#endif
-}
-static inline nfloat nmax(const nfloat *a, const nfloat *b) {
-#ifdef __SSE2__
-    union { nfloat n; __m128 h[NODE_W / 4]; } x = {*a}, y = {*b};
-    for (int i = 0; i < NODE_W / 4; i++) x.h[i] = _mm_max_ps(x.h[i], y.h[i]);
-    return x.n;
-#else
-    nint m = *a > *b;
-    return (nfloat)(((nint)*a & m) | ((nint)*b & ~m));
-#endif
-}
-
-/* Bit k set where lane k of m is. */
-static inline unsigned nbits(const nint *m) {
-#ifdef __SSE2__
-    union { nint n; __m128 h[NODE_W / 4]; } x = {*m};
-    unsigned bits = 0;
-    for (int i = 0; i < NODE_W / 4; i++) bits |= (unsigned)_mm_movemask_ps(x.h[i]) << (4 * i);
-    return bits;
-#else
-    unsigned bits = 0;
-    for (int k = 0; k < NODE_W; k++) bits |= ((*m)[k] & 1u) << k;
-    return bits;
-#endif
-}
-
-/* A ray prepared for the walk: the test constants (intersect.h), the slab
- * test's origin and inverse direction splatted, and for each axis which row
- * of a node's boxes the ray enters by (the lower bound where it goes up). */
-typedef struct {
-    ray_prep r;
-    wide4_ray lanes;
-    nfloat o[3], inv[3];
-    size_t near[3], far[3]; /* float offsets of the rows in wide_node.box */
-} walk_ray;
-
-static inline void walk_ray_prepare(const ray *in, walk_ray *w) {
-    ray_prepare(in, &w->r);
-    wide4_ray_splat(&w->r, 0, &w->lanes);
-    const float o[3] = {in->o.x, in->o.y, in->o.z};
-    const float inv[3] = {w->r.inv_d.x, w->r.inv_d.y, w->r.inv_d.z};
-    for (int a = 0; a < 3; a++) {
-        w->o[a] = nsplat(o[a]);
-        w->inv[a] = nsplat(inv[a]);
-        size_t down = signbit(inv[a]) != 0;
-        w->near[a] = NODE_W * (2 * a + down);
-        w->far[a] = NODE_W * (2 * a + 1 - down);
-    }
-}
-
-/* The slab test of n's children against [0, cull]: returns the bits of the
- * children the ray may enter and their entry distances in *tnear. */
-static inline unsigned node_test(const wide_node *n, const walk_ray *w, float cull, nfloat *tnear) {
-    const float *b = &n->box[0][0];
-    nfloat nx = (nload(b + w->near[0]) - w->o[0]) * w->inv[0];
-    nfloat ny = (nload(b + w->near[1]) - w->o[1]) * w->inv[1];
-    nfloat nz = (nload(b + w->near[2]) - w->o[2]) * w->inv[2];
-    nfloat fx = (nload(b + w->far[0]) - w->o[0]) * w->inv[0];
-    nfloat fy = (nload(b + w->far[1]) - w->o[1]) * w->inv[1];
-    nfloat fz = (nload(b + w->far[2]) - w->o[2]) * w->inv[2];
-    nfloat zero = nsplat(0.0f), c = nsplat(cull);
-    nfloat nxy = nmax(&nx, &ny), nz0 = nmax(&nz, &zero), fxy = nmin(&fx, &fy), fzc = nmin(&fz, &c);
-    nfloat tn = nmax(&nxy, &nz0), tf = nmin(&fxy, &fzc);
-    *tnear = tn;
-    nint hit = tn <= tf * nsplat(SLAB_WIDEN);
-    return nbits(&hit);
-}
-
-/* Test leaf l's primitives with the caller's tmax and fold every hit into
- * *h by hit_before (h->t starts at tmax). Returns 1 if some primitive hit
- * (with any_hit: as soon as one does). */
-static inline int leaf_test(const wide_leaf *l, const scene *s, const walk_ray *w, float tmax, hit *h, int any_hit) {
-    const ray_prep *r = &w->r;
-    int found = 0;
-    if (l->tris) {
-        const float *const p[3][3] = {{l->v[0][0], l->v[0][1], l->v[0][2]},
-                                      {l->v[1][0], l->v[1][1], l->v[1][2]},
-                                      {l->v[2][0], l->v[2][1], l->v[2][2]}};
-        vint ids;
-        memcpy(&ids, l->id, sizeof ids);
-        int32_t nt = (int32_t)l->tris;
-        vint real = ((vint){0, 1, 2, 3} < (vint){nt, nt, nt, nt}) & (ids != w->lanes.skip);
-        wide4_group g;
-        wide4_test_lanes(p, r, &w->lanes, real, tmax, &g);
-        for (unsigned bits = wide4_vbits(g.ok | g.edge); bits; bits &= bits - 1) {
-            int k = __builtin_ctz(bits);
-            uint32_t id = l->id[k];
-            float t, b1, b2;
-            if (g.edge[k]) {
-                if (!triangle_intersect(r, &s->triangles[id], tmax, &t, &b1, &b2)) continue;
-            } else {
-                float inv = 1.0f / g.det[k];
-                t = g.T[k] * inv;
-                b1 = g.V[k] * inv;
-                b2 = g.W[k] * inv;
-            }
-            if (any_hit) return 1;
-            if (hit_before(t, id, h)) *h = (hit){t, id, b1, b2}, found = 1;
-        }
-    }
-    for (uint32_t i = l->tris; i < l->tris + l->spheres; i++) {
-        uint32_t id = l->id[i];
-        float t;
-        if (!sphere_intersect(r, &s->spheres[id - s->triangle_count], id == r->skip, tmax, &t)) continue;
-        if (any_hit) return 1;
-        if (hit_before(t, id, h)) *h = (hit){t, id, 0.0f, 0.0f}, found = 1;
-    }
-    return found;
-}
+/* For each octant of a ray's direction (bit a set: it goes down axis a),
+ * the byte offsets in a wide_node of the rows of boxes it enters by on
+ * axes x, y, z, then of those it leaves by. Row 2a holds axis a's lower
+ * bounds, row 2a + 1 its upper ones: a ray going up axis a enters by the
+ * lower. */
+#define ROW(a, up) (sizeof(float) * NODE_W * (2 * (a) + !(up)))
+#define OCTANT(o)                                                                                                   \
+    {ROW(0, !((o) & 1)), ROW(1, !((o) & 2)), ROW(2, !((o) & 4)), ROW(0, (o) & 1), ROW(1, (o) & 2), ROW(2, (o) & 4)}
+static const size_t octant_rows[8][6] = {OCTANT(0), OCTANT(1), OCTANT(2), OCTANT(3),
+                                         OCTANT(4), OCTANT(5), OCTANT(6), OCTANT(7)};
+#undef OCTANT
+#undef ROW
 
 typedef struct {
     uintptr_t ref;
@@ -365,12 +274,12 @@ typedef struct {
 } stack_entry;
 
 /* Push the children of n in `bits` (two or more) with their entry
- * distances, the nearest last (so popped first); returns the new top. */
-static inline int push_sorted(stack_entry *stack, int sp, const wide_node *n, unsigned bits, const nfloat *tn) {
+ * distances tn[k], the nearest last (so popped first); returns the new top. */
+static inline int push_sorted(stack_entry *stack, int sp, const wide_node *n, unsigned bits, const float *tn) {
     int first = sp;
     for (; bits; bits &= bits - 1) {
         int k = __builtin_ctz(bits);
-        stack_entry e = {n->child[k], (*tn)[k]};
+        stack_entry e = {n->child[k], tn[k]};
         int j = sp++;
         while (j > first && stack[j - 1].tnear < e.tnear) { /* farther ones below */
             stack[j] = stack[j - 1];
@@ -381,54 +290,47 @@ static inline int push_sorted(stack_entry *stack, int sp, const wide_node *n, un
     return sp;
 }
 
-/* Walk the tree; with any_hit, stop at the first hit. */
-static inline int walk(const accel_wide *wb, const scene *s, const ray *in, float tmax, hit *h, int any_hit) {
-    h->t = tmax;
-    h->prim = PRIM_NONE;
-    h->b1 = h->b2 = 0.0f;
-    if (!wb->root) return 0;
-    walk_ray w;
-    walk_ray_prepare(in, &w);
-    float cull = accel_cull_distance(tmax);
-    stack_entry stack[WIDE_STACK];
-    int sp = 0, found = 0;
-    uintptr_t cur = wb->root;
-    for (;;) {
-        if (!(cur & LEAF_TAG)) {
-            const wide_node *n = (const wide_node *)cur;
-            nfloat tn;
-            unsigned bits = node_test(n, &w, cull, &tn);
-            if (bits) {
-                if ((bits & (bits - 1)) == 0) {
-                    cur = n->child[__builtin_ctz(bits)];
-                    continue;
-                }
-                sp = push_sorted(stack, sp, n, bits, &tn);
-                cur = stack[--sp].ref;
-                continue;
-            }
-        } else if (leaf_test((const wide_leaf *)(cur & ~LEAF_TAG), s, &w, tmax, h, any_hit)) {
-            found = 1;
-            if (any_hit) return 1;
-            cull = accel_cull_distance(h->t);
-        }
-        /* Next: the nearest kept child still in front of the culling distance. */
-        for (;;) {
-            if (sp == 0) return found;
-            stack_entry e = stack[--sp];
-            if (e.tnear <= cull * SLAB_WIDEN) {
-                cur = e.ref;
-                break;
-            }
-        }
+/* The walks: SSE (4 lanes, any x86-64), and where NODE_W is 8, AVX2 and
+ * AVX-512VL (8 lanes). */
+#define WALK(name) walk4_##name
+#define WALK_TARGET
+#define WALK_LANES 4
+#include "accel_wide_walk.h"
+
+#if defined(__x86_64__) && defined(__GNUC__) && NODE_W == 8
+#define HAVE_WALK8 1
+#define WALK(name) walk8_##name
+#define WALK_TARGET __attribute__((target("avx2")))
+#define WALK_LANES 8
+#include "accel_wide_walk.h"
+
+#define WALK(name) walk16_##name
+#define WALK_TARGET __attribute__((target("avx512f,avx512vl")))
+#define WALK_LANES 8
+#include "accel_wide_walk.h"
+#endif
+
+/* The widest walk this CPU runs; the environment variables of the flat
+ * kernel (accel.c) stop it lower: TESSERA_NO_AVX512 at AVX2,
+ * TESSERA_NO_AVX2 at SSE (for tests: every walk on one machine). */
+static void choose_walk(accel_wide *w) {
+    w->intersect = walk4_intersect, w->occluded = walk4_occluded, w->stats.walk_isa = "sse2", w->leaf_lanes = 4;
+#ifdef HAVE_WALK8
+    if (getenv("TESSERA_NO_AVX2") != NULL) return;
+    if (getenv("TESSERA_NO_AVX512") == NULL && __builtin_cpu_supports("avx512f") &&
+        __builtin_cpu_supports("avx512vl")) {
+        w->intersect = walk16_intersect, w->occluded = walk16_occluded, w->stats.walk_isa = "avx512", w->leaf_lanes = 8;
+        return;
     }
+    if (__builtin_cpu_supports("avx2"))
+        w->intersect = walk8_intersect, w->occluded = walk8_occluded, w->stats.walk_isa = "avx2", w->leaf_lanes = 8;
+#endif
 }
 
 int accel_wide_intersect(const accel_wide *w, const scene *s, const ray *r, float tmax, hit *h) {
-    return walk(w, s, r, tmax, h, 0);
+    return w->intersect(w, s, r, tmax, h);
 }
 
 int accel_wide_occluded(const accel_wide *w, const scene *s, const ray *r, float tmax) {
-    hit h;
-    return walk(w, s, r, tmax, &h, 1);
+    return w->occluded(w, s, r, tmax);
 }

@@ -1,8 +1,9 @@
 /* accel_wide.h - Tessera's own 8-wide BVH for large scenes: built in
  * parallel by Embree's generic builder (rtcBuildBVH, binned SAH over boxes
  * Tessera supplies), walked by Tessera with one SIMD slab test for a node's
- * eight children, leaves of up to four triangles tested at once by the flat
- * kernel's watertight test (accel_flat.h), spheres by the scalar test.
+ * eight children, leaves of up to eight triangles (four without AVX2)
+ * tested at once by the flat kernel's watertight test (accel_flat.h),
+ * spheres by the scalar test.
  *
  * The answer is the one accel_embree.h defines, without reference to any
  * tree:
@@ -17,7 +18,9 @@
  * 1 + 3 * 2^-23 (more than its rounding, pbrt's bound) and the culling
  * distance by accel_cull_distance, so no box holding a candidate that could
  * still win is skipped. Every lane of every test is the same IEEE operation
- * on every x86-64 (SSE, no FMA), so the walk is also the same everywhere.
+ * on every x86-64 (no FMA), whatever walk the CPU runs (SSE, AVX2 or
+ * AVX-512; TESSERA_NO_AVX512 / TESSERA_NO_AVX2 stop it lower): the tree and
+ * the walk only decide the order in which candidates are tried.
  *
  * TESSERA_EMBREE_CONFIG, if set, configures the builder's Embree device
  * (e.g. "threads=1"). Built once per scene, then read-only: any number of
@@ -36,7 +39,8 @@ typedef struct {
     double build_seconds;  /* wall time of the whole build, boxes included */
     size_t node_count;     /* inner nodes */
     int node_width;        /* children per inner node at most (8) */
-    size_t leaf_count;     /* leaves (4 primitives each at most) */
+    const char *walk_isa;  /* the walk this CPU runs: "sse2", "avx2" or "avx512" */
+    size_t leaf_count;     /* leaves (8 primitives each at most; 4 for the SSE walk) */
     size_t primitive_count;
     size_t memory_bytes;   /* bytes held after the build (nodes and leaves) */
     size_t peak_bytes;     /* bytes held at the build's peak, boxes included */

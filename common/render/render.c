@@ -252,6 +252,16 @@ int render_tile_has_active(const tile_rect *t, int width, const uint8_t *mask) {
     return 0;
 }
 
+int render_mark_idle_tiles(int width, int height, int tile_size, const uint8_t *mask, uint8_t *idle) {
+    int n = render_split_tiles(width, height, tile_size, NULL, 0);
+    tile_rect *tiles = malloc((size_t)n * sizeof *tiles);
+    if (!tiles) return -1;
+    render_split_tiles(width, height, tile_size, tiles, n);
+    for (int t = 0; t < n; t++) idle[t] = !render_tile_has_active(&tiles[t], width, mask);
+    free(tiles);
+    return 0;
+}
+
 int render_frame(const scene *s, const render_options *opt, float *rgb, trace_stats *stats) {
     const render_settings *rs = &s->settings;
     int ts = opt->tile_size > 0 ? opt->tile_size : 32;

@@ -62,6 +62,11 @@ int render_tile_has_active(const tile_rect *t, int width, const uint8_t *mask);
  * them to out (out may be NULL to count). */
 int render_split_tiles(int width, int height, int tile_size, tile_rect *out, int max);
 
+/* For an adaptive round: idle[t] = 1 for each tile t of render_split_tiles
+ * (width, height, tile_size) with no pixel set in mask, else 0 (idle holds
+ * one byte per tile). Returns 0, or -1 when out of memory (idle untouched). */
+int render_mark_idle_tiles(int width, int height, int tile_size, const uint8_t *mask, uint8_t *idle);
+
 /* Called from the rendering threads' coordinator (the calling thread) about
  * ten times a second with tiles done so far; may be NULL. */
 typedef void (*render_progress_cb)(void *ctx, int tiles_done, int tiles_total, const trace_stats *so_far);

@@ -74,7 +74,8 @@ typedef struct {
     int width, height, spp, max_depth;
     int has_seed;
     uint64_t seed;
-    int no_accel; /* 1: leave scene.accel NULL (a coordinator that only hands the scene out) */
+    int no_accel; /* 1: leave scene.accel NULL (a coordinator that only hands the scene out, or a
+                   * caller that frees the bundle first, then calls scene_build_accel) */
 } scene_overrides;
 
 typedef struct {
@@ -198,6 +199,12 @@ scene *scene_load(const char *path, const scene_overrides *overrides, char *err,
  * entry is the scene text, the rest its meshes. Same contract as
  * scene_load; messages name the bundle's first entry as the file. */
 scene *scene_load_bundle(const scene_bundle *b, const scene_overrides *overrides, char *err, size_t err_len);
+
+/* Build the intersector (settings.accel) of a scene loaded with no_accel,
+ * once the caller has freed what the build does not need (the bundle's
+ * mesh text: the build is the load's peak). Returns 0, or -1 with err
+ * "FILE: shapes: building the intersector: WHY" (s->accel stays NULL). */
+int scene_build_accel(scene *s, char *err, size_t err_len);
 
 /* Free a scene and everything it owns; NULL is allowed. */
 void scene_free(scene *s);

@@ -1182,6 +1182,14 @@ static int load_root(loader *L, const cJSON *root, const scene_overrides *ov) {
     return 0;
 }
 
+int scene_build_accel(scene *s, char *err, size_t err_len) {
+    char why[256];
+    s->accel = accel_build_err(s, s->settings.accel, why, sizeof why);
+    if (s->accel) return 0;
+    snprintf(err, err_len, "%s: shapes: building the intersector: %s", s->path, why);
+    return -1;
+}
+
 scene *scene_load_bundle(const scene_bundle *b, const scene_overrides *ov, char *err, size_t err_len) {
     const char *path = b->files[0].name;
     loader L;

@@ -1,0 +1,300 @@
+/* accel_wide_walk.h - the wide BVH's walk (accel_wide.c), written once for
+ * any vector width: accel_wide.c includes it for 4 lanes (two SSE
+ * registers per row of a node's 8 children, leaves of 4 triangles; any
+ * x86-64) and for 8 lanes (one AVX register per row, leaves of 8; compiled
+ * for AVX2 and, for its 32 registers, for AVX-512VL), and picks the widest
+ * the CPU has at run time.
+ *
+ * Every width computes the same numbers: each lane of the node test is the
+ * scalar (box - o) * inv_d, max, min and tnear <= tfar * SLAB_WIDEN, and
+ * each lane of the leaf test is triangle_intersect's (the flat kernel's
+ * watertight test, accel_flat.h): IEEE operations without FMA, the same
+ * result on any ISA. Nor would a different walk or tree change the answer,
+ * which hit_before and the margins define (accel_wide.h); the tests check
+ * every walk against the BVH (mesh_wide_walk_isas_match_bvh).
+ *
+ * Before including, define WALK(name) (the name with a width suffix),
+ * WALK_TARGET (a function attribute or nothing) and WALK_LANES (4 or 8:
+ * lanes of the node test's vectors and of a leaf; NODE_W must be a
+ * multiple). This file undefines them at its end. Not a public header. */
+
+/* The leaves' kernel at WALK_LANES lanes, compiled for this walk's target. */
+#define FLAT_LANES_ONLY
+#define FLAT_LANES WALK_LANES
+#define FLAT(name) WALK(f4_##name)
+#define FLAT_TARGET WALK_TARGET
+#if WALK_LANES == 8
+#define FLAT_SPLAT(x) {x, x, x, x, x, x, x, x}
+#define FLAT_LANE_IDS {0, 1, 2, 3, 4, 5, 6, 7}
+#define FLAT_BITS(m) _mm256_movemask_ps((__m256)(m))
+#else
+#define FLAT_SPLAT(x) {x, x, x, x}
+#define FLAT_LANE_IDS {0, 1, 2, 3}
+#ifdef __SSE2__
+#define FLAT_BITS(m) _mm_movemask_ps((__m128)(m))
+#else
+#define FLAT_BITS(m) (((m)[0] & 1) | ((m)[1] & 2) | ((m)[2] & 4) | ((m)[3] & 8))
+#endif
+#endif
+#include "accel_flat.h"
+#undef FLAT_LANES_ONLY
+#define lfloat WALK(f4_vfloat)
+#define lint WALK(f4_vint)
+/* Leaves of WALK_LANES primitives: one leaf test. */
+#if WALK_LANES == 8
+typedef wide_leaf8 WALK(leaf);
+#else
+typedef wide_leaf4 WALK(leaf);
+#endif
+
+/* The node test's vectors: WALK_LANES children's floats. */
+#if WALK_LANES == 8
+typedef __m256 WALK(nvec);
+WALK_TARGET static inline __m256 WALK(nload)(const char *p) { return _mm256_load_ps((const float *)p); }
+WALK_TARGET static inline __m256 WALK(nsplat)(float x) { return _mm256_set1_ps(x); }
+WALK_TARGET static inline __m256 WALK(nsub)(__m256 a, __m256 b) { return _mm256_sub_ps(a, b); }
+WALK_TARGET static inline __m256 WALK(nmul)(__m256 a, __m256 b) { return _mm256_mul_ps(a, b); }
+WALK_TARGET static inline __m256 WALK(nmin)(__m256 a, __m256 b) { return _mm256_min_ps(a, b); }
+WALK_TARGET static inline __m256 WALK(nmax)(__m256 a, __m256 b) { return _mm256_max_ps(a, b); }
+WALK_TARGET static inline void WALK(nstore)(float *p, __m256 a) { _mm256_store_ps(p, a); }
+/* Bit k set where lane k of a <= lane k of b. */
+WALK_TARGET static inline unsigned WALK(nle_bits)(__m256 a, __m256 b) {
+    return (unsigned)_mm256_movemask_ps(_mm256_cmp_ps(a, b, _CMP_LE_OQ));
+}
+#elif defined(__SSE2__)
+typedef __m128 WALK(nvec);
+WALK_TARGET static inline __m128 WALK(nload)(const char *p) { return _mm_load_ps((const float *)p); }
+WALK_TARGET static inline __m128 WALK(nsplat)(float x) { return _mm_set1_ps(x); }
+WALK_TARGET static inline __m128 WALK(nsub)(__m128 a, __m128 b) { return _mm_sub_ps(a, b); }
+WALK_TARGET static inline __m128 WALK(nmul)(__m128 a, __m128 b) { return _mm_mul_ps(a, b); }
+WALK_TARGET static inline __m128 WALK(nmin)(__m128 a, __m128 b) { return _mm_min_ps(a, b); }
+WALK_TARGET static inline __m128 WALK(nmax)(__m128 a, __m128 b) { return _mm_max_ps(a, b); }
+WALK_TARGET static inline void WALK(nstore)(float *p, __m128 a) { _mm_store_ps(p, a); }
+WALK_TARGET static inline unsigned WALK(nle_bits)(__m128 a, __m128 b) {
+    return (unsigned)_mm_movemask_ps(_mm_cmple_ps(a, b));
+}
+#else /* no SSE: the compiler's 16-byte vectors, min and max as SSE defines them */
+typedef lfloat WALK(nvec);
+WALK_TARGET static inline lfloat WALK(nload)(const char *p) { return *(const lfloat *)p; }
+WALK_TARGET static inline lfloat WALK(nsplat)(float x) { return (lfloat)FLAT_SPLAT(x); }
+WALK_TARGET static inline lfloat WALK(nsub)(lfloat a, lfloat b) { return a - b; }
+WALK_TARGET static inline lfloat WALK(nmul)(lfloat a, lfloat b) { return a * b; }
+WALK_TARGET static inline lfloat WALK(nmin)(lfloat a, lfloat b) {
+    lint m = a < b;
+    return (lfloat)(((lint)a & m) | ((lint)b & ~m));
+}
+WALK_TARGET static inline lfloat WALK(nmax)(lfloat a, lfloat b) {
+    lint m = a > b;
+    return (lfloat)(((lint)a & m) | ((lint)b & ~m));
+}
+WALK_TARGET static inline void WALK(nstore)(float *p, lfloat a) { *(lfloat *)p = a; }
+WALK_TARGET static inline unsigned WALK(nle_bits)(lfloat a, lfloat b) {
+    lint m = a <= b;
+    return (m[0] & 1u) | (m[1] & 2u) | (m[2] & 4u) | (m[3] & 8u);
+}
+#endif
+#define nvec WALK(nvec)
+
+/* A ray prepared for the vector tests: the leaves' lanes (accel_flat.h),
+ * the slab test's origin and inverse direction splatted, the byte offsets
+ * of the rows of a node the ray enters and leaves by, and those of axes
+ * kx, ky, kz in a leaf's vertex. The scalar tests' constants are a
+ * ray_prep apart, whose address escapes to them: kept out of this struct,
+ * they let the compiler keep this one in registers. */
+typedef struct {
+    WALK(f4_ray) lanes;
+    nvec o[3], inv[3];
+    const size_t *rows; /* octant_rows[the direction's octant] */
+    size_t k[3];
+} WALK(ray);
+
+/* Fill w for the ray `in`. The shear constants are intersect.h's; the
+ * inverse direction is safe_inverse's, the same bits: lane-wise IEEE
+ * division where the direction is nonzero, else +-3e38 (its sign that of
+ * the direction, also for -0). */
+WALK_TARGET __attribute__((always_inline)) static inline void WALK(prepare)(const ray *in, ray_prep *r,
+                                                                          WALK(ray) *w) {
+    ray_prepare_shear(in, r); /* inv_d is left unset: only the node test reads it, from w->inv */
+    const float o[3] = {in->o.x, in->o.y, in->o.z};
+    float inv[4];
+    unsigned down; /* bit a: the ray goes down axis a */
+#ifdef __SSE2__
+    __m128 d = _mm_setr_ps(in->d.x, in->d.y, in->d.z, 1.0f);
+    __m128 q = _mm_div_ps(_mm_set1_ps(1.0f), d), zero = _mm_cmpeq_ps(d, _mm_setzero_ps());
+    __m128 huge = _mm_or_ps(_mm_set1_ps(3.0e38f), _mm_and_ps(d, _mm_set1_ps(-0.0f)));
+    _mm_storeu_ps(inv, _mm_or_ps(_mm_andnot_ps(zero, q), _mm_and_ps(zero, huge)));
+    down = (unsigned)_mm_movemask_ps(d);
+#else
+    inv[0] = safe_inverse(in->d.x), inv[1] = safe_inverse(in->d.y), inv[2] = safe_inverse(in->d.z);
+    down = (signbit(inv[0]) != 0) | (signbit(inv[1]) != 0) << 1 | (signbit(inv[2]) != 0) << 2;
+#endif
+    w->rows = octant_rows[down & 7];
+    w->o[0] = WALK(nsplat)(o[0]), w->o[1] = WALK(nsplat)(o[1]), w->o[2] = WALK(nsplat)(o[2]);
+    w->inv[0] = WALK(nsplat)(inv[0]), w->inv[1] = WALK(nsplat)(inv[1]), w->inv[2] = WALK(nsplat)(inv[2]);
+    /* The leaves' lanes (accel_flat.h's ray_splat, without a count). */
+    w->lanes.ox = WALK(f4_vsplat)(o[r->kx]);
+    w->lanes.oy = WALK(f4_vsplat)(o[r->ky]);
+    w->lanes.oz = WALK(f4_vsplat)(o[r->kz]);
+    w->lanes.sx = WALK(f4_vsplat)(r->sx);
+    w->lanes.sy = WALK(f4_vsplat)(r->sy);
+    w->lanes.sz = WALK(f4_vsplat)(r->sz);
+    w->lanes.skip = (lint)WALK(f4_vsplat)(0.0f) + (int32_t)r->skip;
+    w->k[0] = sizeof(float) * WALK_LANES * (size_t)r->kx;
+    w->k[1] = sizeof(float) * WALK_LANES * (size_t)r->ky;
+    w->k[2] = sizeof(float) * WALK_LANES * (size_t)r->kz;
+}
+
+/* The slab test of n's children against [0, cull]: returns the bits of the
+ * children the ray may enter and writes their entry distances to tnear. */
+WALK_TARGET static inline unsigned WALK(node_test)(const wide_node *n, const WALK(ray) *w, nvec cull,
+                                                   float tnear[NODE_W]) {
+    const nvec zero = WALK(nsplat)(0.0f), widen = WALK(nsplat)(SLAB_WIDEN);
+    unsigned bits = 0;
+    for (int i = 0; i < NODE_W; i += WALK_LANES) {
+        const char *b = (const char *)&n->box[0][i];
+        nvec nx = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->rows[0]), w->o[0]), w->inv[0]);
+        nvec ny = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->rows[1]), w->o[1]), w->inv[1]);
+        nvec nz = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->rows[2]), w->o[2]), w->inv[2]);
+        nvec fx = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->rows[3]), w->o[0]), w->inv[0]);
+        nvec fy = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->rows[4]), w->o[1]), w->inv[1]);
+        nvec fz = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->rows[5]), w->o[2]), w->inv[2]);
+        nvec tn = WALK(nmax)(WALK(nmax)(nx, ny), WALK(nmax)(nz, zero));
+        nvec tf = WALK(nmin)(WALK(nmin)(fx, fy), WALK(nmin)(fz, cull));
+        WALK(nstore)(tnear + i, tn);
+        bits |= WALK(nle_bits)(tn, WALK(nmul)(tf, widen)) << i;
+    }
+    return bits;
+}
+
+/* The lanes of a leaf's vertex `vtx`, axis at byte offset `off`. */
+WALK_TARGET static inline lfloat WALK(leaf_row)(const WALK(leaf) *l, int vtx, size_t off) {
+    return *(const lfloat *)((const char *)l->v[vtx] + off);
+}
+
+/* Test leaf l's primitives with the caller's tmax and fold every hit into
+ * *h by hit_before (h->t starts at tmax). Returns 1 if some primitive hit
+ * (with any_hit: as soon as one does). */
+WALK_TARGET __attribute__((always_inline)) static inline int WALK(leaf_test)(const WALK(leaf) *l, const scene *s,
+                                                                            const ray_prep *r, const WALK(ray) *w,
+                                                                            float tmax, hit *h, int any_hit) {
+    int found = 0;
+    if (l->tris) {
+        lint ids = *(const lint *)l->id;
+        WALK(f4_group) g;
+        /* Lanes past the triangles have NaN vertices: never candidates. */
+        WALK(f4_test_loaded)(WALK(leaf_row)(l, 0, w->k[0]), WALK(leaf_row)(l, 0, w->k[1]),
+                             WALK(leaf_row)(l, 0, w->k[2]), WALK(leaf_row)(l, 1, w->k[0]),
+                             WALK(leaf_row)(l, 1, w->k[1]), WALK(leaf_row)(l, 1, w->k[2]),
+                             WALK(leaf_row)(l, 2, w->k[0]), WALK(leaf_row)(l, 2, w->k[1]),
+                             WALK(leaf_row)(l, 2, w->k[2]), &w->lanes, ids != w->lanes.skip, tmax, &g);
+        /* Lanes off the edges that hit: triangle_intersect's numbers, without calling it. */
+        unsigned edge = WALK(f4_vbits)(g.edge);
+        for (unsigned bits = WALK(f4_vbits)(g.ok) & ~edge; bits; bits &= bits - 1) {
+            if (any_hit) return 1;
+            int k = __builtin_ctz(bits);
+            uint32_t id = l->id[k];
+            float inv = 1.0f / g.det[k], t = g.T[k] * inv;
+            if (hit_before(t, id, h)) *h = (hit){t, id, g.V[k] * inv, g.W[k] * inv}, found = 1;
+        }
+        /* Lanes on an edge (rare): the scalar test decides, in a loop of its
+         * own so that the one above calls nothing. */
+        for (; edge; edge &= edge - 1) {
+            uint32_t id = l->id[__builtin_ctz(edge)];
+            float t, b1, b2;
+            if (!triangle_intersect(r, &s->triangles[id], tmax, &t, &b1, &b2)) continue;
+            if (any_hit) return 1;
+            if (hit_before(t, id, h)) *h = (hit){t, id, b1, b2}, found = 1;
+        }
+    }
+    if (!l->spheres) return found;
+    for (uint32_t i = l->tris; i < l->tris + l->spheres; i++) {
+        uint32_t id = l->id[i];
+        float t;
+        if (!sphere_intersect(r, &s->spheres[id - s->triangle_count], id == r->skip, tmax, &t)) continue;
+        if (any_hit) return 1;
+        if (hit_before(t, id, h)) *h = (hit){t, id, 0.0f, 0.0f}, found = 1;
+    }
+    return found;
+}
+
+/* Walk the tree; with any_hit, stop at the first hit. Of a node's children
+ * hit, the nearest is visited next and the others pushed, the farthest
+ * deepest (for any_hit, in any order); an entry popped behind the culling
+ * distance is dropped (the condition the node test would apply). */
+WALK_TARGET __attribute__((always_inline)) static inline int WALK(walk)(const accel_wide *wb, const scene *s,
+                                                                     const ray *in, float tmax, hit *h, int any_hit) {
+    h->t = tmax;
+    h->prim = PRIM_NONE;
+    h->b1 = h->b2 = 0.0f;
+    uintptr_t cur = wb->root;
+    if (!cur) return 0;
+    ray_prep r; /* what the scalar tests read (edge lanes, spheres) */
+    WALK(ray) w; /* what the vector tests read */
+    WALK(prepare)(in, &r, &w);
+    float cull = accel_cull_distance(tmax), cull_wide = cull * SLAB_WIDEN;
+    nvec cullv = WALK(nsplat)(cull);
+    stack_entry stack[WIDE_STACK];
+    int sp = 0, found = 0;
+    for (;;) {
+        if (!(cur & LEAF_TAG)) {
+            const wide_node *n = (const wide_node *)cur;
+            float tn[NODE_W] __attribute__((aligned(32)));
+            unsigned bits = WALK(node_test)(n, &w, cullv, tn);
+            if (bits) {
+                int k = __builtin_ctz(bits);
+                cur = n->child[k];
+                unsigned rest = bits & (bits - 1);
+                if (!rest) continue;
+                if (any_hit) { /* any order will do: keep the others as they come */
+                    for (; rest; rest &= rest - 1) stack[sp++].ref = n->child[__builtin_ctz(rest)];
+                    continue;
+                }
+                if (!(rest & (rest - 1))) { /* two: keep the farther */
+                    int j = __builtin_ctz(rest);
+                    uintptr_t other = n->child[j];
+                    float t = tn[j];
+                    if (tn[j] < tn[k]) t = tn[k], other = cur, cur = n->child[j];
+                    stack[sp++] = (stack_entry){other, t};
+                    continue;
+                }
+                sp = push_sorted(stack, sp, n, bits, tn);
+                cur = stack[--sp].ref;
+                continue;
+            }
+        } else if (WALK(leaf_test)((const WALK(leaf) *)(cur & ~LEAF_TAG), s, &r, &w, tmax, h, any_hit)) {
+            found = 1;
+            if (any_hit) return 1;
+            cull = accel_cull_distance(h->t);
+            cull_wide = cull * SLAB_WIDEN;
+            cullv = WALK(nsplat)(cull);
+        }
+        /* Next: the nearest kept child still in front of the culling
+         * distance. A shadow ray's never shrinks, and every child kept
+         * passed tnear <= min(tfar, cull) * SLAB_WIDEN: none to drop. */
+        if (any_hit) {
+            if (sp == 0) return 0;
+            cur = stack[--sp].ref;
+            continue;
+        }
+        do {
+            if (sp == 0) return found;
+        } while (!(stack[--sp].tnear <= cull_wide));
+        cur = stack[sp].ref;
+    }
+}
+
+WALK_TARGET static int WALK(intersect)(const accel_wide *w, const scene *s, const ray *r, float tmax, hit *h) {
+    return WALK(walk)(w, s, r, tmax, h, 0);
+}
+
+WALK_TARGET static int WALK(occluded)(const accel_wide *w, const scene *s, const ray *r, float tmax) {
+    hit h;
+    return WALK(walk)(w, s, r, tmax, &h, 1);
+}
+
+#undef nvec
+#undef lfloat
+#undef lint
+#undef WALK
+#undef WALK_TARGET
+#undef WALK_LANES
