@@ -54,15 +54,28 @@ static inline int prim_test(const scene *s, const ray_prep *r, uint32_t id, floa
     return sphere_intersect(r, &s->spheres[id - s->triangle_count], id == r->skip, tmax, t);
 }
 
+/* fminf and fmaxf for the finite corners of a box, inline (fminf is a call
+ * into libm: 10.5M triangles' boxes are asked for twice by Embree's build);
+ * they differ from fminf/fmaxf only in the sign of a zero, which the
+ * padding below erases (-0 - pad == +0 - pad): the same boxes, bit for bit. */
+static inline float min3(float a, float b, float c) {
+    float m = b < c ? b : c;
+    return a < m ? a : m;
+}
+static inline float max3(float a, float b, float c) {
+    float m = b > c ? b : c;
+    return a > m ? a : m;
+}
+
 void accel_padded_box(const scene *s, uint32_t id, float lo[3], float hi[3]) {
     if (id < s->triangle_count) {
         const triangle *t = &s->triangles[id];
-        lo[0] = fminf(t->v0.x, fminf(t->v1.x, t->v2.x));
-        lo[1] = fminf(t->v0.y, fminf(t->v1.y, t->v2.y));
-        lo[2] = fminf(t->v0.z, fminf(t->v1.z, t->v2.z));
-        hi[0] = fmaxf(t->v0.x, fmaxf(t->v1.x, t->v2.x));
-        hi[1] = fmaxf(t->v0.y, fmaxf(t->v1.y, t->v2.y));
-        hi[2] = fmaxf(t->v0.z, fmaxf(t->v1.z, t->v2.z));
+        lo[0] = min3(t->v0.x, t->v1.x, t->v2.x);
+        lo[1] = min3(t->v0.y, t->v1.y, t->v2.y);
+        lo[2] = min3(t->v0.z, t->v1.z, t->v2.z);
+        hi[0] = max3(t->v0.x, t->v1.x, t->v2.x);
+        hi[1] = max3(t->v0.y, t->v1.y, t->v2.y);
+        hi[2] = max3(t->v0.z, t->v1.z, t->v2.z);
     } else {
         const sphere *sp = &s->spheres[id - s->triangle_count];
         vec3 c = sp->center;
@@ -70,7 +83,7 @@ void accel_padded_box(const scene *s, uint32_t id, float lo[3], float hi[3]) {
         hi[0] = c.x + sp->radius, hi[1] = c.y + sp->radius, hi[2] = c.z + sp->radius;
     }
     float m = 0;
-    for (int a = 0; a < 3; a++) m = fmaxf(m, fmaxf(fabsf(lo[a]), fabsf(hi[a])));
+    for (int a = 0; a < 3; a++) m = max3(m, fabsf(lo[a]), fabsf(hi[a]));
     float pad = BOX_PAD * (1.0f + m);
     for (int a = 0; a < 3; a++) {
         lo[a] -= pad;

@@ -30,6 +30,14 @@ typedef struct {
  * NAME is `name` (usually the file's path). */
 int obj_parse(const char *buf, size_t len, const char *name, obj_mesh *out, char *err, size_t err_len);
 
+/* Parse buf in `parts` spans cut at line ends, in parallel (what obj_parse
+ * does with a big text on a machine with cores to spare): on success the
+ * same mesh as obj_parse's, bit for bit. Returns -1 (and *out empty) for
+ * any text obj_parse refuses, and for some it accepts (a face written
+ * oddly, e.g. with a vertical tab between corners), without a message:
+ * obj_parse then parses it in one pass. parts: 1 to 8. */
+int obj_parse_spans(const char *buf, size_t len, const char *name, int parts, obj_mesh *out);
+
 /* Read and parse an OBJ file; same contract as obj_parse, plus errors for
  * files that can't be read. */
 int obj_load(const char *path, obj_mesh *out, char *err, size_t err_len);

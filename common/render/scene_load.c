@@ -3,10 +3,14 @@
  * Parsing happens in double precision into temporary lists (vertices in
  * world coordinates, triangles as three vertex indices, spheres, emitters);
  * once the bounds of all geometry are known the whole scene is moved into
- * internal units (see scene.h) and only then rounded to float, each vertex
- * once. A mesh's triangles share its vertices, so a mesh costs 24 bytes per
- * vertex and 24 per triangle while loading. Every refusal names the file
- * and the field; docs/scene-format.md describes the format. */
+ * internal units (see scene.h) and only then rounded to float (a vertex
+ * gives the same float at each corner that uses it). A mesh's triangles
+ * share its vertices, so a mesh costs 24 bytes per vertex and 24 per
+ * triangle while loading. The mesh files are parsed before the shapes are
+ * read, to allocate those lists once; the loops over a big mesh's vertices
+ * and triangles run in ranges on every core (par.h), with the same result.
+ * Every refusal names the file and the field; docs/scene-format.md
+ * describes the format. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -18,6 +22,7 @@
 #include "mesh_normals.h"
 #include "name_index.h"
 #include "obj.h"
+#include "par.h"
 #include "scene_bundle.h"
 #include "scene.h"
 #include "limit.h"
@@ -56,6 +61,15 @@ typedef struct {
     float cos_inner, cos_outer;
 } point_d;
 
+/* A mesh file parsed before the shapes are loaded (load_shapes), kept for
+ * the first mesh shape that names it. */
+typedef struct {
+    const scene_bundle_file *f;
+    obj_mesh m;
+    int failed, taken; /* failed: m is empty and err says why */
+    char err[512];
+} parsed_file;
+
 typedef struct {
     json_ctx j;
     const scene_bundle *bundle; /* the scene text and its meshes */
@@ -72,6 +86,8 @@ typedef struct {
     size_t emitter_count, emitter_cap;
     point_d *points;
     size_t point_count, point_cap;
+    parsed_file *parsed; /* every mesh file the shapes name, parsed ahead */
+    size_t parsed_count, parsed_cap;
     const scene_bundle_file *obj_file; /* the OBJ parsed last, kept for the next shape naming it */
     obj_mesh obj;
     size_t obj_vn_base, obj_vt_base; /* where its normals and uvs start in vn, vt */
@@ -312,15 +328,20 @@ static int triangle_has_area(const double *a, const double *b, const double *c) 
     return dlen(n) > 1e-12 * dlen(e1) * dlen(e2);
 }
 
-/* Grow the triangle bounds by point p; the same as lo = fmin(lo, p) and
+/* Grow the bounds lo, hi by point p; the same as lo = fmin(lo, p) and
  * hi = fmax(hi, p), which keep their first argument on a tie (C99 F.9.9.2,
- * glibc), but inline. */
-static void bounds_add(loader *L, const double p[3]) {
+ * glibc), but inline. Bounds grown over parts of a list of points and
+ * then grown by each other in the parts' order equal those grown over the
+ * whole list: either way the first of the smallest (largest) stays. */
+static void bounds_grow(double lo[3], double hi[3], const double p[3]) {
     for (int a = 0; a < 3; a++) {
-        L->tri_lo[a] = p[a] < L->tri_lo[a] ? p[a] : L->tri_lo[a];
-        L->tri_hi[a] = p[a] > L->tri_hi[a] ? p[a] : L->tri_hi[a];
+        lo[a] = p[a] < lo[a] ? p[a] : lo[a];
+        hi[a] = p[a] > hi[a] ? p[a] : hi[a];
     }
 }
+
+/* Grow the triangle bounds by point p. */
+static void bounds_add(loader *L, const double p[3]) { bounds_grow(L->tri_lo, L->tri_hi, p); }
 
 /* Append the triangle of vertices ia, ib, ic (in L->wv, with room made for
  * it in L->tris) and grow the bounds by its corners. */
@@ -453,6 +474,24 @@ static int set_corners(uint32_t **arr, size_t *len, size_t *cap, size_t tri, con
     return 0;
 }
 
+/* Normals in[b, e) (3 floats each) made unit into out (zero when they
+ * cannot be). */
+typedef struct {
+    const float *in;
+    vec3 *out;
+} unit_job;
+
+static void unit_normals(void *ctx, size_t b, size_t e, int part) {
+    const unit_job *J = ctx;
+    (void)part;
+    for (size_t i = b; i < e; i++) {
+        const float *n = J->in + 3 * i;
+        double len = sqrt((double)n[0] * n[0] + (double)n[1] * n[1] + (double)n[2] * n[2]);
+        J->out[i] = len > 1e-30 && isfinite(len) ? vec3_make((float)(n[0] / len), (float)(n[1] / len), (float)(n[2] / len))
+                                                 : vec3_make(0, 0, 0);
+    }
+}
+
 /* Append count normals (3 floats each; OBJ's or an imported model's) to the
  * loader's, made unit (zero when they cannot be). Returns 0 or -1 when out
  * of memory. */
@@ -461,13 +500,9 @@ static int append_normals(loader *L, const float *normals, size_t count) {
     vec3 *p = realloc(L->vn, (L->vn_count + count) * sizeof *p);
     if (!p) return -1;
     L->vn = p;
-    for (size_t i = 0; i < count; i++) {
-        const float *n = normals + 3 * i;
-        double len = sqrt((double)n[0] * n[0] + (double)n[1] * n[1] + (double)n[2] * n[2]);
-        L->vn[L->vn_count++] = len > 1e-30 && isfinite(len)
-                                   ? vec3_make((float)(n[0] / len), (float)(n[1] / len), (float)(n[2] / len))
-                                   : vec3_make(0, 0, 0);
-    }
+    unit_job J = {normals, L->vn + L->vn_count};
+    par_run(count, par_parts(count, 1 << 14), unit_normals, &J);
+    L->vn_count += count;
     return 0;
 }
 
@@ -533,6 +568,217 @@ static int assemble_attributes(loader *L) {
     return 0;
 }
 
+/* The parse of file f (named `file`): the one load_shapes made, the first
+ * time it is asked for (moved to *out), else a new one. Same contract as
+ * obj_parse. */
+static int parse_mesh_file(loader *L, const scene_bundle_file *f, const char *file, obj_mesh *out, char *err,
+                           size_t err_len) {
+    for (size_t i = 0; i < L->parsed_count; i++) {
+        parsed_file *p = &L->parsed[i];
+        if (p->f != f || p->taken) continue;
+        p->taken = 1;
+        if (p->failed) return snprintf(err, err_len, "%s", p->err), -1;
+        *out = p->m;
+        memset(&p->m, 0, sizeof p->m);
+        return 0;
+    }
+    return obj_parse(f->data, f->len, file, out, err, err_len);
+}
+
+/* Free the parsed mesh files (the last one a shape used, and any no shape
+ * took); it can be called again. */
+static void free_parsed(loader *L) {
+    obj_mesh_free(&L->obj);
+    L->obj_file = NULL;
+    for (size_t i = 0; i < L->parsed_count; i++) obj_mesh_free(&L->parsed[i].m);
+    free(L->parsed);
+    L->parsed = NULL;
+    L->parsed_count = L->parsed_cap = 0;
+}
+
+/* Parse every mesh file the shapes name (each once, in the order they are
+ * first named; a failure is kept for its shape to report, after whatever
+ * comes before it) and make room for all the vertices and triangles the
+ * shapes will add, so that the pool and the records are allocated once:
+ * growing them took a copy, and on huge pages a slow one (0.3 s at 2.6M
+ * triangles, 3.6 s at 10.5M). Room is only a hint: when it cannot be made,
+ * the shapes make theirs, and report their errors, as they go. The parsed
+ * files are alive together until their shapes take them. */
+static void plan_shapes(loader *L, const cJSON *shapes) {
+    size_t verts = 0, tris = 0;
+    for (const cJSON *sh = shapes->child; sh; sh = sh->next) {
+        const cJSON *type = cJSON_GetObjectItemCaseSensitive(sh, "type"),
+                    *file = cJSON_GetObjectItemCaseSensitive(sh, "file");
+        if (!cJSON_IsString(type)) continue;
+        if (strcmp(type->valuestring, "triangle") == 0) verts += 3, tris += 1;
+        if (strcmp(type->valuestring, "quad") == 0) verts += 6, tris += 2;
+        if (strcmp(type->valuestring, "mesh") != 0 || !cJSON_IsString(file)) continue;
+        const scene_bundle_file *f = scene_bundle_find(L->bundle, file->valuestring);
+        if (!f || !f->data) continue;
+        parsed_file *p = NULL;
+        for (size_t i = 0; i < L->parsed_count && !p; i++) p = L->parsed[i].f == f ? &L->parsed[i] : NULL;
+        if (!p) {
+            if (!(p = push((void **)&L->parsed, &L->parsed_count, &L->parsed_cap, sizeof *p))) return;
+            p->f = f;
+            p->taken = 0;
+            p->failed = obj_parse(f->data, f->len, file->valuestring, &p->m, p->err, sizeof p->err) != 0;
+        }
+        if (!p->failed) verts += p->m.vertex_count, tris += p->m.triangle_count;
+    }
+    if (verts > 3) (void)reserve_vertices(L, verts);
+    if (tris > 1) (void)reserve_triangles(L, tris);
+}
+
+/* One mesh instance being added (load_mesh): the parsed mesh, where its
+ * world vertices and triangle records go, and per range (par.h) what it
+ * kept. */
+typedef struct {
+    loader *L;
+    const obj_mesh *m;
+    double scale, translate[3];
+    double *w;         /* the mesh's vertices in L->wv */
+    tri_r *out;        /* its first triangle slot in L->tris */
+    uint32_t *src;     /* NULL, or per kept triangle (as out) its number in the mesh */
+    uint32_t base, mat; /* base: index of w's first vertex */
+    int emitter;
+    size_t kept[PAR_MAX_PARTS], skipped[PAR_MAX_PARTS];
+    double lo[PAR_MAX_PARTS][3], hi[PAR_MAX_PARTS][3];
+    size_t first;                                /* L->tri_count before the mesh */
+    size_t vn_end[PAR_MAX_PARTS], vt_end[PAR_MAX_PARTS]; /* 1 + the last triangle given normals, uvs (0: none) */
+} mesh_add;
+
+/* Vertices [b, e) of the mesh in world coordinates. */
+static void mesh_add_vertices(void *ctx, size_t b, size_t e, int part) {
+    mesh_add *A = ctx;
+    (void)part;
+    for (size_t i = 3 * b; i < 3 * e; i += 3)
+        for (int a = 0; a < 3; a++) A->w[i + a] = A->m->positions[i + a] * A->scale + A->translate[a];
+}
+
+/* Triangles [b, e) of the mesh: the ones with an area are written from
+ * slot b on, in order; their count, the skipped ones' and their corners'
+ * bounds go to the range's slots. */
+static void mesh_add_triangles(void *ctx, size_t b, size_t e, int part) {
+    mesh_add *A = ctx;
+    size_t kept = 0;
+    double *lo = A->lo[part], *hi = A->hi[part];
+    for (int a = 0; a < 3; a++) lo[a] = INFINITY, hi[a] = -INFINITY;
+    for (size_t t = b; t < e; t++) {
+        const uint32_t *idx = A->m->indices + 3 * t;
+        const double *p[3] = {A->w + 3 * (size_t)idx[0], A->w + 3 * (size_t)idx[1], A->w + 3 * (size_t)idx[2]};
+        if (!triangle_has_area(p[0], p[1], p[2])) continue;
+        if (A->src) A->src[b + kept] = (uint32_t)t;
+        tri_r *r = &A->out[b + kept++];
+        for (int k = 0; k < 3; k++) {
+            r->v[k] = A->base + idx[k];
+            bounds_grow(lo, hi, p[k]);
+        }
+        r->material = A->mat;
+        r->emitter = A->emitter;
+        r->shade = -1;
+    }
+    A->kept[part] = kept;
+    A->skipped[part] = e - b - kept;
+}
+
+/* Add the triangles of a mesh without normals or uvs, in ranges on every
+ * core: the same records, bounds and count of skipped triangles as
+ * keep_triangle one by one (each range's kept ones are moved down behind
+ * the previous range's when triangles were skipped). */
+static void add_mesh_triangles(mesh_add *A) {
+    loader *L = A->L;
+    int parts = par_parts(A->m->triangle_count, 1 << 14);
+    par_run(A->m->triangle_count, parts, mesh_add_triangles, A);
+    size_t kept = 0;
+    for (int k = 0; k < parts; k++) {
+        size_t b, e;
+        par_range(A->m->triangle_count, parts, k, &b, &e);
+        if (kept != b) memmove(A->out + kept, A->out + b, A->kept[k] * sizeof *A->out);
+        if (kept != b && A->src) memmove(A->src + kept, A->src + b, A->kept[k] * sizeof *A->src);
+        kept += A->kept[k];
+        L->s->degenerate_triangles += A->skipped[k];
+        for (int a = 0; a < 3; a++) { /* as bounds_grow, by the range's bounds in order */
+            L->tri_lo[a] = A->lo[k][a] < L->tri_lo[a] ? A->lo[k][a] : L->tri_lo[a];
+            L->tri_hi[a] = A->hi[k][a] > L->tri_hi[a] ? A->hi[k][a] : L->tri_hi[a];
+        }
+    }
+    L->tri_count += kept;
+}
+
+/* Kept triangles [b, e) of the mesh (numbers A->first + b on): their
+ * normal and uv indices into L->tri_vn and L->tri_vt (made long enough), as
+ * add_triangle_attributes gives them one by one, SCENE_NONE for a triangle
+ * without; the range's last triangle that got any is noted. */
+static void mesh_add_attributes(void *ctx, size_t b, size_t e, int part) {
+    mesh_add *A = ctx;
+    loader *L = A->L;
+    const obj_mesh *m = A->m;
+    A->vn_end[part] = A->vt_end[part] = 0;
+    for (size_t j = b; j < e; j++) {
+        size_t t = A->src[j], tri = A->first + j;
+        if (m->normal_indices) {
+            uint32_t idx[3] = {SCENE_NONE, SCENE_NONE, SCENE_NONE};
+            int usable = m->normal_indices[3 * t] != OBJ_NONE;
+            for (int k = 0; k < 3 && usable; k++) {
+                idx[k] = (uint32_t)(L->obj_vn_base + m->normal_indices[3 * t + k]);
+                usable &= !vec3_is_zero(L->vn[idx[k]]);
+            }
+            for (int k = 0; k < 3; k++) L->tri_vn[3 * tri + k] = usable ? idx[k] : SCENE_NONE;
+            if (usable) A->vn_end[part] = tri + 1;
+        }
+        if (m->uv_indices) {
+            int has = m->uv_indices[3 * t] != OBJ_NONE;
+            for (int k = 0; k < 3; k++)
+                L->tri_vt[3 * tri + k] = has ? (uint32_t)(L->obj_vt_base + m->uv_indices[3 * t + k]) : SCENE_NONE;
+            if (has) A->vt_end[part] = tri + 1;
+        }
+    }
+}
+
+/* The per-corner list *arr (*len triangles long, capacity *cap entries)
+ * made room for `tris` triangles. Returns 0 or -1 when out of memory. */
+static int corners_room(uint32_t **arr, size_t *cap, size_t tris) {
+    if (3 * tris <= *cap) return 0;
+    uint32_t *p = realloc(*arr, 3 * tris * sizeof *p);
+    if (!p) return -1;
+    *arr = p;
+    *cap = 3 * tris;
+    return 0;
+}
+
+/* After mesh_add_attributes: a list that got entries is SCENE_NONE from its
+ * old end to the mesh's first triangle and now ends after its last entry. */
+static void corners_close(uint32_t *arr, size_t *len, size_t first, const size_t end[PAR_MAX_PARTS], int parts) {
+    size_t last = 0;
+    for (int k = 0; k < parts; k++) last = end[k] > last ? end[k] : last;
+    if (!last) return;
+    for (size_t i = 3 * *len; i < 3 * first; i++) arr[i] = SCENE_NONE;
+    *len = last;
+}
+
+/* Add the mesh's triangles with their normals and uvs in ranges: the
+ * triangles as add_mesh_triangles, noting where each kept one came from,
+ * then their attribute indices. Returns 0 or -1 when out of memory. */
+static int add_mesh_triangles_with_attributes(mesh_add *A) {
+    loader *L = A->L;
+    A->first = L->tri_count;
+    A->src = malloc((A->m->triangle_count + 1) * sizeof *A->src);
+    if (!A->src) return -1;
+    add_mesh_triangles(A);
+    size_t kept = L->tri_count - A->first;
+    int rc = (A->m->normal_indices && corners_room(&L->tri_vn, &L->tri_vn_cap, L->tri_count)) ||
+             (A->m->uv_indices && corners_room(&L->tri_vt, &L->tri_vt_cap, L->tri_count));
+    if (rc == 0) {
+        int parts = par_parts(kept, 1 << 14);
+        par_run(kept, parts, mesh_add_attributes, A);
+        if (A->m->normal_indices) corners_close(L->tri_vn, &L->tri_vn_len, A->first, A->vn_end, parts);
+        if (A->m->uv_indices) corners_close(L->tri_vt, &L->tri_vt_len, A->first, A->vt_end, parts);
+    }
+    free(A->src);
+    A->src = NULL;
+    return rc ? -1 : 0;
+}
+
 static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat, int em) {
     static const double zero[3] = {0, 0, 0};
     const char *file;
@@ -550,7 +796,7 @@ static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat
     if (L->obj_file != f || L->obj_smooth != smooth) { /* instances of one file parse it once */
         obj_mesh_free(&L->obj);
         L->obj_file = NULL;
-        if (obj_parse(f->data, f->len, file, &L->obj, oerr, sizeof oerr))
+        if (parse_mesh_file(L, f, file, &L->obj, oerr, sizeof oerr))
             return jf_fail(&L->j, where, "file", "%s", oerr);
         L->obj_file = f;
         L->obj_smooth = smooth;
@@ -562,10 +808,17 @@ static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat
     double *w = reserve_vertices(L, m.vertex_count);
     if (!w || reserve_triangles(L, m.triangle_count))
         return jf_fail(&L->j, where, NULL, "out of memory (%zu triangles)", L->tri_count + m.triangle_count);
-    for (size_t i = 0; i < 3 * m.vertex_count; i += 3) /* world coordinates, once per vertex */
-        for (int a = 0; a < 3; a++) w[i + a] = m.positions[i + a] * scale + translate[a];
+    mesh_add A = {L, &m, scale, {translate[0], translate[1], translate[2]}, w, L->tris + L->tri_count, NULL,
+                  (uint32_t)L->wv_count, mat, em, {0}, {0}, {{0}}, {{0}}, 0, {0}, {0}};
+    par_run(m.vertex_count, par_parts(m.vertex_count, 1 << 14), mesh_add_vertices, &A); /* once per vertex */
     size_t base = L->wv_count;
     L->wv_count += m.vertex_count;
+    if (!m.normal_indices && !m.uv_indices) {
+        add_mesh_triangles(&A);
+        return 0;
+    }
+    if (par_parts(m.triangle_count, 1 << 14) > 1)
+        return add_mesh_triangles_with_attributes(&A) ? jf_fail(&L->j, where, NULL, "out of memory") : 0;
     for (size_t t = 0; t < m.triangle_count; t++) {
         const uint32_t *idx = m.indices + 3 * t;
         if (!triangle_has_area(w + 3 * (size_t)idx[0], w + 3 * (size_t)idx[1], w + 3 * (size_t)idx[2])) {
@@ -609,12 +862,14 @@ static int load_shapes(loader *L, const cJSON *root) {
     const cJSON *shapes = cJSON_GetObjectItemCaseSensitive(root, "shapes");
     if (!shapes) return 0;
     if (!cJSON_IsArray(shapes)) return jf_fail(&L->j, "shapes", NULL, "expected an array of shapes");
+    plan_shapes(L, shapes);
     int i = 0;
     for (const cJSON *sh = shapes->child; sh; sh = sh->next, i++) {
         char where[64];
         snprintf(where, sizeof where, "shapes[%d]", i);
         if (load_shape(L, sh, where)) return -1;
     }
+    free_parsed(L); /* before the scene is assembled, the peak of the load */
     return 0;
 }
 
@@ -796,6 +1051,26 @@ static int build_lights(loader *L) {
     return 0;
 }
 
+/* Triangles [b, e) into the scene: corners in internal units (a vertex is
+ * converted for each triangle that keeps it, the same float each time;
+ * only kept triangles' corners are converted: they lie within the bounds,
+ * while a vertex no face, or only a degenerate one, uses may lie anywhere,
+ * beyond what a float holds), geometric normals, materials. */
+static void assemble_triangles(void *ctx, size_t b, size_t e, int part) {
+    loader *L = ctx;
+    scene *s = L->s;
+    (void)part;
+    for (size_t t = b; t < e; t++) {
+        triangle *tr = &s->triangles[t];
+        tr->v0 = to_internal(s, L->wv + 3 * (size_t)L->tris[t].v[0]);
+        tr->v1 = to_internal(s, L->wv + 3 * (size_t)L->tris[t].v[1]);
+        tr->v2 = to_internal(s, L->wv + 3 * (size_t)L->tris[t].v[2]);
+        s->triangle_normals[t] = vec3_normalize(vec3_cross(vec3_sub(tr->v1, tr->v0), vec3_sub(tr->v2, tr->v0)));
+        s->triangle_info[t].material = L->tris[t].material;
+        s->triangle_info[t].light = -1;
+    }
+}
+
 static int assemble(loader *L) {
     scene *s = L->s;
     s->triangle_count = (uint32_t)L->tri_count;
@@ -807,39 +1082,17 @@ static int assemble(loader *L) {
     s->triangle_normals = malloc((L->tri_count + 1) * sizeof(vec3));
     s->spheres = calloc(L->sphere_count + 1, sizeof(sphere));
     s->sphere_info = calloc(L->sphere_count + 1, sizeof(prim_info));
-    vec3 *v = malloc((L->wv_count + 1) * sizeof *v); /* the vertices in internal units */
-    uint8_t *used = calloc(L->wv_count + 1, 1);       /* a corner of a kept triangle */
-    if (!s->triangles || !s->triangle_info || !s->triangle_normals || !s->spheres || !s->sphere_info || !v || !used) {
-        free(v);
-        free(used);
+    if (!s->triangles || !s->triangle_info || !s->triangle_normals || !s->spheres || !s->sphere_info)
         return jf_fail(&L->j, "shapes", NULL, "out of memory");
-    }
     memhint_huge(s->triangles, (L->tri_count + 1) * sizeof(triangle));
     memhint_huge(s->triangle_info, (L->tri_count + 1) * sizeof(prim_info));
     memhint_huge(s->triangle_normals, (L->tri_count + 1) * sizeof(vec3));
-    memhint_huge(v, (L->wv_count + 1) * sizeof *v);
     memset(&s->triangles[L->tri_count], 0, sizeof(triangle));
     memset(&s->triangle_info[L->tri_count], 0, sizeof(prim_info));
     memset(&s->triangle_normals[L->tri_count], 0, sizeof(vec3));
-    /* Only the corners of kept triangles: they lie within the bounds, while
-     * a vertex no face (or only a degenerate one) uses may lie anywhere,
-     * beyond what a float holds. */
-    for (size_t t = 0; t < L->tri_count; t++) used[L->tris[t].v[0]] = used[L->tris[t].v[1]] = used[L->tris[t].v[2]] = 1;
-    for (size_t i = 0; i < L->wv_count; i++)
-        if (used[i]) v[i] = to_internal(s, L->wv + 3 * i);
-    free(used);
+    par_run(L->tri_count, par_parts(L->tri_count, 1 << 14), assemble_triangles, L);
     free(L->wv); /* not needed past here: the scene's peak memory is the intersector's build */
     L->wv = NULL;
-    for (size_t t = 0; t < L->tri_count; t++) {
-        s->triangles[t].v0 = v[L->tris[t].v[0]];
-        s->triangles[t].v1 = v[L->tris[t].v[1]];
-        s->triangles[t].v2 = v[L->tris[t].v[2]];
-        const triangle *tr = &s->triangles[t];
-        s->triangle_normals[t] = vec3_normalize(vec3_cross(vec3_sub(tr->v1, tr->v0), vec3_sub(tr->v2, tr->v0)));
-        s->triangle_info[t].material = L->tris[t].material;
-        s->triangle_info[t].light = -1;
-    }
-    free(v);
     for (size_t i = 0; i < L->sphere_count; i++) {
         s->spheres[i].center = to_internal(s, L->spheres[i].c);
         s->spheres[i].radius = (float)(L->spheres[i].r / s->world_scale);
@@ -894,7 +1147,7 @@ static void loader_free(loader *L) {
                      L->shade_flags, L->vn, L->vt, L->tri_vn, L->tri_vt};
     for (size_t i = 0; i < sizeof temps / sizeof temps[0]; i++) free(temps[i]);
     name_index_free(&L->material_index);
-    obj_mesh_free(&L->obj);
+    free_parsed(L);
     json_ctx j = L->j;
     scene *s = L->s;
     memset(L, 0, sizeof *L);
