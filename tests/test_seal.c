@@ -507,7 +507,7 @@ TEST(seal_every_auth_failure_looks_the_same) {
     }
     double best[V_KINDS];
     for (int v = 0; v < V_KINDS; v++) best[v] = 1e9;
-    for (int r = 0; r < 5; r++)
+    for (int r = 0; r < 15; r++) /* the best of 15: one round slowed by the machine's other work must not count */
         for (int v = 0; v < V_KINDS; v++) {
             double c = check_cost(&ring, challenge, hello[v], 2000);
             if (c < best[v]) best[v] = c;
