@@ -18,25 +18,20 @@
  * lanes of the node test's vectors and of a leaf; NODE_W must be a
  * multiple). This file undefines them at its end. Not a public header. */
 
-/* The leaves' kernel at WALK_LANES lanes, compiled for this walk's target. */
+/* The leaves' kernel at WALK_LANES lanes, compiled for this walk's target
+ * (the 4-lane walk has none: the flat kernel's 4-lane build). */
 #define FLAT_LANES_ONLY
-#define FLAT_LANES WALK_LANES
 #define FLAT(name) WALK(f4_##name)
-#define FLAT_TARGET WALK_TARGET
 #if WALK_LANES == 8
+#define FLAT_LANES 8
+#define FLAT_TARGET WALK_TARGET
 #define FLAT_SPLAT(x) {x, x, x, x, x, x, x, x}
 #define FLAT_LANE_IDS {0, 1, 2, 3, 4, 5, 6, 7}
 #define FLAT_BITS(m) _mm256_movemask_ps((__m256)(m))
-#else
-#define FLAT_SPLAT(x) {x, x, x, x}
-#define FLAT_LANE_IDS {0, 1, 2, 3}
-#ifdef __SSE2__
-#define FLAT_BITS(m) _mm_movemask_ps((__m128)(m))
-#else
-#define FLAT_BITS(m) (((m)[0] & 1) | ((m)[1] & 2) | ((m)[2] & 4) | ((m)[3] & 8))
-#endif
-#endif
 #include "accel_flat.h"
+#else
+#include "accel_flat4.h"
+#endif
 #undef FLAT_LANES_ONLY
 #define lfloat WALK(f4_vfloat)
 #define lint WALK(f4_vint)
