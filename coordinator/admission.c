@@ -50,6 +50,8 @@ typedef struct {
     char err[600];
 } admit_read;
 
+/* On the pool: read the scene and frame it (the read buffer and the frame
+ * exist together for a moment: up to twice --max-upload). */
 static void admit_read_work(uv_work_t *w) {
     admit_read *a = w->data;
     size_t len = 0;
@@ -68,7 +70,8 @@ static void admit_read_done(uv_work_t *w, int status) {
     if (status == 0 && !a->s->stopping && j->state == SJOB_RUNNING) {
         const uint8_t *bundle = a->framed ? a->framed->data + WIRE_HEADER_BYTES : NULL;
         size_t len = a->framed ? a->framed->len - WIRE_HEADER_BYTES : 0;
-        store_job_resume_with(a->s, j, bundle, len, a->framed, a->err); /* a failure is recorded in the job */
+        if (store_job_resume_with(a->s, j, bundle, len, a->framed, a->err)) /* the failure is recorded in the job */
+            svc_memory_released(a->s); /* its need no longer counts, though it may never have held a frame */
     } else {
         svc_memory_released(a->s); /* its need no longer counts */
     }
@@ -102,6 +105,7 @@ void svc_admit_waiting(service *s) {
     }
 }
 
+/* The admit timer (svc_memory_released): admit what fits now. */
 static void on_admit_timer(uv_timer_t *t) { svc_admit_waiting(t->data); }
 
 void svc_memory_released(service *s) {

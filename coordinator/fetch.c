@@ -34,6 +34,7 @@ struct fetch_stream {
     uint8_t *done;       /* the tiles found, then the "partial" message's ranges */
     int tiles_found;
     char build_err[600];
+    struct fetch_stream *next_waiting; /* on the builds' queue (below) */
     uint64_t size, sent; /* file size; bytes read so far */
     size_t chunk;
     int busy;            /* a read is on the pool */
@@ -43,6 +44,12 @@ struct fetch_stream {
     int err_no;
     crypto_generichash_state hash;
 };
+
+/* Partial images are made one at a time: a build holds a thread of the
+ * loop's pool for a whole journal, and the journals' own writes, uploads
+ * and reads share that pool. The others wait here, in order. (One loop per
+ * process: these are touched on its thread only.) */
+static fetch_stream *build_running, *build_first, *build_last;
 
 size_t fetch_chunk_size(void) {
     const char *e = getenv("TESSERA_FETCH_CHUNK");
@@ -191,9 +198,20 @@ static void on_drained(conn *c, void *arg) {
 
 /* On the loop: send what was read; then read on at once while the queue
  * holds under a chunk, else when it has drained to that. */
+/* The partial build that held the slot is over: start the next one. */
+static void build_done(fetch_stream *f) {
+    if (f != build_running) return;
+    build_running = build_first;
+    if (!build_first) return;
+    build_first = build_first->next_waiting;
+    if (!build_first) build_last = NULL;
+    next_chunk(build_running);
+}
+
 static void after_read(uv_work_t *w, int status) {
     fetch_stream *f = w->data;
     f->busy = 0;
+    build_done(f); /* its first chunk: the PFM is made (or failed) */
     if (!f->c) return stream_free(f); /* the client went away meanwhile */
     if (status != 0 && !f->err_no) f->err_no = ECANCELED;
     if (f->err_no) {
@@ -235,6 +253,13 @@ static int fetch_start_stream(fetch_stream *f, uv_loop_t *loop, conn *c, uint32_
     snprintf(f->path, sizeof f->path, "%s", path);
     crypto_generichash_init(&f->hash, NULL, 0, 32);
     *slot = f;
+    if (f->is_partial && build_running) { /* made after the one in hand */
+        if (build_last) build_last->next_waiting = f;
+        else build_first = f;
+        build_last = f;
+        return 0;
+    }
+    if (f->is_partial) build_running = f;
     next_chunk(f);
     return 0;
 }
@@ -262,11 +287,26 @@ int fetch_start(uv_loop_t *loop, conn *c, uint32_t job, const char *path, size_t
     return f ? fetch_start_stream(f, loop, c, job, path, chunk, slot) : -1;
 }
 
+/* Take f off the builds' queue if it waits there. Returns 1 if it did. */
+static int unqueue(fetch_stream *f) {
+    for (fetch_stream **p = &build_first, *prev = NULL; *p; prev = *p, p = &(*p)->next_waiting)
+        if (*p == f) {
+            *p = f->next_waiting;
+            if (build_last == f) build_last = prev;
+            return 1;
+        }
+    return 0;
+}
+
 void fetch_detach(fetch_stream **slot) {
     fetch_stream *f = *slot;
     if (!f) return;
     *slot = NULL;
     f->slot = NULL;
+    if (unqueue(f)) {
+        stream_free(f);
+        return;
+    }
     conn_on_drain(f->c, 0, NULL, NULL);
     f->c = NULL;
     if (!f->busy) stream_free(f);

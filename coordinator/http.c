@@ -232,7 +232,7 @@ struct http_server {
 
 typedef struct {
     uv_write_t req;
-    conn_blob *blob; /* bytes shared by every write that holds them (net/conn.h) */
+    conn_blob *blob; /* bytes shared by every write that holds them (net/blob.h) */
 } http_write;
 
 /* A blob holding a copy of len bytes, or NULL when out of memory. */

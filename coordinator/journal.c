@@ -6,7 +6,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -94,32 +93,49 @@ static int put_pfm(void *ctx, const tile_rect *r, const float *px) {
     for (int y = r->y0; y < r->y1; y++, px += 3 * w) {
         for (size_t i = 0; i < 3 * w; i++) wire_put_f32(o->row + 4 * i, px[i]);
         off_t at = (off_t)(o->header + 12 * ((size_t)(o->height - 1 - y) * (size_t)o->width + (size_t)r->x0));
+        errno = 0;
         if (pwrite(o->fd, o->row, 12 * w, at) != (ssize_t)(12 * w)) {
-            o->err_no = errno ? errno : EIO;
+            o->err_no = errno ? errno : ENOSPC; /* a short write: the disk is full */
             return -1;
         }
     }
     return 0;
 }
 
-/* The journal at path mapped read-only into *data (*len bytes; NULL and 0
- * when it is missing or empty). Returns 0, or -1 with errno set. */
-static int map_journal(const char *path, uint8_t **data, size_t *len) {
-    *data = NULL;
-    *len = 0;
-    int fd = open(path, O_RDONLY | O_CLOEXEC);
-    if (fd < 0) return errno == ENOENT ? 0 : -1;
-    struct stat st;
-    int rc = fstat(fd, &st);
-    if (rc == 0 && st.st_size > 0) {
-        void *m = mmap(NULL, (size_t)st.st_size, PROT_READ, MAP_PRIVATE, fd, 0);
-        if (m == MAP_FAILED) rc = -1;
-        else *data = m, *len = (size_t)st.st_size;
+/* Read the journal at fd record by record with pread (not mapped: the
+ * coordinator may cut a live journal short meanwhile, after a failed write
+ * or a torn tail, and a mapped page past the new end would kill it with
+ * SIGBUS), handing each good record to scan_records; stops at the end, a
+ * short read or the first torn or corrupt record (or one longer than
+ * max_len, the largest tile's). *found counts the tiles found. Returns 0,
+ * or -1 when out of memory. */
+static int scan_file(int fd, const tile_rect *rects, int tile_count, size_t max_len, uint8_t *done, int *found,
+                     record_fn fn, void *ctx) {
+    uint8_t head[12], *rec = NULL;
+    size_t cap = 0;
+    off_t off = 0;
+    *found = 0;
+    for (;;) {
+        if (pread(fd, head, sizeof head, off) != (ssize_t)sizeof head) break;
+        size_t len = JOURNAL_RECORD_OVERHEAD + 4 * (size_t)wire_get_u32(head + 8);
+        if (wire_get_u32(head) != JOURNAL_MAGIC || len > max_len) break; /* no record of this job's */
+        if (len > cap) {
+            uint8_t *grown = realloc(rec, len);
+            if (!grown) {
+                free(rec);
+                return -1;
+            }
+            rec = grown, cap = len;
+        }
+        int one = 0;
+        if (pread(fd, rec, len, off) != (ssize_t)len ||
+            scan_records(rec, len, rects, tile_count, done, &one, fn, ctx) != len)
+            break;
+        *found += one;
+        off += (off_t)len;
     }
-    int saved = errno;
-    close(fd);
-    errno = saved;
-    return rc;
+    free(rec);
+    return 0;
 }
 
 int journal_write_partial_pfm(const char *path, const char *out, int width, int height, int tile_size,
@@ -129,13 +145,11 @@ int journal_write_partial_pfm(const char *path, const char *out, int width, int 
     pfm_out o = {.fd = -1, .width = width, .height = height, .header = (size_t)hl};
     tile_rect *rects = calloc((size_t)tile_count, sizeof *rects);
     o.row = malloc(12 * (size_t)(tile_size < width ? tile_size : width));
-    uint8_t *data = NULL;
-    size_t len = 0;
-    int found = -1;
+    int in = open(path, O_RDONLY | O_CLOEXEC), found = -1;
     memset(done, 0, (size_t)tile_count);
     if (!rects || !o.row) {
         snprintf(err, err_len, "%.400s: out of memory", path);
-    } else if (map_journal(path, &data, &len)) {
+    } else if (in < 0 && errno != ENOENT) { /* a missing journal is an empty one */
         snprintf(err, err_len, "%.400s: %s", path, strerror(errno));
     } else if ((o.fd = open(out, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600)) < 0 ||
                write(o.fd, header, (size_t)hl) != hl ||
@@ -144,15 +158,19 @@ int journal_write_partial_pfm(const char *path, const char *out, int width, int 
         snprintf(err, err_len, "%.400s: cannot write: %s", out, strerror(errno));
     } else {
         render_split_tiles(width, height, tile_size, rects, tile_count);
-        scan_records(data, len, rects, tile_count, done, &found, put_pfm, &o);
-        if (o.err_no) {
+        found = 0;
+        size_t max_len = JOURNAL_RECORD_OVERHEAD + 12 * (size_t)tile_size * (size_t)tile_size;
+        if (in >= 0 && scan_file(in, rects, tile_count, max_len, done, &found, put_pfm, &o)) {
+            snprintf(err, err_len, "%.400s: out of memory", path);
+            found = -1;
+        } else if (o.err_no) {
             snprintf(err, err_len, "%.400s: cannot write: %s", out, strerror(o.err_no));
             found = -1;
         }
     }
+    if (in >= 0) close(in);
     if (o.fd >= 0) close(o.fd);
     if (found < 0 && o.fd >= 0) unlink(out);
-    if (data) munmap(data, len);
     free(rects);
     free(o.row);
     return found;

@@ -31,9 +31,10 @@ size_t journal_replay(const uint8_t *data, size_t len, const tile_rect *rects, i
 /* Write what the journal at path holds of a width x height job cut into
  * tile_count tiles of tile_size pixels (render_split_tiles) as a new PFM
  * file out (created, mode 0600; the tiles not found are black), and
- * done[tile_count] (1 for each tile found). The journal is mapped, not
- * read into memory, and never changed; reading stops at its first torn or
- * corrupt record; a missing journal is an empty one. Memory: one tile row.
+ * done[tile_count] (1 for each tile found). The journal is read record by
+ * record (the coordinator may cut it short meanwhile) and never changed;
+ * reading stops at its first torn or corrupt record; a missing journal is
+ * an empty one. Memory: one record and one tile row.
  * Returns the number of tiles done, or -1 with "PATH: reason" in err (out
  * is then removed). */
 int journal_write_partial_pfm(const char *path, const char *out, int width, int height, int tile_size,
