@@ -92,6 +92,7 @@ typedef struct {
     const scene *s;
     unsigned leaf_lanes; /* 4 (wide_leaf4) or 8 (wide_leaf8) */
     atomic_size_t nodes, leaves;
+    atomic_size_t oversized; /* a leaf the builder made with more than leaf_lanes primitives (0: none) */
 } build_ctx;
 
 static void *cb_create_node(RTCThreadLocalAllocator alloc, unsigned int child_count, void *user) {
@@ -154,6 +155,8 @@ static void *cb_create_leaf(RTCThreadLocalAllocator alloc, const struct RTCBuild
                             void *user) {
     build_ctx *b = user;
     void *leaf;
+    if (count > b->leaf_lanes) /* never with maxLeafSize set; were it to happen, the build fails, no primitive is lost */
+        atomic_store_explicit(&b->oversized, count, memory_order_relaxed);
     if (b->leaf_lanes == 8) {
         wide_leaf8 *l = leaf = rtcThreadLocalAlloc(alloc, sizeof *l, 32);
         if (l) fill_leaf(b->s, prims, count, 8, &l->v[0][0][0], l->id, &l->tris, &l->spheres);
@@ -233,6 +236,13 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
     args.userPtr = &b;
     w->root = (uintptr_t)rtcBuildBVH(&args);
     free(prims);
+    size_t oversized = atomic_load(&b.oversized);
+    if (w->root && !w->dev.error[0] && oversized) {
+        snprintf(err, err_len, "building the wide BVH: the builder made a leaf of %zu primitives (at most %u)",
+                 oversized, b.leaf_lanes);
+        accel_wide_free(w);
+        return NULL;
+    }
     if (!w->root || w->dev.error[0]) {
         snprintf(err, err_len, "building the wide BVH: %s", w->dev.error[0] ? w->dev.error : "out of memory");
         accel_wide_free(w);
