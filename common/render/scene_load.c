@@ -1174,11 +1174,6 @@ static int load_root(loader *L, const cJSON *root, const scene_overrides *ov) {
     }
     if (assemble(L) || assemble_shading(L)) return -1;
     record_features(L->s);
-    loader_free(L); /* before the intersector's build, the peak of a load */
-    if (ov && ov->no_accel) return 0;
-    char aerr[256];
-    L->s->accel = accel_build_err(L->s, L->s->settings.accel, aerr, sizeof aerr);
-    if (!L->s->accel) return jf_fail(&L->j, "shapes", NULL, "building the intersector: %s", aerr);
     return 0;
 }
 
@@ -1209,8 +1204,8 @@ scene *scene_load_bundle(const scene_bundle *b, const scene_overrides *ov, char 
     if (rc == 0) L.s->path = strdup(path);
     cJSON_Delete(root);
     loader_free(&L);
-    if (rc != 0 || !L.s->path) {
-        scene_free(L.s);
+    if (rc != 0 || !L.s->path || (!(ov && ov->no_accel) && scene_build_accel(L.s, err, err_len))) {
+        scene_free(L.s); /* (the loader's temporaries went first: the intersector's build is the load's peak) */
         return NULL;
     }
     return L.s;
