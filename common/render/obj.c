@@ -309,7 +309,7 @@ static int parse_lines(obj_reader *r, const char *buf, size_t pos, size_t end) {
 
 /* The text in one pass. */
 static int parse_serial(const char *buf, size_t len, const char *name, obj_mesh *out, char *err, size_t err_len) {
-    obj_reader r = {name, 0, err, err_len, out, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+    obj_reader r = {.name = name, .err = err, .err_len = err_len, .m = out};
     memset(out, 0, sizeof *out);
     if (parse_lines(&r, buf, 0, len)) goto fail;
     if (out->triangle_count == 0) {
@@ -383,7 +383,7 @@ static void count_span(void *ctx, size_t b, size_t e, int k) {
 static void parse_span(void *ctx, size_t b, size_t e, int k) {
     obj_spans *S = ctx;
     obj_span *sp = &S->span[k];
-    obj_reader r = {S->name, 0, sp->err, sizeof sp->err, &sp->m, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1};
+    obj_reader r = {.name = S->name, .err = sp->err, .err_len = sizeof sp->err, .m = &sp->m, .window = 1};
     size_t tri_base = 0;
     (void)b;
     (void)e;

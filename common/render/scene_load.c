@@ -808,8 +808,8 @@ static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat
     double *w = reserve_vertices(L, m.vertex_count);
     if (!w || reserve_triangles(L, m.triangle_count))
         return jf_fail(&L->j, where, NULL, "out of memory (%zu triangles)", L->tri_count + m.triangle_count);
-    mesh_add A = {L, &m, scale, {translate[0], translate[1], translate[2]}, w, L->tris + L->tri_count, NULL,
-                  (uint32_t)L->wv_count, mat, em, {0}, {0}, {{0}}, {{0}}, 0, {0}, {0}};
+    mesh_add A = {.L = L, .m = &m, .scale = scale, .translate = {translate[0], translate[1], translate[2]}, .w = w,
+                  .out = L->tris + L->tri_count, .base = (uint32_t)L->wv_count, .mat = mat, .emitter = em};
     par_run(m.vertex_count, par_parts(m.vertex_count, 1 << 14), mesh_add_vertices, &A); /* once per vertex */
     size_t base = L->wv_count;
     L->wv_count += m.vertex_count;
