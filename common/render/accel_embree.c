@@ -24,7 +24,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
+#include "elapsed.h"
 
 #define BOX_PAD (1.0f / 65536.0f)
 
@@ -173,8 +173,7 @@ static enum RTCBuildQuality build_quality(void) {
 }
 
 accel_embree *accel_embree_build(const scene *s, char *err, size_t err_len) {
-    struct timespec t0, t1;
-    clock_gettime(CLOCK_MONOTONIC, &t0);
+    struct timespec t0 = elapsed_mark();
     accel_embree *e = calloc(1, sizeof *e);
     if (!e) return snprintf(err, err_len, "out of memory"), NULL;
     e->s = s;
@@ -200,8 +199,7 @@ accel_embree *accel_embree_build(const scene *s, char *err, size_t err_len) {
         accel_embree_free(e);
         return NULL;
     }
-    clock_gettime(CLOCK_MONOTONIC, &t1);
-    e->stats.build_seconds = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
+    e->stats.build_seconds = elapsed_seconds(&t0);
     e->stats.memory_bytes = (size_t)atomic_load(&e->dev.peak);
     e->stats.final_bytes = (size_t)atomic_load(&e->dev.bytes);
     return e;

@@ -30,7 +30,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
+#include "elapsed.h"
 
 #include "accel_embree.h"
 #include <embree3/rtcore_builder.h>
@@ -182,15 +182,8 @@ static struct RTCBuildPrimitive *build_primitives(const scene *s, size_t n) {
     return p;
 }
 
-static double seconds_since(const struct timespec *t0) {
-    struct timespec t1;
-    clock_gettime(CLOCK_MONOTONIC, &t1);
-    return (double)(t1.tv_sec - t0->tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0->tv_nsec);
-}
-
 accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
-    struct timespec t0;
-    clock_gettime(CLOCK_MONOTONIC, &t0);
+    struct timespec t0 = elapsed_mark();
     accel_wide *w = calloc(1, sizeof *w);
     if (!w) return snprintf(err, err_len, "out of memory"), NULL;
     if (accel_embree_device_open(&w->dev, err, err_len) != 0) {
@@ -252,7 +245,7 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
     w->stats.leaf_count = atomic_load(&b.leaves);
     w->stats.memory_bytes = (size_t)atomic_load(&w->dev.bytes);
     w->stats.peak_bytes = (size_t)atomic_load(&w->dev.peak) + n * sizeof *prims;
-    w->stats.build_seconds = seconds_since(&t0);
+    w->stats.build_seconds = elapsed_seconds(&t0);
     return w;
 }
 

@@ -8,7 +8,7 @@
 
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
+#include "elapsed.h"
 
 #define BVH_BINS 16
 #define BVH_MAX_LEAF 8
@@ -180,8 +180,7 @@ static uint32_t build(builder *B, uint32_t begin, uint32_t end, size_t depth) {
 }
 
 bvh *bvh_build(const scene *s) {
-    struct timespec t0, t1;
-    clock_gettime(CLOCK_MONOTONIC, &t0);
+    struct timespec t0 = elapsed_mark();
     uint32_t n = s->triangle_count + s->sphere_count;
     bvh *b = calloc(1, sizeof *b);
     builder B = {0};
@@ -207,12 +206,11 @@ bvh *bvh_build(const scene *s) {
     if (n > 0) build(&B, 0, n, 0); /* an empty scene has no nodes; traverse() checks */
     free(B.bounds);
     free(B.centroid);
-    clock_gettime(CLOCK_MONOTONIC, &t1);
+    b->stats.build_seconds = elapsed_seconds(&t0);
     b->stats.node_count = B.node_count;
     b->stats.leaf_count = B.leaf_count;
     b->stats.max_depth = B.max_depth;
     b->stats.memory_bytes = B.node_count * sizeof(bvh_node) + (size_t)n * sizeof(uint32_t);
-    b->stats.build_seconds = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
     return b;
 }
 
