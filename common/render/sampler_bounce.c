@@ -157,7 +157,12 @@ static AVX2 void bounce_avx2(const sampler_stream *s, uint32_t first, float *u) 
  * six on every call. noipa, not just noinline: in a variant of this file
  * GCC 12.2 -O2 deleted the calls as if the function had no effect (the
  * cause was not pinned down; sampler_bounce_matches_pairs caught it). */
-static __attribute__((noipa)) void fill_seeds(const sampler_stream *s, uint32_t first) {
+#if defined(__clang__)
+#define NO_IPA __attribute__((noinline)) /* clang has no noipa (nor the analysis it stops) */
+#else
+#define NO_IPA __attribute__((noipa))
+#endif
+static NO_IPA void fill_seeds(const sampler_stream *s, uint32_t first) {
     for (uint32_t p = first; p < first + 3; p++) {
         uint32_t index_seed;
         sampler_pair_seeds(s, p, &index_seed);
