@@ -305,6 +305,36 @@ TEST(sampler_pixel_streams_match_plain_streams) {
     CHECK(bad == 0, "%d of %d pairs differ with the pixel's shared seeds", bad, checked);
 }
 
+/* sampler_get_bounce's six numbers are three sampler_get_2d calls' bit for
+ * bit: every kind, pixel streams (the vector path where the CPU has one:
+ * SSE4.1, or AVX2 unless TESSERA_NO_AVX2) and plain ones (pair by pair),
+ * bounces whose seeds are kept or not yet, global and padded pairs mixed,
+ * and dimensions past the pairs a sampler_pixel keeps. */
+TEST(sampler_bounce_matches_pairs) {
+    const sampler_kind kinds[] = {SAMPLER_SOBOL_GLOBAL, SAMPLER_SOBOL, SAMPLER_RANDOM};
+    int bad = 0, checked = 0;
+    for (size_t k = 0; k < sizeof kinds / sizeof kinds[0]; k++)
+        for (uint64_t pixel = 0; pixel < 25; pixel++) {
+            sampler_pixel px;
+            sampler_pixel_start(&px, kinds[k], 11, pixel * 7919);
+            for (uint32_t i = 0; i < 48; i++) {
+                uint32_t sample = i * 2654435761u >> (i & 31);
+                sampler_stream c = sampler_start_pixel(&px, sample), p = sampler_start(kinds[k], 11, pixel * 7919, sample);
+                for (uint32_t j = 0; j < 80; j++) {
+                    /* bounces in a shuffled order, every even dimension */
+                    uint32_t dim = 2 * ((j * 29u + i) % 80u);
+                    float u[8], w[8], want[6];
+                    sampler_get_bounce(&c, dim, u);
+                    sampler_get_bounce(&p, dim, w);
+                    for (uint32_t d = 0; d < 6; d += 2) sampler_get_2d(&p, dim + d, &want[d], &want[d + 1]);
+                    bad += memcmp(u, want, sizeof want) != 0 || memcmp(w, want, sizeof want) != 0;
+                    checked++;
+                }
+            }
+        }
+    CHECK(bad == 0, "%d of %d bounces differ from their pairs", bad, checked);
+}
+
 TEST(sampler_names_parse) {
     sampler_kind k;
     CHECK(sampler_parse("sobol", &k) == 0 && k == SAMPLER_SOBOL, "sobol");

@@ -78,15 +78,13 @@ static inline __attribute__((always_inline)) ray spawn(vec3 p, vec3 ng, uint32_t
     return r;
 }
 
-/* Light sampling at a non-delta vertex: the direct-light term with its MIS
- * weight. wo and the frame are in world / local space as the caller has
- * them. */
+/* Light sampling at a non-delta vertex, with (u1, u2) for the point on the
+ * light: the direct-light term with its MIS weight. wo and the frame are in
+ * world / local space as the caller has them. */
 static vec3 direct_light(const scene *s, const integrator_options *opt, const material *m, const surface *sf,
-                         uint32_t prim, const frame *fr, vec3 wo, vec3 wo_local, const sampler_stream *rng,
-                         uint32_t dim, trace_stats *st) {
+                         uint32_t prim, const frame *fr, vec3 wo, vec3 wo_local, float u1, float u2,
+                         trace_stats *st) {
     light_sample ls;
-    float u1, u2;
-    sampler_get_2d(rng, dim + DIM_LIGHT_POINT, &u1, &u2);
     if (!lights_sample(s, sf->p, u1, u2, &ls)) return vec3_splat(0.0f);
     vec3 wi_local = frame_to_local(fr, ls.wi);
     if (sf->smooth && !shading_sides_agree(sf->ng, fr->n, wo, ls.wi)) return vec3_splat(0.0f); /* no leaks */
@@ -139,12 +137,12 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
         /* The vertex's lobe and direction numbers before its ray is traced:
          * they do not depend on the hit, and their chain of multiplications
          * then runs alongside the traversal instead of delaying the BSDF
-         * sample after it (the light's pair stays with the light sample,
-         * which only smooth vertices make). */
+         * sample after it. The light's pair comes with them, used or not:
+         * the three pairs are computed side by side (sampler_get_bounce). */
         uint32_t dim = INTEGRATOR_CAMERA_DIMS + (uint32_t)depth * INTEGRATOR_DIMS_PER_BOUNCE;
-        float u_lobe, u_roulette, u1, u2;
-        sampler_get_2d(rng, dim + DIM_LOBE, &u_lobe, &u_roulette);
-        sampler_get_2d(rng, dim + DIM_BSDF_DIR, &u1, &u2);
+        float u[8];
+        sampler_get_bounce(rng, dim, u);
+        float u_lobe = u[DIM_LOBE], u_roulette = u[DIM_ROULETTE], u1 = u[DIM_BSDF_DIR], u2 = u[DIM_BSDF_DIR + 1];
         hit h;
         st->rays++;
         if (!accel_intersect(s->accel, s, &r, INFINITY, &h)) {
@@ -189,7 +187,8 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
         vec3 wi = scattered ? vec3_normalize(frame_to_world(&fr, bs.wi)) : wo;
         if (has_lights && bsdf_is_smooth(m) && !opt->no_nee)
             L = vec3_add(L,
-                         vec3_mul(beta, direct_light(s, opt, m, &sf, h.prim, &fr, wo, wo_local, rng, dim, st)));
+                         vec3_mul(beta, direct_light(s, opt, m, &sf, h.prim, &fr, wo, wo_local, u[DIM_LIGHT_POINT],
+                                                  u[DIM_LIGHT_POINT + 1], st)));
         if (!scattered) break;
         if (sf.smooth && !shading_sides_agree(sf.ng, n, wo, wi)) break; /* would leak through the surface */
         beta = vec3_mul(beta, bs.weight);

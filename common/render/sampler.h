@@ -84,8 +84,10 @@ typedef struct {
     uint32_t global_seed; /* SOBOL_GLOBAL: the seed of the pixel's index shuffle */
     sampler_kind kind;
     uint64_t filled;      /* bit p: pair p's seeds below are set */
-    uint64_t hash[SAMPLER_PIXEL_PAIRS];
-    uint32_t index_seed[SAMPLER_PIXEL_PAIRS];
+    /* One entry more than kept: sampler_get_bounce loads four pairs' seeds
+     * for three (zeroed, never used). */
+    uint64_t hash[SAMPLER_PIXEL_PAIRS + 1];
+    uint32_t index_seed[SAMPLER_PIXEL_PAIRS + 1];
 } sampler_pixel;
 
 /* The numbers of one camera sample. Plain struct, owned by the caller,
@@ -165,6 +167,8 @@ static inline void sampler_pixel_start(sampler_pixel *px, sampler_kind kind, uin
     /* One index shuffle per pixel, shared by the first pairs. */
     px->global_seed = kind == SAMPLER_SOBOL_GLOBAL ? (uint32_t)rng_mix64(sampler_hash(px->key, 0xfffffffeu)) : 0;
     px->filled = 0;
+    px->hash[SAMPLER_PIXEL_PAIRS] = 0;
+    px->index_seed[SAMPLER_PIXEL_PAIRS] = 0;
 }
 
 /* Start the numbers of sample `sample` of the pixel px was started for.
@@ -260,6 +264,12 @@ static inline void sampler_get_2d(const sampler_stream *s, uint32_t dim, float *
     *u = sampler_to_float(a);
     *v = sampler_to_float(b);
 }
+
+/* The six numbers in [0, 1) of dimensions dim to dim + 5 (dim even), into
+ * u[0] to u[5] (u[6] and u[7] are written and hold nothing): a bounce's
+ * three pairs, equal bit for bit to three sampler_get_2d calls, in fewer
+ * instructions (sampler_bounce.c). */
+void sampler_get_bounce(const sampler_stream *s, uint32_t dim, float u[8]);
 
 /* The number in [0, 1) of dimension dim. */
 static inline float sampler_get_1d(const sampler_stream *s, uint32_t dim) {
