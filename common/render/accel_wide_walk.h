@@ -166,45 +166,44 @@ WALK_TARGET static inline lfloat WALK(leaf_row)(const WALK(leaf) *l, int vtx, si
     return *(const lfloat *)((const char *)l->v[vtx] + off);
 }
 
-/* Test leaf l's primitives with the caller's tmax and fold every hit into
- * *h by hit_before (h->t starts at tmax). Returns 1 if some primitive hit
- * (with any_hit: as soon as one does). */
-WALK_TARGET __attribute__((always_inline)) static inline int WALK(leaf_test)(const WALK(leaf) *l, const scene *s,
+/* Test the primitives of the leaf `ref` refers to with the caller's tmax
+ * and fold every hit into *h by hit_before (h->t starts at tmax). Returns 1
+ * if some primitive hit (with any_hit: as soon as one does). */
+WALK_TARGET __attribute__((always_inline)) static inline int WALK(leaf_test)(uintptr_t ref, const scene *s,
                                                                             const ray_prep *r, const WALK(ray) *w,
                                                                             float tmax, hit *h, int any_hit) {
+    const WALK(leaf) *l = (const WALK(leaf) *)(ref & ~REF_TAGS);
     int found = 0;
-    if (l->tris) {
-        lint ids = *(const lint *)l->id;
-        WALK(f4_group) g;
-        /* Lanes past the triangles have NaN vertices: never candidates. */
-        WALK(f4_test_loaded)(WALK(leaf_row)(l, 0, w->k[0]), WALK(leaf_row)(l, 0, w->k[1]),
-                             WALK(leaf_row)(l, 0, w->k[2]), WALK(leaf_row)(l, 1, w->k[0]),
-                             WALK(leaf_row)(l, 1, w->k[1]), WALK(leaf_row)(l, 1, w->k[2]),
-                             WALK(leaf_row)(l, 2, w->k[0]), WALK(leaf_row)(l, 2, w->k[1]),
-                             WALK(leaf_row)(l, 2, w->k[2]), &w->lanes, ids != w->lanes.skip, tmax, &g);
-        /* Lanes off the edges that hit: triangle_intersect's numbers, without calling it. */
-        unsigned edge = WALK(f4_vbits)(g.edge);
-        for (unsigned bits = WALK(f4_vbits)(g.ok) & ~edge; bits; bits &= bits - 1) {
-            if (any_hit) return 1;
-            int k = __builtin_ctz(bits);
-            uint32_t id = l->id[k];
-            float inv = 1.0f / g.det[k], t = g.T[k] * inv;
-            if (hit_before(t, id, h)) *h = (hit){t, id, g.V[k] * inv, g.W[k] * inv}, found = 1;
-        }
-        /* Lanes on an edge (rare): the scalar test decides, in a loop of its
-         * own so that the one above calls nothing. */
-        for (; edge; edge &= edge - 1) {
-            uint32_t id = l->id[__builtin_ctz(edge)];
-            float t, b1, b2;
-            if (!triangle_intersect(r, &s->triangles[id], tmax, &t, &b1, &b2)) continue;
-            if (any_hit) return 1;
-            if (hit_before(t, id, h)) *h = (hit){t, id, b1, b2}, found = 1;
-        }
+    lint ids = *(const lint *)l->id;
+    WALK(f4_group) g;
+    /* Lanes without a triangle have NaN vertices: never candidates. */
+    WALK(f4_test_loaded)(WALK(leaf_row)(l, 0, w->k[0]), WALK(leaf_row)(l, 0, w->k[1]), WALK(leaf_row)(l, 0, w->k[2]),
+                         WALK(leaf_row)(l, 1, w->k[0]), WALK(leaf_row)(l, 1, w->k[1]), WALK(leaf_row)(l, 1, w->k[2]),
+                         WALK(leaf_row)(l, 2, w->k[0]), WALK(leaf_row)(l, 2, w->k[1]), WALK(leaf_row)(l, 2, w->k[2]),
+                         &w->lanes, ids != w->lanes.skip, tmax, &g);
+    /* Lanes off the edges that hit: triangle_intersect's numbers, without calling it. */
+    unsigned edge = WALK(f4_vbits)(g.edge);
+    for (unsigned bits = WALK(f4_vbits)(g.ok) & ~edge; bits; bits &= bits - 1) {
+        if (any_hit) return 1;
+        int k = __builtin_ctz(bits);
+        uint32_t id = l->id[k];
+        float inv = 1.0f / g.det[k], t = g.T[k] * inv;
+        if (hit_before(t, id, h)) *h = (hit){t, id, g.V[k] * inv, g.W[k] * inv}, found = 1;
     }
-    if (!l->spheres) return found;
-    for (uint32_t i = l->tris; i < l->tris + l->spheres; i++) {
-        uint32_t id = l->id[i];
+    /* Lanes on an edge (rare): the scalar test decides, in a loop of its
+     * own so that the one above calls nothing. */
+    for (; edge; edge &= edge - 1) {
+        uint32_t id = l->id[__builtin_ctz(edge)];
+        float t, b1, b2;
+        if (!triangle_intersect(r, &s->triangles[id], tmax, &t, &b1, &b2)) continue;
+        if (any_hit) return 1;
+        if (hit_before(t, id, h)) *h = (hit){t, id, b1, b2}, found = 1;
+    }
+    if (!(ref & SPHERE_TAG)) return found;
+    for (int k = 0; k < WALK_LANES; k++) { /* the spheres' lanes: ids from the triangle count up */
+        uint32_t id = l->id[k];
         float t;
+        if (id == PRIM_NONE || id < s->triangle_count) continue;
         if (!sphere_intersect(r, &s->spheres[id - s->triangle_count], id == r->skip, tmax, &t)) continue;
         if (any_hit) return 1;
         if (hit_before(t, id, h)) *h = (hit){t, id, 0.0f, 0.0f}, found = 1;
@@ -256,7 +255,7 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(walk)(const ac
                 cur = stack[--sp].ref;
                 continue;
             }
-        } else if (WALK(leaf_test)((const WALK(leaf) *)(cur & ~LEAF_TAG), s, &r, &w, tmax, h, any_hit)) {
+        } else if (WALK(leaf_test)(cur, s, &r, &w, tmax, h, any_hit)) {
             found = 1;
             if (any_hit) return 1;
             cull = accel_cull_distance(h->t);
