@@ -97,6 +97,20 @@ TEST(mesh_embree_matches_bvh_features) { matches_bvh("scenes/features.json", ACC
 TEST(mesh_wide_matches_bvh_icospheres) { matches_bvh(ICO_SCENE, ACCEL_WIDE); }
 TEST(mesh_wide_matches_bvh_features) { matches_bvh("scenes/features.json", ACCEL_WIDE); }
 
+/* The wide BVH of s walked by walk e: 0 the widest this CPU runs, 1 at
+ * most AVX2 (TESSERA_NO_AVX512), 2 SSE (TESSERA_NO_AVX2); its stats into
+ * *st. Returns NULL, with a failed check naming err, if the build fails;
+ * the caller frees the accel. */
+static accel *build_wide_walk(const scene *s, int e, accel_wide_stats *st, char *err, size_t err_len) {
+    if (e >= 1) setenv("TESSERA_NO_AVX512", "1", 1);
+    if (e == 2) setenv("TESSERA_NO_AVX2", "1", 1);
+    accel *wide = accel_build_err(s, ACCEL_WIDE, err, err_len);
+    unsetenv("TESSERA_NO_AVX512");
+    unsetenv("TESSERA_NO_AVX2");
+    CHECK(wide && accel_get_wide_stats(wide, st) == 0, "build: %s", err);
+    return wide;
+}
+
 /* Every walk of the wide BVH this CPU runs (accel_wide.c picks the widest;
  * TESSERA_NO_AVX512 stops it at AVX2, TESSERA_NO_AVX2 at SSE): each gives
  * the BVH's answers, bit for bit, on the icospheres (with a sphere) and on
@@ -112,13 +126,8 @@ TEST(mesh_wide_walk_isas_match_bvh) {
         if (!s) continue;
         accel *tree = accel_build(s, ACCEL_BVH);
         for (int e = 0; e < 3; e++) {
-            if (e >= 1) setenv("TESSERA_NO_AVX512", "1", 1);
-            if (e == 2) setenv("TESSERA_NO_AVX2", "1", 1);
-            accel *wide = accel_build_err(s, ACCEL_WIDE, err, sizeof err);
-            unsetenv("TESSERA_NO_AVX512");
-            unsetenv("TESSERA_NO_AVX2");
             accel_wide_stats st = {0};
-            CHECK(wide && accel_get_wide_stats(wide, &st) == 0, "build: %s", err);
+            accel *wide = build_wide_walk(s, e, &st, err, sizeof err);
             if (!wide) continue;
             seen[e] = st.walk_isa, node_width = st.node_width;
             int hits = 0, differ = tree ? count_differences(s, tree, wide, 60000, &hits) : -1;
@@ -228,13 +237,8 @@ TEST(mesh_wide_far_origins_match_definition) {
     }
     CHECK(hits > RAYS / 4, "only %d of %d far rays hit (not aimed at the scene?)", hits, (int)RAYS);
     for (int e = 0; e < 3; e++) {
-        if (e >= 1) setenv("TESSERA_NO_AVX512", "1", 1);
-        if (e == 2) setenv("TESSERA_NO_AVX2", "1", 1);
-        accel *wide = accel_build_err(s, ACCEL_WIDE, err, sizeof err);
-        unsetenv("TESSERA_NO_AVX512");
-        unsetenv("TESSERA_NO_AVX2");
         accel_wide_stats st = {0};
-        CHECK(wide && accel_get_wide_stats(wide, &st) == 0, "build: %s", err);
+        accel *wide = build_wide_walk(s, e, &st, err, sizeof err);
         if (!wide) continue;
         int differ = 0;
         for (uint64_t i = 0; i < RAYS; i++) {
