@@ -223,14 +223,28 @@ void bvh_free(bvh *b) {
 
 void bvh_get_stats(const bvh *b, bvh_stats *out) { *out = b->stats; }
 
+/* One axis of the slab test: the distances to the planes lo and hi into
+ * *near and *far. A subnormal direction component has an infinite inverse,
+ * and an origin exactly on a plane then makes 0 * inf = NaN: the axis then
+ * constrains nothing (-inf, +inf), which may visit a box the ray only
+ * grazes but never culls one it crosses. (Before, the NaN fell through
+ * min_f / max_f and lost such a ray's hit: mesh_wide_far_origins_match_definition.) */
+static inline void slab(float lo, float hi, float o, float inv, float *near, float *far) {
+    float t0 = (lo - o) * inv, t1 = (hi - o) * inv;
+    int undefined = t0 != t0 || t1 != t1;
+    *near = undefined ? -INFINITY : min_f(t0, t1);
+    *far = undefined ? INFINITY : max_f(t0, t1);
+}
+
 /* Slab test; the far distance is widened by 2 ulp-ish (pbrt's 1 + 2*gamma(3))
  * so that rounding never culls a box the ray touches. */
 static inline int node_hit(const bvh_node *n, const ray_prep *r, float tmax) {
-    float tx0 = (n->lo[0] - r->o.x) * r->inv_d.x, tx1 = (n->hi[0] - r->o.x) * r->inv_d.x;
-    float ty0 = (n->lo[1] - r->o.y) * r->inv_d.y, ty1 = (n->hi[1] - r->o.y) * r->inv_d.y;
-    float tz0 = (n->lo[2] - r->o.z) * r->inv_d.z, tz1 = (n->hi[2] - r->o.z) * r->inv_d.z;
-    float tnear = max_f(max_f(min_f(tx0, tx1), min_f(ty0, ty1)), max_f(min_f(tz0, tz1), 0.0f));
-    float tfar = min_f(min_f(max_f(tx0, tx1), max_f(ty0, ty1)), min_f(max_f(tz0, tz1), tmax));
+    float nx, fx, ny, fy, nz, fz;
+    slab(n->lo[0], n->hi[0], r->o.x, r->inv_d.x, &nx, &fx);
+    slab(n->lo[1], n->hi[1], r->o.y, r->inv_d.y, &ny, &fy);
+    slab(n->lo[2], n->hi[2], r->o.z, r->inv_d.z, &nz, &fz);
+    float tnear = max_f(max_f(nx, ny), max_f(nz, 0.0f));
+    float tfar = min_f(min_f(fx, fy), min_f(fz, tmax));
     return tnear <= tfar * 1.0000004f;
 }
 
