@@ -183,7 +183,11 @@ try:
                         break
                     time.sleep(0.05)
                 job_page.screenshot(shot.replace(".png", "-live.png"))
-            if outlined:
+            # Let the held tile go once both pages have seen the job running:
+            # the outlines here, and a progress below 100% on the jobs page
+            # (releasing on the outlines alone, the job could finish before
+            # the jobs page first listed it: seen [100], a failure in CI).
+            if outlined and seen and seen[-1] < 100:
                 release()
         if time.monotonic() > deadline - 150:  # 30 s held without an outline seen: let it finish (and fail below)
             release()
