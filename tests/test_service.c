@@ -594,6 +594,9 @@ TEST(service_fetch_partial_of_a_running_then_cancelled_job) {
             snprintf(stale, sizeof stale, "%s/jobs/1.partial-9.pfm", s.dir);
             util_touch(stale);
             service_start(&s, "svc-partial");
+            /* It goes as the jobs are loaded, just after "listening on" is
+             * logged (CI once looked in between). */
+            for (int i = 0; i < (int)(LONG * 100) && access(stale, F_OK) == 0; i++) util_sleep(0.01);
             CHECK(access(stale, F_OK) != 0, "%s is still there after a restart", stale);
         }
         st = cli(&s, out, sizeof out, "fetch 1 --partial -o %s", img_path[k]);
