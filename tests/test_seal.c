@@ -505,28 +505,37 @@ TEST(seal_every_auth_failure_looks_the_same) {
         probe_hello(v, &k, challenge, old, text, sizeof text);
         hello[v] = cJSON_Parse(text); /* NULL for the truncated one, as the coordinator sees it */
     }
-    double best[V_KINDS];
-    for (int v = 0; v < V_KINDS; v++) best[v] = 1e9;
-    for (int r = 0; r < 15; r++) /* the best of 15: one round slowed by the machine's other work must not count */
+    /* Each kind's cost relative to its round's mean, interleaved rounds,
+     * then each kind's median over the rounds: a round slowed (or a host
+     * sped up) for all kinds alike cancels out. (The best of 15 per kind,
+     * used before, let one calm moment of one kind fail the test: CI saw 4.91
+     * against 6.81-7.18 us.) */
+    enum { ROUNDS_CPU = 15 };
+    double rel[V_KINDS][ROUNDS_CPU], med[V_KINDS];
+    for (int r = 0; r < ROUNDS_CPU; r++) {
+        double c[V_KINDS], mean = 0;
         for (int v = 0; v < V_KINDS; v++) {
-            double c = check_cost(&ring, challenge, hello[v], 2000);
-            if (c < best[v]) best[v] = c;
+            c[v] = check_cost(&ring, challenge, hello[v], 2000);
+            mean += c[v] / V_KINDS;
         }
-    double lo = best[0], hi = best[0];
+        for (int v = 0; v < V_KINDS; v++) rel[v][r] = c[v] / mean;
+    }
+    double lo = 1e9, hi = 0;
     for (int v = 0; v < V_KINDS; v++) {
-        lo = best[v] < lo ? best[v] : lo;
-        hi = best[v] > hi ? best[v] : hi;
+        qsort(rel[v], ROUNDS_CPU, sizeof rel[v][0], cmp_dbl);
+        med[v] = rel[v][ROUNDS_CPU / 2];
+        lo = med[v] < lo ? med[v] : lo;
+        hi = med[v] > hi ? med[v] : hi;
         cJSON_Delete(hello[v]);
     }
 #if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
     /* Under a sanitizer the instrumentation, not the check, sets the cost
      * (seen in CI: 5.38 to 9.66 us, the best of 15 rounds each): the
      * release build's `make test` holds the CPU bound; here it is shown only. */
-    printf("    auth check CPU per failure kind: %.2f to %.2f us (sanitizer build: not compared)\n", lo / 2000 * 1e6,
-           hi / 2000 * 1e6);
+    printf("    auth check CPU per failure kind: %.2f to %.2f of the mean (sanitizer build: not compared)\n", lo, hi);
 #else
     for (int v = 0; v < V_KINDS; v++)
-        CHECK(hi / lo < 1.25, "%s: %.2f us of CPU per check against %.2f to %.2f us for the others", v_names[v],
-              best[v] / 2000 * 1e6, lo / 2000 * 1e6, hi / 2000 * 1e6);
+        CHECK(hi / lo < 1.25, "%s: %.2f of the round's mean CPU per check (median of %d rounds), against %.2f to %.2f "
+              "for the others", v_names[v], med[v], (int)ROUNDS_CPU, lo, hi);
 #endif
 }
