@@ -5,6 +5,7 @@
 #include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <math.h>
 #include <string.h>
 
 #include "json_field.h"
@@ -137,8 +138,8 @@ int proto_assign_parse(const cJSON *msg, const char *peer, proto_assign *out, ch
         return jf_fail(&c, "assign", "rect", "expected [x0, y0, x1, y1]");
     for (int i = 0; i < 4; i++) {
         const cJSON *v = cJSON_GetArrayItem(rect, i);
-        if (!cJSON_IsNumber(v) || v->valuedouble != (double)(int)v->valuedouble || v->valuedouble < 0 ||
-            v->valuedouble > LIMIT_SIDE)
+        if (!cJSON_IsNumber(v) || !(v->valuedouble >= 0 && v->valuedouble <= LIMIT_SIDE) ||
+            v->valuedouble != floor(v->valuedouble))
             return jf_fail(&c, "assign", "rect", "expected 4 integers from 0 to 32768");
         r[i] = (int)v->valuedouble;
     }

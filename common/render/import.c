@@ -172,6 +172,17 @@ static double num_or(const cJSON *o, const char *key, double dflt) {
     return cJSON_IsNumber(v) && isfinite(v->valuedouble) ? v->valuedouble : dflt;
 }
 
+/* The integer at o[key]: dflt when the key is absent or not a number, -1
+ * when it is a number but not an integer an int can hold (-1 is never a
+ * valid index or component type, so callers reject it as they would any
+ * bad value; converting such a double straight to int is undefined). */
+static int int_or(const cJSON *o, const char *key, int dflt) {
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
+    if (!cJSON_IsNumber(v)) return dflt;
+    double d = v->valuedouble;
+    return d >= -2147483648.0 && d <= 2147483647.0 && d == floor(d) ? (int)d : -1;
+}
+
 static const cJSON *ext_of(const cJSON *o, const char *ext) {
     return cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(o, "extensions"), ext);
 }
@@ -295,13 +306,13 @@ static const uint8_t *gltf_image(importer *im, int i, size_t *len, uint8_t **own
         return (const uint8_t *)referenced_file(im, uri->valuestring, 1, len, f2);
     }
     const cJSON *bv = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(im->gltf, "bufferViews"),
-                                         (int)num_or(img, "bufferView", -1));
+                                         int_or(img, "bufferView", -1));
     if (!cJSON_IsObject(bv)) {
         fail(im, "%s: neither a uri nor a valid bufferView", field);
         return NULL;
     }
     size_t blen;
-    const uint8_t *buf = gltf_buffer(im, (int)num_or(bv, "buffer", -1), &blen);
+    const uint8_t *buf = gltf_buffer(im, int_or(bv, "buffer", -1), &blen);
     if (!buf) return NULL;
     double off = num_or(bv, "byteOffset", 0), n = num_or(bv, "byteLength", -1);
     if (!(off >= 0 && n >= 0 && off + n <= (double)blen)) {
@@ -357,14 +368,14 @@ static int check_buffers_and_accessors(importer *im) {
     i = 0;
     cJSON_ArrayForEach(e, cJSON_GetObjectItemCaseSensitive(im->gltf, "accessors")) {
         const cJSON *type = cJSON_GetObjectItemCaseSensitive(e, "type");
-        int ct = (int)num_or(e, "componentType", 0), nc = cJSON_IsString(type) ? type_components(type->valuestring) : 0;
+        int ct = int_or(e, "componentType", 0), nc = cJSON_IsString(type) ? type_components(type->valuestring) : 0;
         double count = num_or(e, "count", -1), off = num_or(e, "byteOffset", 0);
         if (!component_size(ct) || !nc) return fail(im, "accessors[%d]: bad componentType %d or type", i, ct);
         if (!(count >= 1 && count <= 4294967295.0 && count == floor(count)))
             return fail(im, "accessors[%d]: bad count %g", i, count);
         const cJSON *bvj = cJSON_GetObjectItemCaseSensitive(e, "bufferView");
         if (bvj) {
-            const cJSON *bv = cJSON_GetArrayItem(views, (int)num_or(e, "bufferView", -1));
+            const cJSON *bv = cJSON_GetArrayItem(views, int_or(e, "bufferView", -1));
             if (!cJSON_IsNumber(bvj) || !bv) return fail(im, "accessors[%d].bufferView: no such bufferView", i);
             double elem = (double)component_size(ct) * nc, stride = num_or(bv, "byteStride", elem);
             if (!(off >= 0) || stride < elem || off + stride * (count - 1) + elem > num_or(bv, "byteLength", -1))
@@ -393,7 +404,7 @@ static int check_primitives(importer *im) {
             cJSON_ArrayForEach(a, attrs) {
                 const cJSON *acc = cJSON_GetArrayItem(accs, cJSON_IsNumber(a) ? a->valueint : -1);
                 if (!acc) return fail(im, "meshes[%d].primitives[%d].attributes.%s: no such accessor", mi, pi, a->string);
-                int ct = (int)num_or(acc, "componentType", 0);
+                int ct = int_or(acc, "componentType", 0);
                 const cJSON *t = cJSON_GetObjectItemCaseSensitive(acc, "type");
                 const char *ts = cJSON_IsString(t) ? t->valuestring : "";
                 int need_vec3_float = strcmp(a->string, "POSITION") == 0 || strcmp(a->string, "NORMAL") == 0;
@@ -407,7 +418,7 @@ static int check_primitives(importer *im) {
             if (ij) {
                 const cJSON *acc = cJSON_GetArrayItem(accs, cJSON_IsNumber(ij) ? ij->valueint : -1);
                 const cJSON *t = cJSON_GetObjectItemCaseSensitive(acc, "type");
-                int ct = (int)num_or(acc, "componentType", 0);
+                int ct = int_or(acc, "componentType", 0);
                 if (!acc || !cJSON_IsString(t) || strcmp(t->valuestring, "SCALAR") != 0 ||
                     (ct != 5121 && ct != 5123 && ct != 5125))
                     return fail(im, "meshes[%d].primitives[%d].indices: must be a SCALAR accessor of unsigned "
@@ -469,7 +480,7 @@ static uint32_t gltf_texture(importer *im, int ti, int srgb, const char *field) 
     }
     tx->srgb = srgb;
     const cJSON *smp = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(im->gltf, "samplers"),
-                                          (int)num_or(t, "sampler", -1));
+                                          int_or(t, "sampler", -1));
     tx->wrap_s = wrap_of(num_or(smp, "wrapS", 10497));
     tx->wrap_t = wrap_of(num_or(smp, "wrapT", 10497));
     im->m->texture_count++;
@@ -483,7 +494,7 @@ static long texinfo(importer *im, const cJSON *info, int srgb, const char *field
     if (num_or(info, "texCoord", 0) != 0)
         fprintf(stderr, "warning: %s: %s uses TEXCOORD_%g; TEXCOORD_0 is used instead\n", im->name, field,
                 num_or(info, "texCoord", 0));
-    uint32_t slot = gltf_texture(im, (int)num_or(info, "index", -1), srgb, field);
+    uint32_t slot = gltf_texture(im, int_or(info, "index", -1), srgb, field);
     return slot ? (long)slot : -1;
 }
 
@@ -695,7 +706,7 @@ static int walk_node(importer *im, int ni, const double parent[16], int depth) {
     node_local(node, local);
     mat_mul(parent, local, M);
     const cJSON *cam = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(im->gltf, "cameras"),
-                                          (int)num_or(node, "camera", -1));
+                                          int_or(node, "camera", -1));
     import_camera *c = &im->m->camera;
     if (cam && !c->present && camera_matches(node, cam, im->opt->camera)) {
         const cJSON *type = cJSON_GetObjectItemCaseSensitive(cam, "type");
@@ -718,7 +729,7 @@ static int walk_node(importer *im, int ni, const double parent[16], int depth) {
     const cJSON *lr = ext_of(node, "KHR_lights_punctual");
     if (lr) {
         const cJSON *lights = cJSON_GetObjectItemCaseSensitive(ext_of(im->gltf, "KHR_lights_punctual"), "lights");
-        const cJSON *lj = cJSON_GetArrayItem(lights, (int)num_or(lr, "light", -1));
+        const cJSON *lj = cJSON_GetArrayItem(lights, int_or(lr, "light", -1));
         if (!cJSON_IsObject(lj)) return fail(im, "nodes[%d]: KHR_lights_punctual.light: no such light", ni);
         if (push_light(im, lj, M)) return -1;
     }
@@ -733,7 +744,7 @@ static int walk_node(importer *im, int ni, const double parent[16], int depth) {
 static int gltf_nodes(importer *im) {
     static const double id[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
     const cJSON *scenes = cJSON_GetObjectItemCaseSensitive(im->gltf, "scenes");
-    const cJSON *sc = cJSON_GetArrayItem(scenes, (int)num_or(im->gltf, "scene", 0)), *n;
+    const cJSON *sc = cJSON_GetArrayItem(scenes, int_or(im->gltf, "scene", 0)), *n;
     cJSON_ArrayForEach(n, cJSON_GetObjectItemCaseSensitive(sc, "nodes")) {
         if (!cJSON_IsNumber(n)) return fail(im, "scenes: expected node indices");
         if (walk_node(im, n->valueint, id, 0)) return -1;
