@@ -286,12 +286,14 @@ typedef struct {
 } stack_entry;
 
 /* Push the children of n in `bits` (two or more) with their entry
- * distances tn[k], the nearest last (so popped first); returns the new top. */
+ * distances tn[k], the nearest last (so popped first), prefetching each;
+ * returns the new top. */
 static inline int push_sorted(stack_entry *stack, int sp, const wide_node *n, unsigned bits, const float *tn) {
     int first = sp;
     for (; bits; bits &= bits - 1) {
         int k = __builtin_ctz(bits);
         stack_entry e = {n->child[k], tn[k]};
+        __builtin_prefetch((const void *)(e.ref & ~REF_TAGS));
         int j = sp++;
         while (j > first && stack[j - 1].tnear < e.tnear) { /* farther ones below */
             stack[j] = stack[j - 1];

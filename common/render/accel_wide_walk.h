@@ -214,7 +214,12 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(leaf_test)(uin
 /* Walk the tree; with any_hit, stop at the first hit. Of a node's children
  * hit, the nearest is visited next and the others pushed, the farthest
  * deepest (for any_hit, in any order); an entry popped behind the culling
- * distance is dropped (the condition the node test would apply). */
+ * distance is dropped (the condition the node test would apply). The
+ * children pushed are prefetched as they are pushed, and a node's line of
+ * child references with its boxes, so that neither waits on memory after
+ * the node test (2026-11-26, paired runs, one thread per core: whole-run
+ * CPU -7.7% at 655k triangles, -5.5% at 2.6M, -3.5% at 164k and Suzanne's
+ * 2.0M, none at 41k, whose tree fits the 2 MB L2). */
 WALK_TARGET __attribute__((always_inline)) static inline int WALK(walk)(const accel_wide *wb, const scene *s,
                                                                      const ray *in, float tmax, hit *h, int any_hit) {
     h->t = tmax;
@@ -232,6 +237,8 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(walk)(const ac
     for (;;) {
         if (!(cur & LEAF_TAG)) {
             const wide_node *n = (const wide_node *)cur;
+            /* The children's line, fetched with the boxes' rather than after the test. */
+            __builtin_prefetch(n->child);
             float tn[NODE_W] __attribute__((aligned(32)));
             unsigned bits = WALK(node_test)(n, &w, cullv, tn);
             if (bits) {
@@ -240,7 +247,11 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(walk)(const ac
                 unsigned rest = bits & (bits - 1);
                 if (!rest) continue;
                 if (any_hit) { /* any order will do: keep the others as they come */
-                    for (; rest; rest &= rest - 1) stack[sp++].ref = n->child[__builtin_ctz(rest)];
+                    for (; rest; rest &= rest - 1) {
+                        uintptr_t c = n->child[__builtin_ctz(rest)];
+                        __builtin_prefetch((const void *)(c & ~REF_TAGS));
+                        stack[sp++].ref = c;
+                    }
                     continue;
                 }
                 if (!(rest & (rest - 1))) { /* two: keep the farther */
@@ -248,6 +259,7 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(walk)(const ac
                     uintptr_t other = n->child[j];
                     float t = tn[j];
                     if (tn[j] < tn[k]) t = tn[k], other = cur, cur = n->child[j];
+                    __builtin_prefetch((const void *)(other & ~REF_TAGS));
                     stack[sp++] = (stack_entry){other, t};
                     continue;
                 }
