@@ -440,7 +440,8 @@ static void load_job(service *s, const char *file) {
                                         "rendering_since", "noise_threshold", "min_spp", "submitter", "owner"};
     for (size_t i = 0; jobmsg && i < sizeof extra / sizeof extra[0]; i++) cJSON_DeleteItemFromObject(jobmsg, extra[i]);
     if (!m || st < 0 || !cJSON_IsString(name) || !cJSON_IsNumber(pri) || !cJSON_IsNumber(ts) ||
-        !(fabs(pri->valuedouble) <= LIMIT_PRIORITY) || !(ts->valuedouble >= 1 && ts->valuedouble <= LIMIT_SIDE) || !jobmsg ||
+        !(fabs(pri->valuedouble) <= LIMIT_PRIORITY) || !(ts->valuedouble >= 1 && ts->valuedouble <= LIMIT_SIDE) ||
+        !jobmsg ||
         proto_job_parse(jobmsg, path, &d, err, sizeof err) || !(j = store_job_new(s))) {
         svc_log("%s: not a job file I can read (%s); left alone", path, m ? err : "not JSON");
         cJSON_Delete(m);
@@ -454,7 +455,8 @@ static void load_job(service *s, const char *file) {
     j->state = (sjob_state)st;
     const cJSON *nt = cJSON_GetObjectItemCaseSensitive(m, "noise_threshold");
     const cJSON *ms = cJSON_GetObjectItemCaseSensitive(m, "min_spp");
-    if (cJSON_IsNumber(nt) && nt->valuedouble > 0 && cJSON_IsNumber(ms) && ms->valuedouble >= 1 && ms->valuedouble <= LIMIT_SPP) {
+    if (cJSON_IsNumber(nt) && nt->valuedouble > 0 && cJSON_IsNumber(ms) && ms->valuedouble >= 1 &&
+        ms->valuedouble <= LIMIT_SPP) {
         j->noise_threshold = nt->valuedouble;
         j->min_spp = (int)ms->valuedouble;
         j->desc.adaptive = 1;

@@ -285,6 +285,10 @@ typedef struct {
     float tnear;
 } stack_entry;
 
+/* Ask for the first line of the node or leaf ref refers to (a child kept
+ * for later: it is then in cache when popped). */
+static inline void prefetch_ref(uintptr_t ref) { __builtin_prefetch((const void *)(ref & ~REF_TAGS)); }
+
 /* Push the children of n in `bits` (two or more) with their entry
  * distances tn[k], the nearest last (so popped first), prefetching each;
  * returns the new top. */
@@ -293,7 +297,7 @@ static inline int push_sorted(stack_entry *stack, int sp, const wide_node *n, un
     for (; bits; bits &= bits - 1) {
         int k = __builtin_ctz(bits);
         stack_entry e = {n->child[k], tn[k]};
-        __builtin_prefetch((const void *)(e.ref & ~REF_TAGS));
+        prefetch_ref(e.ref);
         int j = sp++;
         while (j > first && stack[j - 1].tnear < e.tnear) { /* farther ones below */
             stack[j] = stack[j - 1];

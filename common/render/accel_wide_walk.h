@@ -219,7 +219,7 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(leaf_test)(uin
  * child references with its boxes, so that neither waits on memory after
  * the node test (2026-11-26, paired runs, one thread per core: whole-run
  * CPU -7.7% at 655k triangles, -5.5% at 2.6M, -3.5% at 164k and Suzanne's
- * 2.0M, none at 41k, whose tree fits the 2 MB L2). */
+ * 2.0M, none at 41k). */
 WALK_TARGET __attribute__((always_inline)) static inline int WALK(walk)(const accel_wide *wb, const scene *s,
                                                                      const ray *in, float tmax, hit *h, int any_hit) {
     h->t = tmax;
@@ -249,7 +249,7 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(walk)(const ac
                 if (any_hit) { /* any order will do: keep the others as they come */
                     for (; rest; rest &= rest - 1) {
                         uintptr_t c = n->child[__builtin_ctz(rest)];
-                        __builtin_prefetch((const void *)(c & ~REF_TAGS));
+                        prefetch_ref(c);
                         stack[sp++].ref = c;
                     }
                     continue;
@@ -259,7 +259,7 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(walk)(const ac
                     uintptr_t other = n->child[j];
                     float t = tn[j];
                     if (tn[j] < tn[k]) t = tn[k], other = cur, cur = n->child[j];
-                    __builtin_prefetch((const void *)(other & ~REF_TAGS));
+                    prefetch_ref(other);
                     stack[sp++] = (stack_entry){other, t};
                     continue;
                 }

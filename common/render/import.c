@@ -370,7 +370,8 @@ static int check_buffers_and_accessors(importer *im) {
         const cJSON *type = cJSON_GetObjectItemCaseSensitive(e, "type");
         int ct = int_or(e, "componentType", 0), nc = cJSON_IsString(type) ? type_components(type->valuestring) : 0;
         double count = num_or(e, "count", -1), off = num_or(e, "byteOffset", 0);
-        if (!component_size(ct) || !nc) return fail(im, "accessors[%d]: bad componentType %g or type", i, num_or(e, "componentType", 0));
+        if (!component_size(ct) || !nc)
+            return fail(im, "accessors[%d]: bad componentType %g or type", i, num_or(e, "componentType", 0));
         if (!(count >= 1 && count <= 4294967295.0 && count == floor(count)))
             return fail(im, "accessors[%d]: bad count %g", i, count);
         const cJSON *bvj = cJSON_GetObjectItemCaseSensitive(e, "bufferView");
