@@ -2,15 +2,18 @@
  * in one process, the kinds interleaved round by round, so that a loaded
  * machine's noise falls on all of them alike.
  *
- *   accel-speed SCENE.json [--width W --height H --spp N] [--rounds R] [KIND...]
+ *   accel-speed SCENE.json [--width W --height H --spp N] [--rounds R] [--pair-both] [KIND...]
  *
  * KIND: bvh, embree, wide (default: embree wide). Each intersector is built
  * once; each round renders the whole image as one tile on the calling
  * thread and reports that thread's CPU time (CLOCK_THREAD_CPUTIME_ID: the
  * builders' threads and the loading are not counted), rays per CPU second,
- * and whether the picture equals the first kind's bit for bit; for the wide
+ * and whether the picture equals the first one's bit for bit (every other
+ * round runs the kinds in reverse order); for the wide
  * BVH also its walk (the widest this CPU runs, or as TESSERA_NO_AVX512 /
- * TESSERA_NO_AVX2 say), its nodes and leaves and bytes per primitive. */
+ * TESSERA_NO_AVX2 say), its nodes and leaves and bytes per primitive.
+ * --pair-both runs each kind twice a round: shadow rays traced alongside
+ * the next ray (the default) and each at once (integrator_options.no_pair). */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -36,18 +39,19 @@ static int parse_kind(const char *name, accel_kind *out) {
 int main(int argc, char **argv) {
     const char *path = NULL, *names[8];
     accel_kind kinds[8];
-    int nk = 0, rounds = 3;
+    int nk = 0, rounds = 3, pair_both = 0;
     scene_overrides ov = {-1, -1, -1, -1, 0, 0, 1}; /* no intersector: built below, one per kind */
     for (int i = 1; i < argc; i++) {
         if (i + 1 < argc && strcmp(argv[i], "--width") == 0) ov.width = atoi(argv[++i]);
         else if (i + 1 < argc && strcmp(argv[i], "--height") == 0) ov.height = atoi(argv[++i]);
         else if (i + 1 < argc && strcmp(argv[i], "--spp") == 0) ov.spp = atoi(argv[++i]);
         else if (i + 1 < argc && strcmp(argv[i], "--rounds") == 0) rounds = atoi(argv[++i]);
+        else if (strcmp(argv[i], "--pair-both") == 0) pair_both = 1;
         else if (!path) path = argv[i];
         else if (nk < 8 && parse_kind(argv[i], &kinds[nk]) == 0) names[nk++] = argv[i];
         else return fprintf(stderr, "accel-speed: unknown argument \"%s\"\n", argv[i]), 2;
     }
-    if (!path || rounds < 1) return fprintf(stderr, "usage: accel-speed SCENE.json [--width W --height H --spp N] [--rounds R] [KIND...]\n"), 2;
+    if (!path || rounds < 1) return fprintf(stderr, "usage: accel-speed SCENE.json [--width W --height H --spp N] [--rounds R] [--pair-both] [KIND...]\n"), 2;
     if (nk == 0) {
         kinds[0] = ACCEL_EMBREE, names[0] = "embree";
         kinds[1] = ACCEL_WIDE, names[1] = "wide";
@@ -73,16 +77,22 @@ int main(int argc, char **argv) {
     integrator_options opt = {0};
     printf("scene %s: %u triangles, %u spheres, %dx%d, %d spp, 1 thread\n", path, s->triangle_count, s->sphere_count,
            s->settings.width, s->settings.height, s->settings.spp);
+    int pairings = pair_both ? 2 : 1; /* with --pair-both, each kind also with integrator_options.no_pair */
     for (int r = 0; r < rounds; r++)
-        for (int k = 0; k < nk; k++) {
+        for (int i = 0; i < nk * pairings; i++) {
+            int v = r % 2 ? nk * pairings - 1 - i : i; /* every other round backwards: no kind always goes first */
+            int k = v / pairings;
             s->accel = built[k];
+            opt.no_pair = v % pairings;
             trace_stats st = {0};
             memset(accum, 0, px * 3 * sizeof(double));
             double t0 = thread_cpu();
-            render_tile_means(s, &opt, &all, s->settings.spp, 1, accum, k ? rgb : first, &st, NULL);
+            int ref = r == 0 && i == 0; /* the first picture: the others are compared with it */
+            render_tile_means(s, &opt, &all, s->settings.spp, 1, accum, ref ? first : rgb, &st, NULL);
             double cpu = thread_cpu() - t0;
-            int same = k == 0 || memcmp(first, rgb, px * 3 * sizeof(float)) == 0;
-            printf("round %d %-7s render CPU %.3f s, %.3f Mrays per CPU s, %s\n", r + 1, names[k], cpu,
+            int same = ref || memcmp(first, rgb, px * 3 * sizeof(float)) == 0;
+            printf("round %d %-7s%s render CPU %.3f s, %.3f Mrays per CPU s, %s\n", r + 1, names[k],
+                   opt.no_pair ? " (shadow rays unpaired)" : "", cpu,
                    (double)(st.rays + st.shadow_rays) / cpu * 1e-6, same ? "same picture" : "PICTURE DIFFERS");
             fflush(stdout);
         }

@@ -13,6 +13,7 @@
 #include "render/accel.h"
 #include "render/obj.h"
 #include "render/rng.h"
+#include "render/render.h"
 #include "render/scene.h"
 #include "harness.h"
 #include "render/mesh_normals.h"
@@ -49,8 +50,23 @@ static ray test_ray(const scene *s, uint64_t i, float *tmax) {
     return (ray){vec3_scale(unit_direction(&rng), 0.9f * rng_next(&rng)), unit_direction(&rng), PRIM_NONE};
 }
 
+/* Whether a's paired query (accel_intersect_occluded) of r, with test ray j
+ * as its shadow ray, gives r's hit (found, *h) and ray j's occlusion. */
+static int pair_matches(const scene *s, const accel *a, const ray *r, float tmax, const hit *h, int found,
+                        uint64_t j) {
+    float sh_tmax;
+    ray sh = test_ray(s, j, &sh_tmax);
+    if (!(sh_tmax < INFINITY)) sh_tmax = 0.5f + (float)(j % 7) * 0.25f; /* a shadow ray ends before the light */
+    hit hp;
+    int occluded = -1, fp = accel_intersect_occluded(a, s, r, tmax, &hp, &sh, sh_tmax, &occluded);
+    if (occluded != accel_occluded(a, s, &sh, sh_tmax) || fp != found) return 0;
+    return !found || (hp.prim == h->prim && !memcmp(&hp.t, &h->t, 4) && !memcmp(&hp.b1, &h->b1, 4) &&
+                      !memcmp(&hp.b2, &h->b2, 4));
+}
+
 /* How many of n test rays a and b answer differently (hit, prim, t, b1, b2
- * compared as bits; occlusion). */
+ * compared as bits; occlusion), and whether b's paired query (closest hit
+ * and a shadow ray at once) gives its separate answers. */
 static int count_differences(const scene *s, const accel *a, const accel *b, uint64_t n, int *hits) {
     int differ = 0;
     *hits = 0;
@@ -67,6 +83,9 @@ static int count_differences(const scene *s, const accel *a, const accel *b, uin
                         ha.prim, ha.t, fb, hb.prim, hb.t);
             differ++;
         } else if (accel_occluded(a, s, &r, tmax) != fa || accel_occluded(b, s, &r, tmax) != fb) {
+            differ++;
+        } else if (!pair_matches(s, b, &r, tmax, &hb, fb, i + n)) {
+            if (differ < 3) fprintf(stderr, "  ray %llu: the paired walk answers otherwise\n", (unsigned long long)i);
             differ++;
         }
     }
@@ -148,6 +167,36 @@ TEST(mesh_wide_walk_isas_match_bvh) {
     CHECK(seen[1] && strcmp(seen[1], want1) == 0, "TESSERA_NO_AVX512: walk %s, not %s", seen[1] ? seen[1] : "?", want1);
     CHECK(seen[0] && strcmp(seen[0], want0) == 0, "default: walk %s, not %s", seen[0] ? seen[0] : "?", want0);
 #endif
+}
+
+/* A vertex's shadow ray traced alongside the next ray (the default) or at
+ * once (integrator_options.no_pair): the same image bytes, on the
+ * icospheres (the wide BVH's paired walk) and on features.json (cut-outs,
+ * whose shadow rays are never paired, and the flat kernel). */
+TEST(mesh_paired_shadow_rays_same_bytes) {
+    static const char *const scenes[] = {ICO_SCENE, "scenes/features.json"};
+    for (size_t p = 0; p < 2; p++) {
+        char err[512];
+        scene_overrides ov = {48, 48, 8, -1, 0, 0, 0};
+        scene *s = scene_load(scenes[p], &ov, err, sizeof err);
+        CHECK(s != NULL, "%s", err);
+        if (!s) continue;
+        size_t n = 3 * (size_t)s->settings.width * (size_t)s->settings.height;
+        float *rgb[2] = {malloc(n * sizeof(float)), malloc(n * sizeof(float))};
+        trace_stats st[2] = {{0}, {0}};
+        for (int k = 0; k < 2; k++) {
+            render_options ro = {.threads = 2, .tile_size = 16, .passes = 1, .integrator = {.no_pair = k}};
+            CHECK(rgb[k] && render_frame(s, &ro, rgb[k], &st[k]) == 0, "%s: render failed", scenes[p]);
+        }
+        CHECK(rgb[0] && rgb[1] && memcmp(rgb[0], rgb[1], n * sizeof(float)) == 0,
+              "%s: paired and unpaired shadow rays give different pictures", scenes[p]);
+        CHECK(st[0].shadow_rays == st[1].shadow_rays && st[0].shadow_rays > 1000 && st[0].rays == st[1].rays,
+              "%s: %llu and %llu shadow rays", scenes[p], (unsigned long long)st[0].shadow_rays,
+              (unsigned long long)st[1].shadow_rays);
+        free(rgb[0]);
+        free(rgb[1]);
+        scene_free(s);
+    }
 }
 
 /* The largest extent of s's triangles' bounding box. */

@@ -177,6 +177,13 @@ int accel_intersect(const accel *a, const scene *s, const ray *r, float tmax, hi
     return a->flat_fn(&a->flat, s, r, tmax, h, 0);
 }
 
+int accel_intersect_occluded(const accel *a, const scene *s, const ray *r, float tmax, hit *h, const ray *sh,
+                             float sh_tmax, int *occluded) {
+    if (a->kind == ACCEL_WIDE) return accel_wide_intersect_occluded(a->wide, s, r, tmax, h, sh, sh_tmax, occluded);
+    *occluded = accel_occluded(a, s, sh, sh_tmax);
+    return accel_intersect(a, s, r, tmax, h);
+}
+
 int accel_occluded(const accel *a, const scene *s, const ray *r, float tmax) {
     if (a->kind == ACCEL_WIDE) return accel_wide_occluded(a->wide, s, r, tmax);
     if (a->kind == ACCEL_EMBREE) return accel_embree_occluded(a->embree, s, r, tmax);

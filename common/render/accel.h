@@ -75,4 +75,11 @@ int accel_intersect(const accel *a, const scene *s, const ray *r, float tmax, hi
 /* Any hit with 0 < t < tmax (shadow rays). Returns 1 if occluded. */
 int accel_occluded(const accel *a, const scene *s, const ray *r, float tmax);
 
+/* accel_intersect(a, s, r, tmax, h) and *occluded = accel_occluded(a, s,
+ * sh, sh_tmax) in one call: the same answers, and where the intersector
+ * can (ACCEL_WIDE) the two walks interleaved, so that one's waits on
+ * memory overlap the other's work. Returns accel_intersect's result. */
+int accel_intersect_occluded(const accel *a, const scene *s, const ray *r, float tmax, hit *h, const ray *sh,
+                             float sh_tmax, int *occluded);
+
 #endif

@@ -89,6 +89,8 @@ struct accel_wide {
     unsigned leaf_lanes;
     int (*intersect)(const accel_wide *w, const scene *s, const ray *r, float tmax, hit *h);
     int (*occluded)(const accel_wide *w, const scene *s, const ray *r, float tmax);
+    int (*pair)(const accel_wide *w, const scene *s, const ray *r, float tmax, hit *h, const ray *sh, float sh_tmax,
+                int *occluded);
 };
 
 static void choose_walk(accel_wide *w);
@@ -332,17 +334,20 @@ static inline int push_sorted(stack_entry *stack, int sp, const wide_node *n, un
  * kernel (accel.c) stop it lower: TESSERA_NO_AVX512 at AVX2,
  * TESSERA_NO_AVX2 at SSE (for tests: every walk on one machine). */
 static void choose_walk(accel_wide *w) {
-    w->intersect = walk4_intersect, w->occluded = walk4_occluded, w->stats.walk_isa = "sse2", w->leaf_lanes = 4;
+#define USE_WALK(name, isa, lanes) \
+    (w->intersect = name##_intersect, w->occluded = name##_occluded, w->pair = name##_pair, \
+     w->stats.walk_isa = isa, w->leaf_lanes = lanes)
+    USE_WALK(walk4, "sse2", 4);
 #ifdef HAVE_WALK8
     if (getenv("TESSERA_NO_AVX2") != NULL) return;
     if (getenv("TESSERA_NO_AVX512") == NULL && __builtin_cpu_supports("avx512f") &&
         __builtin_cpu_supports("avx512vl")) {
-        w->intersect = walk16_intersect, w->occluded = walk16_occluded, w->stats.walk_isa = "avx512", w->leaf_lanes = 8;
+        USE_WALK(walk16, "avx512", 8);
         return;
     }
-    if (__builtin_cpu_supports("avx2"))
-        w->intersect = walk8_intersect, w->occluded = walk8_occluded, w->stats.walk_isa = "avx2", w->leaf_lanes = 8;
+    if (__builtin_cpu_supports("avx2")) USE_WALK(walk8, "avx2", 8);
 #endif
+#undef USE_WALK
 }
 
 int accel_wide_intersect(const accel_wide *w, const scene *s, const ray *r, float tmax, hit *h) {
@@ -351,4 +356,9 @@ int accel_wide_intersect(const accel_wide *w, const scene *s, const ray *r, floa
 
 int accel_wide_occluded(const accel_wide *w, const scene *s, const ray *r, float tmax) {
     return w->occluded(w, s, r, tmax);
+}
+
+int accel_wide_intersect_occluded(const accel_wide *w, const scene *s, const ray *r, float tmax, hit *h,
+                                  const ray *sh, float sh_tmax, int *occluded) {
+    return w->pair(w, s, r, tmax, h, sh, sh_tmax, occluded);
 }

@@ -63,4 +63,9 @@ int accel_wide_intersect(const accel_wide *w, const scene *s, const ray *r, floa
 /* Any hit with 0 < t < tmax (shadow rays). Returns 1 if occluded. */
 int accel_wide_occluded(const accel_wide *w, const scene *s, const ray *r, float tmax);
 
+/* accel_wide_intersect of r and accel_wide_occluded of sh (*occluded set
+ * to its answer) in one call, the two walks interleaved: the same answers. */
+int accel_wide_intersect_occluded(const accel_wide *w, const scene *s, const ray *r, float tmax, hit *h,
+                                  const ray *sh, float sh_tmax, int *occluded);
+
 #endif

@@ -211,91 +211,143 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(leaf_test)(uin
     return found;
 }
 
-/* Walk the tree; with any_hit, stop at the first hit. Of a node's children
- * hit, the nearest is visited next and the others pushed, the farthest
- * deepest (for any_hit, in any order); an entry popped behind the culling
- * distance is dropped (the condition the node test would apply). The
- * children pushed are prefetched as they are pushed, and a node's line of
- * child references with its boxes, so that neither waits on memory after
- * the node test (2026-11-26, paired runs, one thread per core: whole-run
- * CPU -7.7% at 655k triangles, -5.5% at 2.6M, -3.5% at 164k and Suzanne's
- * 2.0M, none at 41k). */
-WALK_TARGET __attribute__((always_inline)) static inline int WALK(walk)(const accel_wide *wb, const scene *s,
-                                                                     const ray *in, float tmax, hit *h, int any_hit) {
+/* A walk in progress: the ray, the next reference to visit, the stack of
+ * children kept for later and the best hit so far. Resumable one step at a
+ * time, so that two walks can take turns (WALK(pair)). */
+typedef struct {
+    ray_prep r;  /* what the scalar tests read (edge lanes, spheres) */
+    WALK(ray) w; /* what the vector tests read */
+    float tmax, cull, cull_wide;
+    uintptr_t cur;
+    int sp, found;
+    hit *h;
+    stack_entry stack[WIDE_STACK];
+} WALK(state);
+
+/* Start a walk of `in` with tmax into *st, its hit to go to *h. Returns 1
+ * if there is a tree to walk, else 0 (a miss, *h reset). */
+WALK_TARGET __attribute__((always_inline)) static inline int WALK(start)(const accel_wide *wb, const ray *in,
+                                                                      float tmax, hit *h, WALK(state) *st) {
     h->t = tmax;
     h->prim = PRIM_NONE;
     h->b1 = h->b2 = 0.0f;
-    uintptr_t cur = wb->root;
-    if (!cur) return 0;
-    ray_prep r; /* what the scalar tests read (edge lanes, spheres) */
-    WALK(ray) w; /* what the vector tests read */
-    WALK(prepare)(in, &r, &w);
-    float cull = accel_cull_distance(tmax), cull_wide = cull * SLAB_WIDEN;
-    nvec cullv = WALK(nsplat)(cull);
-    stack_entry stack[WIDE_STACK];
-    int sp = 0, found = 0;
-    for (;;) {
-        if (!(cur & LEAF_TAG)) {
-            const wide_node *n = (const wide_node *)cur;
-            /* The children's line, fetched with the boxes' rather than after the test. */
-            __builtin_prefetch(n->child);
-            float tn[NODE_W] __attribute__((aligned(32)));
-            unsigned bits = WALK(node_test)(n, &w, cullv, tn);
-            if (bits) {
-                int k = __builtin_ctz(bits);
-                cur = n->child[k];
-                unsigned rest = bits & (bits - 1);
-                if (!rest) continue;
-                if (any_hit) { /* any order will do: keep the others as they come */
-                    for (; rest; rest &= rest - 1) {
-                        uintptr_t c = n->child[__builtin_ctz(rest)];
-                        prefetch_ref(c);
-                        stack[sp++].ref = c;
-                    }
-                    continue;
+    st->h = h;
+    st->cur = wb->root;
+    st->sp = st->found = 0;
+    if (!st->cur) return 0;
+    WALK(prepare)(in, &st->r, &st->w);
+    st->tmax = tmax;
+    st->cull = accel_cull_distance(tmax);
+    st->cull_wide = st->cull * SLAB_WIDEN;
+    return 1;
+}
+
+/* One step of a walk: visit st->cur (a node's test, or a leaf's) and choose
+ * the next reference; with any_hit, stop at the first hit. Of a node's
+ * children hit, the nearest is visited next and the others pushed, the
+ * farthest deepest (for any_hit, in any order); an entry popped behind the
+ * culling distance is dropped (the condition the node test would apply).
+ * The children pushed are prefetched as they are pushed, and a node's line
+ * of child references with its boxes, so that neither waits on memory
+ * after the node test (2026-11-26, paired runs, one thread per core:
+ * whole-run CPU -7.7% at 655k triangles, -5.5% at 2.6M, -3.5% at 164k and
+ * Suzanne's 2.0M, none at 41k). Returns 1 while the walk goes on, 0 when it
+ * has ended, st->found then saying whether something was hit. */
+WALK_TARGET __attribute__((always_inline)) static inline int WALK(step)(const scene *s, WALK(state) *st,
+                                                                     int any_hit) {
+    uintptr_t cur = st->cur;
+    stack_entry *stack = st->stack;
+    int sp = st->sp;
+    if (!(cur & LEAF_TAG)) {
+        const wide_node *n = (const wide_node *)cur;
+        /* The children's line, fetched with the boxes' rather than after the test. */
+        __builtin_prefetch(n->child);
+        float tn[NODE_W] __attribute__((aligned(32)));
+        unsigned bits = WALK(node_test)(n, &st->w, WALK(nsplat)(st->cull), tn);
+        if (bits) {
+            int k = __builtin_ctz(bits);
+            cur = n->child[k];
+            unsigned rest = bits & (bits - 1);
+            if (!rest) return st->cur = cur, 1;
+            if (any_hit) { /* any order will do: keep the others as they come */
+                for (; rest; rest &= rest - 1) {
+                    uintptr_t c = n->child[__builtin_ctz(rest)];
+                    prefetch_ref(c);
+                    stack[sp++].ref = c;
                 }
-                if (!(rest & (rest - 1))) { /* two: keep the farther */
-                    int j = __builtin_ctz(rest);
-                    uintptr_t other = n->child[j];
-                    float t = tn[j];
-                    if (tn[j] < tn[k]) t = tn[k], other = cur, cur = n->child[j];
-                    prefetch_ref(other);
-                    stack[sp++] = (stack_entry){other, t};
-                    continue;
-                }
-                sp = push_sorted(stack, sp, n, bits, tn);
-                cur = stack[--sp].ref;
-                continue;
+                return st->cur = cur, st->sp = sp, 1;
             }
-        } else if (WALK(leaf_test)(cur, s, &r, &w, tmax, h, any_hit)) {
-            found = 1;
-            if (any_hit) return 1;
-            cull = accel_cull_distance(h->t);
-            cull_wide = cull * SLAB_WIDEN;
-            cullv = WALK(nsplat)(cull);
+            if (!(rest & (rest - 1))) { /* two: keep the farther */
+                int j = __builtin_ctz(rest);
+                uintptr_t other = n->child[j];
+                float t = tn[j];
+                if (tn[j] < tn[k]) t = tn[k], other = cur, cur = n->child[j];
+                prefetch_ref(other);
+                stack[sp++] = (stack_entry){other, t};
+                return st->cur = cur, st->sp = sp, 1;
+            }
+            sp = push_sorted(stack, sp, n, bits, tn);
+            st->cur = stack[--sp].ref;
+            st->sp = sp;
+            return 1;
         }
-        /* Next: the nearest kept child still in front of the culling
-         * distance. A shadow ray's never shrinks, and every child kept
-         * passed tnear <= min(tfar, cull) * SLAB_WIDEN: none to drop. */
-        if (any_hit) {
-            if (sp == 0) return 0;
-            cur = stack[--sp].ref;
-            continue;
-        }
-        do {
-            if (sp == 0) return found;
-        } while (!(stack[--sp].tnear <= cull_wide));
-        cur = stack[sp].ref;
+    } else if (WALK(leaf_test)(cur, s, &st->r, &st->w, st->tmax, st->h, any_hit)) {
+        st->found = 1;
+        if (any_hit) return 0;
+        st->cull = accel_cull_distance(st->h->t);
+        st->cull_wide = st->cull * SLAB_WIDEN;
     }
+    /* Next: the nearest kept child still in front of the culling
+     * distance. A shadow ray's never shrinks, and every child kept
+     * passed tnear <= min(tfar, cull) * SLAB_WIDEN: none to drop. */
+    if (any_hit) {
+        if (sp == 0) return 0;
+        st->cur = stack[--sp].ref;
+        st->sp = sp;
+        return 1;
+    }
+    do {
+        if (sp == 0) return 0;
+    } while (!(stack[--sp].tnear <= st->cull_wide));
+    st->cur = stack[sp].ref;
+    st->sp = sp;
+    return 1;
 }
 
 WALK_TARGET static int WALK(intersect)(const accel_wide *w, const scene *s, const ray *r, float tmax, hit *h) {
-    return WALK(walk)(w, s, r, tmax, h, 0);
+    WALK(state) st;
+    if (!WALK(start)(w, r, tmax, h, &st)) return 0;
+    while (WALK(step)(s, &st, 0)) {
+    }
+    return st.found;
 }
 
 WALK_TARGET static int WALK(occluded)(const accel_wide *w, const scene *s, const ray *r, float tmax) {
     hit h;
-    return WALK(walk)(w, s, r, tmax, &h, 1);
+    WALK(state) st;
+    if (!WALK(start)(w, r, tmax, &h, &st)) return 0;
+    while (WALK(step)(s, &st, 1)) {
+    }
+    return st.found;
+}
+
+/* The closest hit of r and whether sh is occluded, the two walks taking
+ * turns a step each, so that while one waits for a node from memory the
+ * CPU works on the other. The same answers as WALK(intersect) and
+ * WALK(occluded): each walk visits what it would alone, in the same order. */
+WALK_TARGET static int WALK(pair)(const accel_wide *w, const scene *s, const ray *r, float tmax, hit *h,
+                                  const ray *sh, float sh_tmax, int *occluded) {
+    hit hs;
+    WALK(state) a, b;
+    int ga = WALK(start)(w, r, tmax, h, &a), gb = WALK(start)(w, sh, sh_tmax, &hs, &b);
+    while (ga && gb) {
+        ga = WALK(step)(s, &a, 0);
+        gb = WALK(step)(s, &b, 1);
+    }
+    while (ga) ga = WALK(step)(s, &a, 0);
+    while (gb) gb = WALK(step)(s, &b, 1);
+    *occluded = b.found;
+    return a.found;
 }
 
 #undef nvec

@@ -78,19 +78,32 @@ static inline __attribute__((always_inline)) ray spawn(vec3 p, vec3 ng, uint32_t
     return r;
 }
 
+/* A shadow ray waiting to be traced, and what its vertex adds to L:
+ * beta * (visible ? f Le cos w / p : 0), as the product the vertex made. */
+typedef struct {
+    ray r;
+    float len;
+    vec3 beta, value;
+} shadow_query;
+
 /* Light sampling at a non-delta vertex, with (u1, u2) for the point on the
  * light: the direct-light term with its MIS weight. wo and the frame are in
- * world / local space as the caller has them. */
-static vec3 direct_light(const scene *s, const integrator_options *opt, const material *m, const surface *sf,
-                         uint32_t prim, const frame *fr, vec3 wo, vec3 wo_local, float u1, float u2,
-                         trace_stats *st) {
+ * world / local space as the caller has them. Returns 1 with the shadow ray
+ * still to trace in *q (q->value is the term if it turns out unoccluded;
+ * the caller sets q->beta), or 0 with the term, already final (zero), in
+ * *value. Cut-out scenes' shadow rays are traced here, through the
+ * cut-outs (shading_occluded). */
+static int direct_light(const scene *s, const integrator_options *opt, const material *m, const surface *sf,
+                        uint32_t prim, const frame *fr, vec3 wo, vec3 wo_local, float u1, float u2, trace_stats *st,
+                        shadow_query *q, vec3 *value) {
+    *value = vec3_splat(0.0f);
     light_sample ls;
-    if (!lights_sample(s, sf->p, u1, u2, &ls)) return vec3_splat(0.0f);
+    if (!lights_sample(s, sf->p, u1, u2, &ls)) return 0;
     vec3 wi_local = frame_to_local(fr, ls.wi);
-    if (sf->smooth && !shading_sides_agree(sf->ng, fr->n, wo, ls.wi)) return vec3_splat(0.0f); /* no leaks */
+    if (sf->smooth && !shading_sides_agree(sf->ng, fr->n, wo, ls.wi)) return 0; /* no leaks */
     float bsdf_density;
     vec3 f = bsdf_eval_pdf(m, wo_local, wi_local, &bsdf_density);
-    if (vec3_is_zero(f)) return vec3_splat(0.0f);
+    if (vec3_is_zero(f)) return 0;
     /* Shadow ray between the two offset end points, so it neither starts
      * inside this surface nor ends inside the light's. */
     ray sh = spawn(sf->p, sf->ng, prim, ls.wi);
@@ -98,13 +111,24 @@ static vec3 direct_light(const scene *s, const integrator_options *opt, const ma
     if (!ls.is_delta) target = offset_ray_origin(ls.p, vec3_dot(ls.n, ls.wi) < 0.0f ? ls.n : vec3_neg(ls.n));
     vec3 to = vec3_sub(target, sh.o);
     float len = vec3_length(to);
-    if (!(len > 0.0f)) return vec3_splat(0.0f);
+    if (!(len > 0.0f)) return 0;
     sh.d = vec3_scale(to, 1.0f / len);
     st->shadow_rays++;
-    if ((s->features & FEATURE_CUTOUT) ? shading_occluded(s, &sh, len) : accel_occluded(s->accel, s, &sh, len))
-        return vec3_splat(0.0f);
     float w = (ls.is_delta || opt->no_mis) ? 1.0f : mis_power(ls.pdf, bsdf_density);
-    return vec3_scale(vec3_mul(f, ls.radiance), fabsf(wi_local.z) * w / ls.pdf);
+    vec3 term = vec3_scale(vec3_mul(f, ls.radiance), fabsf(wi_local.z) * w / ls.pdf);
+    if (s->features & FEATURE_CUTOUT) {
+        if (!shading_occluded(s, &sh, len)) *value = term;
+        return 0;
+    }
+    q->r = sh;
+    q->len = len;
+    q->value = term;
+    return 1;
+}
+
+/* What a traced shadow query adds to L. */
+static inline vec3 shadow_term(const shadow_query *q, int occluded) {
+    return vec3_mul(q->beta, occluded ? vec3_splat(0.0f) : q->value);
 }
 
 /* Emission picked up by a ray that hit an emitter after a bounce from
@@ -133,6 +157,11 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
      * the throughput without the radiance scaling (eta_i / eta_t)^2 of
      * refraction, which a path inside glass undoes when it leaves. */
     float eta_scale = 1.0f;
+    /* A vertex's shadow ray is traced with the next vertex's ray, the two
+     * walks interleaved (accel_intersect_occluded); its term is added to L
+     * before anything of the next vertex, as if traced at once. */
+    shadow_query shadow;
+    int pending = 0;
     for (int depth = 0;; depth++) {
         /* The vertex's lobe and direction numbers before its ray is traced:
          * they do not depend on the hit, and their chain of multiplications
@@ -145,7 +174,16 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
         float u_lobe = u[DIM_LOBE], u_roulette = u[DIM_ROULETTE], u1 = u[DIM_BSDF_DIR], u2 = u[DIM_BSDF_DIR + 1];
         hit h;
         st->rays++;
-        if (!accel_intersect(s->accel, s, &r, INFINITY, &h)) {
+        int found;
+        if (pending) { /* the last vertex's shadow ray and this ray, traced side by side */
+            int occluded;
+            found = accel_intersect_occluded(s->accel, s, &r, INFINITY, &h, &shadow.r, shadow.len, &occluded);
+            L = vec3_add(L, shadow_term(&shadow, occluded));
+            pending = 0;
+        } else {
+            found = accel_intersect(s->accel, s, &r, INFINITY, &h);
+        }
+        if (!found) {
             if (s->features & FEATURE_BACKGROUND) L = vec3_add(L, vec3_mul(beta, s->background));
             break;
         }
@@ -190,10 +228,20 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
          * higher, docs/performance.md.) */
         int scattered = bsdf_sample_wi(m, wo_local, u1, u2, u_lobe, &bs);
         vec3 wi = scattered ? vec3_normalize(frame_to_world(&fr, bs.wi)) : wo;
-        if (has_lights && bsdf_is_smooth(m) && !opt->no_nee)
-            L = vec3_add(L,
-                         vec3_mul(beta, direct_light(s, opt, m, &sf, h.prim, &fr, wo, wo_local, u[DIM_LIGHT_POINT],
-                                                  u[DIM_LIGHT_POINT + 1], st)));
+        if (has_lights && bsdf_is_smooth(m) && !opt->no_nee) {
+            vec3 value;
+            pending = direct_light(s, opt, m, &sf, h.prim, &fr, wo, wo_local, u[DIM_LIGHT_POINT],
+                                   u[DIM_LIGHT_POINT + 1], st, &shadow, &value);
+            if (!pending) {
+                L = vec3_add(L, vec3_mul(beta, value));
+            } else if (opt->no_pair) {
+                shadow.beta = beta;
+                L = vec3_add(L, shadow_term(&shadow, accel_occluded(s->accel, s, &shadow.r, shadow.len)));
+                pending = 0;
+            } else {
+                shadow.beta = beta;
+            }
+        }
         if (!scattered) break;
         if (sf.smooth && !shading_sides_agree(sf.ng, n, wo, wi)) break; /* would leak through the surface */
         beta = vec3_mul(beta, bs.weight);
@@ -219,6 +267,7 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
         }
         r = spawn(sf.p, sf.ng, h.prim, wi);
     }
+    if (pending) L = vec3_add(L, shadow_term(&shadow, accel_occluded(s->accel, s, &shadow.r, shadow.len)));
     st->samples++;
     if (!vec3_is_finite(L) || L.x < 0.0f || L.y < 0.0f || L.z < 0.0f) {
         st->bad_samples++;

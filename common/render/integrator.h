@@ -33,6 +33,7 @@ static inline void trace_stats_add(trace_stats *a, const trace_stats *b) {
 typedef struct {
     int no_nee; /* no light sampling: emitters found only by BSDF sampling */
     int no_mis; /* light sampling only for direct light (no BSDF-hit weighting) */
+    int no_pair; /* each shadow ray traced at once, not alongside the next ray (same bytes; benchmarks) */
     sampler_kind sampler; /* SAMPLER_SOBOL (the default, 0) or SAMPLER_RANDOM */
 } integrator_options;
 
