@@ -328,8 +328,9 @@ static void print_scene_info(const scene *s) {
     if (!s->accel)
         fprintf(stderr, "intersector: built by each worker (workers print theirs with -v)\n");
     else if (accel_get_wide_stats(s->accel, &ws) == 0)
-        fprintf(stderr, "intersector: wide (%d-wide BVH, Tessera's %s walk and tests; builder device \"%s\"), %zu nodes, "
-                "%zu leaves, %.1f KiB, peak %.1f KiB while building, built in %.3f ms\n", ws.node_width, ws.walk_isa, ws.config, ws.node_count,
+        fprintf(stderr, "intersector: wide (%d-wide BVH, Tessera's %s walk and tests; %s build, builder device \"%s\"), "
+                "%zu nodes, %zu leaves, %.1f KiB, peak %.1f KiB while building, built in %.3f ms\n", ws.node_width,
+                ws.walk_isa, ws.builder, ws.config, ws.node_count,
                 ws.leaf_count, (double)ws.memory_bytes / 1024.0, (double)ws.peak_bytes / 1024.0, ws.build_seconds * 1e3);
     else if (accel_get_embree_stats(s->accel, &es) == 0)
         fprintf(stderr, "intersector: embree (Tessera's tests at the leaves; device \"%s\"), %.1f KiB, peak %.1f KiB "

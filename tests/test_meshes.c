@@ -347,6 +347,49 @@ TEST(mesh_wide_small_trees_match_bvh) {
     }
 }
 
+/* The wide BVH built by Morton codes (what "auto" builds from
+ * ACCEL_WIDE_MORTON_MIN_PRIMITIVES; TESSERA_WIDE_BUILDER=morton forces it
+ * here): the BVH's answers on the icospheres, on features.json and on a
+ * mesh of 1200 coincident triangles (one Morton code for all: the builder
+ * must split them anyway, within the walk's depth), then the SAH again. */
+TEST(mesh_wide_morton_build_matches_bvh) {
+    char obj[200000];
+    size_t len = (size_t)snprintf(obj, sizeof obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0.5 0.5 1\n");
+    for (int i = 0; i < 1200 && len + 32 < sizeof obj; i++)
+        len += (size_t)snprintf(obj + len, sizeof obj - len, i % 2 ? "f 1 2 3\n" : "f 1 2 4\n");
+    const char *obj_path = util_write_temp("coincident.obj", obj);
+    char json[1024];
+    snprintf(json, sizeof json,
+             "{\"camera\": {\"type\": \"perspective\", \"position\": [0.3, 0.3, -3], \"look_at\": [0.3, 0.3, 0], "
+             "\"fov\": 40}, \"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo\": [0.5, 0.5, 0.5]}}, "
+             "\"shapes\": [{\"type\": \"mesh\", \"file\": \"%s\", \"material\": \"m\"}]}",
+             obj_path ? obj_path : "");
+    const char *json_path = util_write_temp("coincident.json", json);
+    const char *scenes[] = {ICO_SCENE, "scenes/features.json", json_path};
+    for (size_t p = 0; p < 3; p++) {
+        char err[512];
+        scene *s = scenes[p] ? scene_load(scenes[p], NULL, err, sizeof err) : NULL;
+        CHECK(s != NULL, "%s: %s", scenes[p] ? scenes[p] : "temp scene", scenes[p] ? err : "not written");
+        if (!s) continue;
+        accel *tree = accel_build(s, ACCEL_BVH);
+        for (int b = 0; b < 2; b++) {
+            setenv("TESSERA_WIDE_BUILDER", b ? "sah" : "morton", 1);
+            accel *wide = accel_build_err(s, ACCEL_WIDE, err, sizeof err);
+            unsetenv("TESSERA_WIDE_BUILDER");
+            accel_wide_stats st = {0};
+            CHECK(wide && accel_get_wide_stats(wide, &st) == 0, "%s: build: %s", scenes[p], err);
+            if (!wide) continue;
+            CHECK(strcmp(st.builder, b ? "binned SAH" : "Morton") == 0, "%s: built by %s", scenes[p], st.builder);
+            int hits = 0, differ = tree ? count_differences(s, tree, wide, 30000, &hits) : -1;
+            CHECK(differ == 0 && hits > 3000, "%s, %s build (%zu nodes, %zu leaves): %d of 30000 rays differ, %d hit",
+                  scenes[p], st.builder, st.node_count, st.leaf_count, differ, hits);
+            accel_free(wide);
+        }
+        accel_free(tree);
+        scene_free(s);
+    }
+}
+
 /* Every Embree kernel this CPU can run, forced, and every build quality:
  * the same answers as the BVH (the tests at the leaves are Tessera's;
  * Embree's arithmetic and tree only order them). */

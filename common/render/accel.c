@@ -44,7 +44,7 @@ static accel_kind choose_kind(const scene *s, accel_kind want) {
     if (want != ACCEL_AUTO) return want;
     if (s->triangle_count <= ACCEL_FLAT_MAX_TRIANGLES && s->sphere_count <= ACCEL_FLAT_MAX_SPHERES) return ACCEL_FLAT;
     size_t n = (size_t)s->triangle_count + s->sphere_count;
-    return n >= ACCEL_EMBREE_MIN_PRIMITIVES ? ACCEL_EMBREE : n >= ACCEL_WIDE_MIN_PRIMITIVES ? ACCEL_WIDE : ACCEL_BVH;
+    return n >= ACCEL_WIDE_MIN_PRIMITIVES ? ACCEL_WIDE : ACCEL_BVH;
 }
 
 /* Lay out s's triangles for the flat intersector. Returns 0, or -1 when out

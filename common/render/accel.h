@@ -10,8 +10,8 @@
  *  - ACCEL_FLAT: every triangle tested, 16 (AVX-512), 8 (AVX2) or 4 (SSE) at a time, from
  *    arrays laid out for SIMD, then every sphere; no tree to walk. On a scene as small as
  *    the Cornell box this is faster than any tree (see docs/performance.md).
- * ACCEL_AUTO picks FLAT for small scenes, then BVH, WIDE and EMBREE as
- * they grow. The choice is a function of the scene alone, never of the machine,
+ * ACCEL_AUTO picks FLAT for small scenes, then BVH, then WIDE as they
+ * grow (EMBREE only when asked for by name). The choice is a function of the scene alone, never of the machine,
  * so every worker of a farm takes the same path. BVH, WIDE and EMBREE give
  * the same hits bit for bit (the smallest (t, index)); FLAT can differ from
  * them only in which of two hits at exactly the same distance wins.
@@ -30,13 +30,13 @@
 /* ACCEL_AUTO picks ACCEL_FLAT up to this many triangles and spheres. */
 #define ACCEL_FLAT_MAX_TRIANGLES 96
 #define ACCEL_FLAT_MAX_SPHERES 8
-/* ... ACCEL_WIDE from this many primitives (ACCEL_BVH below), and
- * ACCEL_EMBREE from 2^22: up to 2.6M triangles the wide BVH renders with
- * about 30% less render CPU than Embree, for 2.3x Embree's tree bytes and a
- * somewhat slower build; at 10.5M it was not measured (docs/meshes.md has
- * the figures). */
+/* ... ACCEL_WIDE from this many primitives (ACCEL_BVH below), at every
+ * size since 2026-11-27: up to 2.6M triangles it renders with about 30%
+ * less render CPU than Embree, and at 10.5M, built by Morton codes
+ * (accel_wide.h), it builds in about half Embree's time and renders as
+ * fast, for 1.6x Embree's peak memory. ACCEL_EMBREE is had by name
+ * (docs/meshes.md has the figures). */
 #define ACCEL_WIDE_MIN_PRIMITIVES 1024
-#define ACCEL_EMBREE_MIN_PRIMITIVES 4194304
 
 typedef struct accel accel;
 

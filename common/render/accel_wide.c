@@ -2,7 +2,8 @@
  * makes it, Tessera walks it and decides every hit.
  *
  * Build: one padded box per primitive (accel_padded_box), handed to
- * rtcBuildBVH (binned SAH, parallel on the device's threads); its callbacks
+ * rtcBuildBVH (binned SAH, or from ACCEL_WIDE_MORTON_MIN_PRIMITIVES Morton
+ * codes; parallel on the device's threads); its callbacks
  * create the nodes and leaves below in Embree's thread-local allocator,
  * which the RTCBVH owns and frees.
  *
@@ -193,6 +194,15 @@ static struct RTCBuildPrimitive *build_primitives(const scene *s, size_t n) {
     return p;
 }
 
+/* Whether n primitives are built by the Morton builder
+ * (ACCEL_WIDE_MORTON_MIN_PRIMITIVES, TESSERA_WIDE_BUILDER). */
+static int use_morton(size_t n) {
+    const char *b = getenv("TESSERA_WIDE_BUILDER");
+    if (b && strcmp(b, "morton") == 0) return 1;
+    if (b && strcmp(b, "sah") == 0) return 0;
+    return n >= ACCEL_WIDE_MORTON_MIN_PRIMITIVES;
+}
+
 accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
     struct timespec t0 = elapsed_mark();
     accel_wide *w = calloc(1, sizeof *w);
@@ -203,6 +213,7 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
     }
     w->stats.config = w->dev.config;
     w->stats.node_width = NODE_W;
+    w->stats.builder = "binned SAH";
     choose_walk(w);
     size_t n = (size_t)s->triangle_count + s->sphere_count;
     w->stats.primitive_count = n;
@@ -217,7 +228,9 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
     }
     build_ctx b = {.s = s, .leaf_lanes = w->leaf_lanes};
     struct RTCBuildArguments args = rtcDefaultBuildArguments();
-    args.buildQuality = RTC_BUILD_QUALITY_MEDIUM; /* binned SAH */
+    int morton = use_morton(n);
+    w->stats.builder = morton ? "Morton" : "binned SAH";
+    args.buildQuality = morton ? RTC_BUILD_QUALITY_LOW : RTC_BUILD_QUALITY_MEDIUM;
     args.maxBranchingFactor = NODE_W;
     args.maxDepth = WIDE_MAX_DEPTH;
     args.sahBlockSize = w->leaf_lanes; /* 1 to leaf_lanes primitives cost one leaf test */

@@ -45,7 +45,18 @@ typedef struct {
     size_t memory_bytes;   /* bytes held after the build (nodes and leaves) */
     size_t peak_bytes;     /* bytes held at the build's peak, boxes included */
     const char *config;    /* the builder's Embree device configuration ("" for Embree's defaults) */
+    const char *builder;   /* "binned SAH" or "Morton" (ACCEL_WIDE_MORTON_MIN_PRIMITIVES) */
 } accel_wide_stats;
+
+/* From this many primitives the tree is built by Embree's Morton-code
+ * builder (RTC_BUILD_QUALITY_LOW) instead of the binned SAH: at 10.5M
+ * triangles it builds in 1.7-2.3 s instead of 5.0 s (and Embree's own
+ * scene, which auto picked there before, in 3.5 s) and renders as fast as
+ * Embree's, for about 1.6x Embree's peak memory (docs/meshes.md). Below,
+ * its trees cost 19-25% more render CPU than the SAH's, more than the
+ * build saves. TESSERA_WIDE_BUILDER=sah or =morton overrides the choice
+ * (for tests and benchmarks); the bytes rendered never depend on it. */
+#define ACCEL_WIDE_MORTON_MIN_PRIMITIVES 4194304
 
 /* Build over s's triangles and spheres. Returns NULL on failure (out of
  * memory, Embree refusing the device configuration or failing the build)

@@ -8,6 +8,8 @@
 
 #include <stdlib.h>
 #include <string.h>
+
+#include "accel_embree.h" /* accel_cull_distance */
 #include "elapsed.h"
 
 #define BVH_BINS 16
@@ -267,7 +269,13 @@ static inline int prim_hit(const scene *s, const ray_prep *r, uint32_t id, float
     return 1;
 }
 
-/* Walk the tree; with any_hit, stop at the first hit. */
+/* Walk the tree; with any_hit, stop at the first hit. Boxes are culled
+ * behind accel_cull_distance(best t), not behind best t: a candidate at
+ * exactly that t with a smaller index must still be found (coincident
+ * triangles), and its box's slab distances round differently from the
+ * triangle test's t. (Until 2026-11-27 the cull was best t itself, and a
+ * mesh of coincident triangles lost such ties: 5 of 30 000 rays in
+ * mesh_wide_morton_build_matches_bvh.) */
 static inline int traverse(const bvh *b, const scene *s, const ray *ray_in, float tmax, hit *h, int any_hit) {
     ray_prep r;
     h->t = tmax;
@@ -279,7 +287,7 @@ static inline int traverse(const bvh *b, const scene *s, const ray *ray_in, floa
     uint32_t i = 0;
     for (;;) {
         const bvh_node *n = &b->nodes[i];
-        if (node_hit(n, &r, h->t)) {
+        if (node_hit(n, &r, accel_cull_distance(h->t))) {
             if (n->count) {
                 for (uint32_t k = 0; k < n->count; k++) {
                     if (prim_hit(s, &r, b->prims[n->offset + k], tmax, h)) {

@@ -15,8 +15,10 @@
  * first peaked at 2493 MB RSS including the 217 MB of OBJ text (~217 B per
  * triangle); since the loading work of the third session they peak at
  * 1191-1226 MB (~120 B per triangle, docs/meshes.md "Memory"), so 256
- * keeps a margin of about 2. (The wide BVH forced at 10.5M measured ~272
- * B, above it; "auto" never picks it at that size.) */
+ * keeps a margin of about 2. Since 2026-11-27 "auto" builds the wide BVH
+ * by Morton codes at that size: 1857 MB peak at 10.5M, ~177 B per
+ * triangle, a margin of 1.4. (The wide BVH's binned SAH forced there:
+ * 1554 MB.) */
 #define SCENE_MEMORY_BYTES_PER_TRIANGLE 256
 
 /* Estimated peak bytes to load bundle b: its own size plus
