@@ -104,6 +104,8 @@ typedef struct {
     uint32_t first, count; /* adaptive round: its sample range */
     atomic_int next_tile;
     atomic_int tiles_done;
+    pthread_mutex_t lock; /* with all_done: the last tile wakes the reporting thread */
+    pthread_cond_t all_done;
     atomic_ullong samples_done;
 } frame_job;
 
@@ -170,14 +172,26 @@ static void *frame_thread(void *arg) {
         int i = atomic_fetch_add(&job->next_tile, 1);
         if (i >= job->tile_count) break;
         frame_render_tile(w, &job->tiles[i]);
-        atomic_fetch_add(&job->tiles_done, 1);
+        if (atomic_fetch_add(&job->tiles_done, 1) + 1 == job->tile_count) {
+            pthread_mutex_lock(&job->lock);
+            pthread_cond_signal(&job->all_done);
+            pthread_mutex_unlock(&job->lock);
+        }
     }
     return NULL;
 }
 
-static void sleep_ms(long ms) {
-    struct timespec ts = {ms / 1000, (ms % 1000) * 1000000L};
-    nanosleep(&ts, NULL);
+/* Wait up to ms milliseconds for the frame's last tile (all_done). */
+static void wait_done_ms(frame_job *job, long ms) {
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts);
+    ts.tv_sec += ms / 1000;
+    ts.tv_nsec += (ms % 1000) * 1000000L;
+    if (ts.tv_nsec >= 1000000000L) ts.tv_sec++, ts.tv_nsec -= 1000000000L;
+    pthread_mutex_lock(&job->lock);
+    while (atomic_load(&job->tiles_done) < job->tile_count)
+        if (pthread_cond_timedwait(&job->all_done, &job->lock, &ts) != 0) break;
+    pthread_mutex_unlock(&job->lock);
 }
 
 /* Run job's tiles on opt->threads threads; their counters are added to
@@ -193,6 +207,8 @@ static int frame_run(frame_job *job, int tile_size, trace_stats *stats, int prog
     size_t px = (size_t)tile_size * (size_t)tile_size;
     atomic_init(&job->next_tile, 0);
     atomic_init(&job->tiles_done, 0);
+    pthread_mutex_init(&job->lock, NULL);
+    pthread_cond_init(&job->all_done, NULL);
     atomic_init(&job->samples_done, 0);
     for (int i = 0; i < threads && rc == 0; i++) {
         workers[i].job = job;
@@ -214,7 +230,7 @@ static int frame_run(frame_job *job, int tile_size, trace_stats *stats, int prog
         trace_stats so_far = {0};
         so_far.samples = samples_base + atomic_load(&job->samples_done);
         opt->progress(opt->progress_ctx, progress_base + atomic_load(&job->tiles_done), progress_total, &so_far);
-        sleep_ms(100);
+        wait_done_ms(job, 100); /* not a plain sleep: the frame ends when its last tile does, not up to 100 ms later */
     }
     for (int i = 0; i < started; i++) {
         pthread_join(workers[i].thread, NULL);
@@ -224,6 +240,8 @@ static int frame_run(frame_job *job, int tile_size, trace_stats *stats, int prog
         free(workers[i].mask);
     }
     free(workers);
+    pthread_cond_destroy(&job->all_done);
+    pthread_mutex_destroy(&job->lock);
     return rc;
 }
 
