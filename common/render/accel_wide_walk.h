@@ -314,21 +314,23 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(step)(const sc
     return 1;
 }
 
-WALK_TARGET static int WALK(intersect)(const accel_wide *w, const scene *s, const ray *r, float tmax, hit *h) {
+/* A whole walk of one ray: its steps until the end. */
+WALK_TARGET __attribute__((always_inline)) static inline int WALK(walk)(const accel_wide *w, const scene *s,
+                                                                     const ray *r, float tmax, hit *h, int any_hit) {
     WALK(state) st;
     if (!WALK(start)(w, r, tmax, h, &st)) return 0;
-    while (WALK(step)(s, &st, 0)) {
+    while (WALK(step)(s, &st, any_hit)) {
     }
     return st.found;
 }
 
+WALK_TARGET static int WALK(intersect)(const accel_wide *w, const scene *s, const ray *r, float tmax, hit *h) {
+    return WALK(walk)(w, s, r, tmax, h, 0);
+}
+
 WALK_TARGET static int WALK(occluded)(const accel_wide *w, const scene *s, const ray *r, float tmax) {
     hit h;
-    WALK(state) st;
-    if (!WALK(start)(w, r, tmax, &h, &st)) return 0;
-    while (WALK(step)(s, &st, 1)) {
-    }
-    return st.found;
+    return WALK(walk)(w, s, r, tmax, &h, 1);
 }
 
 /* The closest hit of r and whether sh is occluded, the two walks taking

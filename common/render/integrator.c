@@ -131,6 +131,11 @@ static inline vec3 shadow_term(const shadow_query *q, int occluded) {
     return vec3_mul(q->beta, occluded ? vec3_splat(0.0f) : q->value);
 }
 
+/* What a shadow query adds to L, traced on its own. */
+static vec3 shadow_term_alone(const scene *s, const shadow_query *q) {
+    return shadow_term(q, accel_occluded(s->accel, s, &q->r, q->len));
+}
+
 /* Emission picked up by a ray that hit an emitter after a bounce from
  * prev_p with BSDF density prev_pdf (0 = delta or camera). */
 static vec3 hit_emission(const scene *s, const integrator_options *opt, const surface *sf, const ray *r,
@@ -234,12 +239,9 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
                                    u[DIM_LIGHT_POINT + 1], st, &shadow, &value);
             if (!pending) {
                 L = vec3_add(L, vec3_mul(beta, value));
-            } else if (opt->no_pair) {
-                shadow.beta = beta;
-                L = vec3_add(L, shadow_term(&shadow, accel_occluded(s->accel, s, &shadow.r, shadow.len)));
-                pending = 0;
             } else {
                 shadow.beta = beta;
+                if (opt->no_pair) L = vec3_add(L, shadow_term_alone(s, &shadow)), pending = 0;
             }
         }
         if (!scattered) break;
@@ -267,7 +269,7 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
         }
         r = spawn(sf.p, sf.ng, h.prim, wi);
     }
-    if (pending) L = vec3_add(L, shadow_term(&shadow, accel_occluded(s->accel, s, &shadow.r, shadow.len)));
+    if (pending) L = vec3_add(L, shadow_term_alone(s, &shadow)); /* the path ended after a light sample */
     st->samples++;
     if (!vec3_is_finite(L) || L.x < 0.0f || L.y < 0.0f || L.z < 0.0f) {
         st->bad_samples++;
