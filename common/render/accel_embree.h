@@ -56,11 +56,6 @@ int accel_embree_device_open(accel_embree_device *d, char *err, size_t err_len);
 /* Release d's device; a device that failed to open is allowed. */
 void accel_embree_device_close(accel_embree_device *d);
 
-/* The culling distance handed to a tree walk once the best hit is at t:
- * t (1 + 2^-12), so a candidate at t (a tie, decided by index) or nearer is
- * never culled by the walk's rounding (accel_embree.c). */
-static inline float accel_cull_distance(float t) { return t * (1.0f + 1.0f / 4096.0f) + 1e-30f; }
-
 /* Primitive id's box (triangles, then spheres), padded by 2^-16 of its
  * largest coordinate plus 2^-16, far more than any slab test's rounding
  * (accel_embree.c). Can't fail. */

@@ -8,8 +8,6 @@
 
 #include <stdlib.h>
 #include <string.h>
-
-#include "accel_embree.h" /* accel_cull_distance */
 #include "elapsed.h"
 
 #define BVH_BINS 16

@@ -102,6 +102,12 @@ static inline int triangle_intersect(const ray_prep *r, const triangle *tri, flo
     return 1;
 }
 
+/* The culling distance handed to a tree walk once the best hit is at t:
+ * t (1 + 2^-12), so a candidate at t (a tie, decided by index) or nearer is
+ * never culled by the walk's rounding (the BVH, the wide BVH and Embree's
+ * walk all cull by it). */
+static inline float accel_cull_distance(float t) { return t * (1.0f + 1.0f / 4096.0f) + 1e-30f; }
+
 /* The order in which hits win, whatever order they are found in: smaller t,
  * then (an exact tie) the smaller primitive index. Every intersector that
  * uses it returns the same hit for a ray (accel_embree.h). */
