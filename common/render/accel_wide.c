@@ -4,8 +4,8 @@
  * Build: one padded box per primitive (accel_padded_box), handed to
  * rtcBuildBVH (binned SAH, or from ACCEL_WIDE_MORTON_MIN_PRIMITIVES Morton
  * codes; parallel on the device's threads); its callbacks
- * create the nodes and leaves below in Embree's thread-local allocator,
- * which the RTCBVH owns and frees.
+ * create the nodes and leaves below in the tree's own arena (tree_arena),
+ * which the accel_wide owns and frees.
  *
  * Walk (accel_wide_walk.h, compiled for SSE, AVX2 and AVX-512VL; the
  * widest the CPU runs is chosen at build time): a node holds its children's
