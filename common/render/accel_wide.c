@@ -4,7 +4,7 @@
  * Build: one padded box per primitive (accel_padded_box), handed to
  * rtcBuildBVH (binned SAH, or from ACCEL_WIDE_MORTON_MIN_PRIMITIVES Morton
  * codes; parallel on the device's threads); its callbacks
- * create the nodes and leaves below in the tree's own arena (tree_arena),
+ * create the nodes and leaves below in the tree's own arena (bump_arena.h),
  * which the accel_wide owns and frees.
  *
  * Walk (accel_wide_walk.h, compiled for SSE, AVX2 and AVX-512VL; the
@@ -31,9 +31,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/mman.h>
+#include "bump_arena.h"
 #include "elapsed.h"
-#include "memhint.h"
 
 #include "accel_embree.h"
 #include <embree3/rtcore_builder.h>
@@ -83,26 +82,21 @@ typedef struct {
 typedef WIDE_LEAF(4) wide_leaf4;
 typedef WIDE_LEAF(8) wide_leaf8;
 
-/* The tree's memory: one reservation of address space big enough for any
- * tree over the build's primitives (a leaf per primitive at most, and
- * fewer nodes than leaves), handed out to the builder's threads by an
- * atomic bump pointer in 64-byte steps. A tree built by the SAH (below
- * ACCEL_WIDE_MORTON_MIN_PRIMITIVES) asks for transparent huge pages
- * (memhint_huge): in Embree's own thread-local blocks, of 4 KiB pages, a
- * walk's step at 655k triangles touched a page the TLB did not hold
- * (render time -3% at 655k, none at 2.6M: docs/meshes.md). A Morton-built
- * tree, whose build the run waits for, does not: at 10.5M triangles the
- * kernel's compaction for huge pages made the build slower. */
-typedef struct {
-    char *base; /* NULL: none reserved */
-    size_t cap;
-    atomic_size_t used;
-} tree_arena;
+/* The tree's memory (bump_arena.h): chunks handed out to the builder's
+ * threads by an atomic bump pointer. A tree built by the SAH (below
+ * ACCEL_WIDE_MORTON_MIN_PRIMITIVES) asks for transparent huge pages: in
+ * Embree's own thread-local blocks, of 4 KiB pages, a walk's step at 655k
+ * triangles touched a page the TLB did not hold (render time -3% at 655k,
+ * none at 2.6M: docs/meshes.md). A Morton-built tree, whose build the run
+ * waits for, does not: at 10.5M triangles the kernel's compaction for huge
+ * pages made the build slower. */
+#define ARENA_CHUNK_MIN ((size_t)4 << 20)
+#define ARENA_CHUNK_MAX ((size_t)128 << 20)
 
 struct accel_wide {
     accel_embree_device dev;
     RTCBVH bvh;
-    tree_arena arena;
+    bump_arena *arena; /* the nodes and leaves */
     uintptr_t root; /* 0 for a scene without primitives */
     accel_wide_stats stats;
     /* The walk this CPU runs (choose_walk), and its leaves' lanes. */
@@ -118,41 +112,17 @@ static void choose_walk(accel_wide *w);
 /* What the build callbacks share. */
 typedef struct {
     const scene *s;
-    tree_arena *arena;
+    bump_arena *arena;
     unsigned leaf_lanes; /* 4 (wide_leaf4) or 8 (wide_leaf8) */
     atomic_size_t nodes, leaves;
     atomic_size_t oversized; /* a leaf the builder made with more than leaf_lanes primitives (0: none) */
 } build_ctx;
 
-#define ARENA_ALIGN 64 /* a cache line: nodes and leaves start on one */
-
-/* Reserve an arena for n primitives' tree with leaves of leaf_bytes, on
- * huge pages if `huge`. Returns 0, or -1 when the address space is
- * refused. */
-static int arena_reserve(tree_arena *a, size_t n, size_t leaf_bytes, int huge) {
-    size_t leaf = (leaf_bytes + ARENA_ALIGN - 1) / ARENA_ALIGN * ARENA_ALIGN;
-    a->cap = (n + 1) * (leaf + sizeof(wide_node));
-    void *p = mmap(NULL, a->cap, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
-    if (p == MAP_FAILED) return a->base = NULL, -1;
-    a->base = p;
-    atomic_init(&a->used, 0);
-    if (huge) memhint_huge(a->base, a->cap);
-    return 0;
-}
-
-/* bytes from the arena, 64-byte aligned; NULL past its end (never, by
- * arena_reserve's bound). Any thread. */
-static void *arena_alloc(tree_arena *a, size_t bytes) {
-    size_t step = (bytes + ARENA_ALIGN - 1) / ARENA_ALIGN * ARENA_ALIGN;
-    size_t at = atomic_fetch_add_explicit(&a->used, step, memory_order_relaxed);
-    return at + step <= a->cap ? a->base + at : NULL;
-}
-
 static void *cb_create_node(RTCThreadLocalAllocator alloc, unsigned int child_count, void *user) {
     build_ctx *b = user;
     (void)child_count;
     (void)alloc;
-    wide_node *n = arena_alloc(b->arena, sizeof *n);
+    wide_node *n = bump_arena_alloc(b->arena, sizeof *n);
     if (!n) return NULL;
     for (int k = 0; k < NODE_W; k++) {
         for (int a = 0; a < 3; a++) {
@@ -216,10 +186,10 @@ static void *cb_create_leaf(RTCThreadLocalAllocator alloc, const struct RTCBuild
         atomic_store_explicit(&b->oversized, count, memory_order_relaxed);
     (void)alloc;
     if (b->leaf_lanes == 8) {
-        wide_leaf8 *l = leaf = arena_alloc(b->arena, sizeof *l);
+        wide_leaf8 *l = leaf = bump_arena_alloc(b->arena, sizeof *l);
         if (l) spheres = fill_leaf(b->s, prims, count, 8, &l->v[0][0][0], l->id);
     } else {
-        wide_leaf4 *l = leaf = arena_alloc(b->arena, sizeof *l);
+        wide_leaf4 *l = leaf = bump_arena_alloc(b->arena, sizeof *l);
         if (l) spheres = fill_leaf(b->s, prims, count, 4, &l->v[0][0][0], l->id);
     }
     if (!leaf) return NULL;
@@ -266,9 +236,11 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
     if (n == 0) return w; /* nothing to hit: root 0 */
     int morton = use_morton(n);
     struct RTCBuildPrimitive *prims = build_primitives(s, n);
-    if (prims &&
-        arena_reserve(&w->arena, n, w->leaf_lanes == 8 ? sizeof(wide_leaf8) : sizeof(wide_leaf4), !morton) != 0)
-        free(prims), prims = NULL;
+    /* Chunks of about a tenth of the tree (a node and a leaf per 8
+     * primitives), 4 to 128 MiB. */
+    size_t chunk = n / 8 * (sizeof(wide_node) + sizeof(wide_leaf8)) / 10;
+    chunk = chunk < ARENA_CHUNK_MIN ? ARENA_CHUNK_MIN : chunk > ARENA_CHUNK_MAX ? ARENA_CHUNK_MAX : chunk;
+    if (prims && !(w->arena = bump_arena_new(chunk, !morton))) free(prims), prims = NULL;
     w->bvh = prims ? rtcNewBVH(w->dev.device) : NULL;
     if (!w->bvh) {
         free(prims);
@@ -276,7 +248,7 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
         accel_wide_free(w);
         return NULL;
     }
-    build_ctx b = {.s = s, .arena = &w->arena, .leaf_lanes = w->leaf_lanes};
+    build_ctx b = {.s = s, .arena = w->arena, .leaf_lanes = w->leaf_lanes};
     struct RTCBuildArguments args = rtcDefaultBuildArguments();
     w->stats.builder = morton ? "Morton" : "binned SAH";
     args.buildQuality = morton ? RTC_BUILD_QUALITY_LOW : RTC_BUILD_QUALITY_MEDIUM;
@@ -320,8 +292,8 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
      * builder's (at 10.5M triangles 240 MB), freed now, not at the end. */
     rtcReleaseBVH(w->bvh);
     w->bvh = NULL;
-    w->stats.memory_bytes = atomic_load(&w->arena.used);
-    w->stats.peak_bytes = (size_t)atomic_load(&w->dev.peak) + n * sizeof *prims + atomic_load(&w->arena.used);
+    w->stats.memory_bytes = bump_arena_bytes(w->arena);
+    w->stats.peak_bytes = (size_t)atomic_load(&w->dev.peak) + n * sizeof *prims + w->stats.memory_bytes;
     w->stats.build_seconds = elapsed_seconds(&t0);
     return w;
 }
@@ -329,7 +301,7 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
 void accel_wide_free(accel_wide *w) {
     if (!w) return;
     if (w->bvh) rtcReleaseBVH(w->bvh);
-    if (w->arena.base) munmap(w->arena.base, w->arena.cap);
+    bump_arena_free(w->arena);
     accel_embree_device_close(&w->dev);
     free(w);
 }
