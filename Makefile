@@ -38,7 +38,7 @@ else
   LDFLAGS_V :=
 endif
 CFLAGS := $(CFLAGS_COMMON) $(CFLAGS_OPT) -I$(BUILD)
-# The renderer's code at -O3 in the release build: 2-3.5% less render CPU
+# The renderer's code at -O3 in the release build: 2-5% less render CPU
 # than -O2 on the box and the icospheres, the same bytes (docs/meshes.md).
 ifeq ($(filter asan tsan,$(VARIANT)),)
 $(BUILD)/common/render/%.o: CFLAGS += -O3

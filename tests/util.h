@@ -82,10 +82,10 @@ int util_same_file(const char *a, const char *b);
  * the journal, M rendered"). Each stays -1 when its line is missing. */
 void util_resume_counts(const char *log, int *resumed, int *from_journal, int *rendered);
 
-/* Whether /usr/bin/qemu-x86_64 is there to emulate an older CPU: 1 if it
- * is; if not, -1 (the caller fails: `make` installs qemu-user, so a missing
- * emulator is a broken machine, not a test to pass unchecked), or 0 with a
- * "skipped" line when TESSERA_TESTS_WITHOUT_QEMU is set. */
+/* Whether /usr/bin/qemu-x86_64 is there to emulate an older CPU. When it
+ * is not, returns 0 and fails the calling test (`make` installs qemu-user,
+ * so a missing emulator is a broken machine, not a test to pass unchecked),
+ * or only prints a "skipped" line when TESSERA_TESTS_WITHOUT_QEMU is set. */
 int util_have_qemu(void);
 
 /* Run `TESSERA ARGS -o NATIVE` on this CPU, then the same program under
