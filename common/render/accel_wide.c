@@ -273,7 +273,7 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
     args.userPtr = &b;
     w->root = (uintptr_t)rtcBuildBVH(&args);
     /* The tree is in the arena: the RTCBVH holds only its builder's arrays
-     * (at 10.5M triangles 240 MB), freed now rather than with the tree. */
+     * (256 MiB at 10.5M triangles), freed now rather than with the tree. */
     rtcReleaseBVH(bvh);
     free(prims);
     size_t oversized = atomic_load(&b.oversized);
