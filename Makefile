@@ -134,7 +134,7 @@ $(WORKER): $(WORKER_OBJ) $(LIBS_WORKER)
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
-$(TEST_BIN): $(TEST_OBJ) $(BUILD)/coordinator/connlimit.o $(LIBS_ALL)
+$(TEST_BIN): $(TEST_OBJ) $(BUILD)/coordinator/connlimit.o $(BUILD)/coordinator/joblog.o $(LIBS_ALL)
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 

@@ -1,30 +1,159 @@
 /* joblog.c - a job's bounded event log (see joblog.h): a ring of fixed
  * lines that grows by doubling up to JOBLOG_MAX, then overwrites the
- * oldest. */
+ * oldest; and its file, appended a batch at a time by one uv_fs_write in
+ * flight, read back after a restart. */
 #include "joblog.h"
 
+#include <errno.h>
+#include <fcntl.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 typedef struct {
     double t;
     char text[JOBLOG_LINE];
 } joblog_line;
 
+/* Bytes of text: the lines waiting for the file, or the batch in flight. */
+typedef struct {
+    char *data;
+    size_t len, cap;
+} joblog_text;
+
 struct joblog {
     joblog_line *lines;
     int cap, head, count; /* head: index of the oldest line */
     uint64_t dropped;
+    /* The file (joblog_persist); fd < 0: memory only. */
+    uv_loop_t *loop;
+    uv_file fd;
+    char *path;
+    size_t file_bytes;   /* in the file, or on their way there */
+    int unread;          /* the file holds lines of an earlier run not read back yet */
+    int writing;         /* req is in flight with batch */
+    int closing;         /* joblog_free came while writing: the write's end frees */
+    joblog_text pending; /* lines added since the batch in flight was taken */
+    joblog_text batch;
+    uv_fs_t req;
 };
 
-joblog *joblog_new(void) { return calloc(1, sizeof(joblog)); }
+joblog *joblog_new(void) {
+    joblog *l = calloc(1, sizeof(joblog));
+    if (l) l->fd = -1;
+    return l;
+}
+
+/* Write text to fd from the loop thread, at once (shutdown, read-back).
+ * Errors leave the lines in memory only. */
+static void write_now(joblog *l, const joblog_text *text) {
+    size_t off = 0;
+    while (off < text->len) {
+        ssize_t w = write(l->fd, text->data + off, text->len - off);
+        if (w < 0 && errno == EINTR) continue;
+        if (w <= 0) break;
+        off += (size_t)w;
+    }
+}
+
+static void joblog_release(joblog *l) {
+    if (l->fd >= 0) close(l->fd);
+    free(l->pending.data);
+    free(l->batch.data);
+    free(l->path);
+    free(l->lines);
+    free(l);
+}
 
 void joblog_free(joblog *l) {
     if (!l) return;
-    free(l->lines);
-    free(l);
+    if (l->writing) {
+        l->closing = 1;
+        return;
+    }
+    if (l->fd >= 0 && l->pending.len) write_now(l, &l->pending);
+    joblog_release(l);
+}
+
+static void start_write(joblog *l);
+
+/* The batch in flight was written (or failed: its lines stay in memory
+ * only). Next: the lines that came meanwhile, or the free that waited. */
+static void on_written(uv_fs_t *req) {
+    joblog *l = req->data;
+    size_t wrote = req->result > 0 ? (size_t)req->result : 0;
+    uv_fs_req_cleanup(req);
+    if (wrote < l->batch.len) l->file_bytes -= l->batch.len - wrote; /* not in the file after all */
+    l->writing = 0;
+    l->batch.len = 0;
+    if (l->closing) {
+        if (l->pending.len) write_now(l, &l->pending);
+        joblog_release(l);
+        return;
+    }
+    if (l->pending.len) start_write(l);
+}
+
+/* Hand the pending lines to the thread pool as the next batch. */
+static void start_write(joblog *l) {
+    joblog_text t = l->batch; /* empty: swap the buffers */
+    l->batch = l->pending;
+    l->pending = t;
+    uv_buf_t b = uv_buf_init(l->batch.data, (unsigned)l->batch.len);
+    l->req.data = l;
+    if (uv_fs_write(l->loop, &l->req, l->fd, &b, 1, -1, on_written) == 0) {
+        l->writing = 1;
+        return;
+    }
+    l->file_bytes -= l->batch.len; /* could not queue it: those lines stay in memory only */
+    l->batch.len = 0;
+}
+
+/* Append "EPOCH TEXT\n" to the pending text (control characters of text
+ * as spaces, so that a line stays a line). Out of memory or past
+ * JOBLOG_FILE_MAX: not appended. */
+static void pend_line(joblog *l, double t, const char *text) {
+    char line[JOBLOG_LINE + 32];
+    int n = snprintf(line, sizeof line, "%.3f %s\n", t, text);
+    if (n <= 0 || (size_t)n >= sizeof line || l->file_bytes + (size_t)n > JOBLOG_FILE_MAX) return;
+    for (int i = 0; i < n - 1; i++)
+        if ((unsigned char)line[i] < 0x20) line[i] = ' ';
+    joblog_text *p = &l->pending;
+    if (p->len + (size_t)n > p->cap) {
+        size_t cap = p->cap ? 2 * p->cap : 4096;
+        while (cap < p->len + (size_t)n) cap *= 2;
+        char *d = realloc(p->data, cap);
+        if (!d) return;
+        p->data = d;
+        p->cap = cap;
+    }
+    memcpy(p->data + p->len, line, (size_t)n);
+    p->len += (size_t)n;
+    l->file_bytes += (size_t)n;
+}
+
+int joblog_persist(joblog *l, uv_loop_t *loop, const char *path, int existing, char *err, size_t err_len) {
+    if (!l) return 0;
+    int fd = open(path, O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC | (existing ? 0 : O_TRUNC), 0644);
+    struct stat st;
+    if (fd < 0 || fstat(fd, &st) != 0) {
+        snprintf(err, err_len, "%s: %s", path, strerror(errno));
+        if (fd >= 0) close(fd);
+        return -1;
+    }
+    if (!(l->path = strdup(path))) {
+        snprintf(err, err_len, "%s: out of memory", path);
+        close(fd);
+        return -1;
+    }
+    l->loop = loop;
+    l->fd = fd;
+    l->file_bytes = (size_t)st.st_size;
+    l->unread = existing && st.st_size > 0;
+    return 0;
 }
 
 /* The slot for a new line: a free one (the ring grown if it may), else the
@@ -62,6 +191,9 @@ void joblog_add(joblog *l, double wall, const char *fmt, ...) {
     va_start(ap, fmt);
     vsnprintf(s->text, sizeof s->text, fmt, ap);
     va_end(ap);
+    if (l->fd < 0) return;
+    pend_line(l, wall, s->text);
+    if (!l->writing && l->pending.len) start_write(l);
 }
 
 void joblog_add_event(joblog *l, double wall, const farm_event *e) {
@@ -85,7 +217,56 @@ int joblog_count(const joblog *l) { return l ? l->count : 0; }
 
 uint64_t joblog_dropped(const joblog *l) { return l ? l->dropped : 0; }
 
-int joblog_to_json(const joblog *l, cJSON *o, int max) {
+/* Append the lines of text (as pend_line writes them; a line that does not
+ * parse is skipped) to the ring, without writing them anywhere. */
+static void ring_add_text(joblog *l, const char *text, size_t len) {
+    const char *p = text, *end = text + len;
+    while (p < end) {
+        const char *nl = memchr(p, '\n', (size_t)(end - p));
+        if (!nl) break;
+        char *after;
+        double t = strtod(p, &after);
+        if (after > p && after < nl && *after == ' ') {
+            joblog_line *s = joblog_slot(l);
+            if (!s) {
+                l->dropped++;
+            } else {
+                size_t n = (size_t)(nl - after - 1);
+                if (n >= sizeof s->text) n = sizeof s->text - 1;
+                s->t = t;
+                memcpy(s->text, after + 1, n);
+                s->text[n] = 0;
+            }
+        }
+        p = nl + 1;
+    }
+}
+
+/* After a restart: the ring made anew from the file (the earlier run's
+ * lines and this run's written so far), then the batch in flight and the
+ * pending lines, which are this run's latest. Unreadable: the ring stays
+ * as it is (this run's lines). */
+static void read_back(joblog *l) {
+    l->unread = 0;
+    /* What is surely in the file: all but the batch in flight (which may
+     * or may not have landed) and the pending lines. */
+    size_t written = l->file_bytes - l->batch.len - l->pending.len;
+    FILE *f = fopen(l->path, "rb");
+    if (!f) return;
+    char *text = malloc(written + 1);
+    size_t len = text ? fread(text, 1, written, f) : 0;
+    fclose(f);
+    if (!text) return;
+    l->count = l->head = 0;
+    l->dropped = 0;
+    ring_add_text(l, text, len);
+    ring_add_text(l, l->batch.data, l->batch.len);
+    ring_add_text(l, l->pending.data, l->pending.len);
+    free(text);
+}
+
+int joblog_to_json(joblog *l, cJSON *o, int max) {
+    if (l && l->unread) read_back(l);
     int n = joblog_count(l), skip = max > 0 && n > max ? n - max : 0;
     if (!cJSON_AddNumberToObject(o, "dropped", (double)(joblog_dropped(l) + (uint64_t)skip))) return -1;
     cJSON *arr = cJSON_AddArrayToObject(o, "lines");

@@ -361,6 +361,13 @@ int store_job_start(service *s, sjob *j, const uint8_t *bundle, size_t len, conn
     return 0;
 }
 
+void store_job_persist_log(service *s, sjob *j, int existing) {
+    char path[4096], err[600];
+    store_job_path(s, j->desc.id, "log", path, sizeof path);
+    if (joblog_persist(j->log, &s->loop, path, existing, err, sizeof err))
+        svc_log("job %u: its log stays in memory only: %s", j->desc.id, err);
+}
+
 sjob *store_job_new(service *s) {
     sjob *j = calloc(1, sizeof *j);
     if (!j) return NULL;
@@ -449,6 +456,7 @@ static void load_job(service *s, const char *file) {
         return;
     }
     j->desc = d;
+    store_job_persist_log(s, j, 1);
     snprintf(j->name, sizeof j->name, "%s", name->valuestring);
     j->priority = (int)pri->valuedouble;
     j->tile_size = (int)ts->valuedouble;

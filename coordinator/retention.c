@@ -11,9 +11,9 @@
 
 /* Delete a finished job's files and record; its scene hash goes to gone[]. */
 static void delete_job(service *s, sjob *j, const char *why) {
-    static const char *const exts[] = {"json", "pfm", "tiles"};
+    static const char *const exts[] = {"json", "pfm", "tiles", "log"};
     char path[4096];
-    for (int i = 0; i < 3; i++) {
+    for (int i = 0; i < 4; i++) {
         store_job_path(s, j->desc.id, exts[i], path, sizeof path);
         unlink(path);
     }

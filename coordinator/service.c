@@ -154,6 +154,7 @@ static void submit_checked(upload *u) {
         store_job_unlink_free(s, j);
         return client_error(cl, "%s", err);
     }
+    store_job_persist_log(s, j, 0);
     svc_log("job %u submitted from %s: %s, %dx%d, %d spp, priority %d%s%s", j->desc.id, j->submitter, j->name,
             j->desc.width, j->desc.height, j->desc.spp, j->priority, j->waiting ? "; " : "", j->waiting ? j->error : "");
     joblog_add(j->log, j->submitted, "job submitted by %.60s: %.40s, %dx%d, %d spp, %d tiles, priority %d",

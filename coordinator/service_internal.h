@@ -8,12 +8,14 @@
  *
  * Data dir layout (every file written whole to a temporary name, synced and
  * renamed, except the tile journal, which is appended and synced in batches
- * off the loop thread, tjournal.h):
+ * off the loop thread, tjournal.h, and the event log, appended off the loop
+ * without a sync, joblog.h):
  *   scenes/HASH     uploaded scene bundles, named by their BLAKE2b hash
  *   jobs/ID.json    a job: what to render and its state
  *   jobs/ID.tiles   finished tiles of a running job: records of
  *                   u32 magic, u32 tile, u32 float count, floats, u32 check
  *   jobs/ID.pfm     the finished image
+ *   jobs/ID.log     the job's event log, "EPOCH TEXT" a line (tessera logs)
  * A tile counts as done only after its record is on disk, so after kill -9
  * and a restart every journalled tile is kept and only the others are
  * rendered again. Nothing a client sends names a path: scenes are stored by
@@ -185,6 +187,11 @@ int store_job_cancel(service *s, sjob *j);
 /* A new job with the next id, linked into s->jobs, or NULL when out of
  * memory. */
 sjob *store_job_new(service *s);
+
+/* Keep j's log in jobs/ID.log too (joblog_persist): existing for a job
+ * read back at a restart, else a new one's (the file emptied). Can't fail:
+ * a file that cannot be opened is logged and the log stays in memory. */
+void store_job_persist_log(service *s, sjob *j, int existing);
 
 /* Take j out of s->jobs and free it (its files stay). */
 void store_job_unlink_free(service *s, sjob *j);
