@@ -224,18 +224,18 @@ static void ring_add_text(joblog *l, const char *text, size_t len) {
     while (p < end) {
         const char *nl = memchr(p, '\n', (size_t)(end - p));
         if (!nl) break;
-        char *after;
-        double t = strtod(p, &after);
-        if (after > p && after < nl && *after == ' ') {
-            joblog_line *s = joblog_slot(l);
-            if (!s) {
-                l->dropped++;
-            } else {
-                size_t n = (size_t)(nl - after - 1);
-                if (n >= sizeof s->text) n = sizeof s->text - 1;
-                s->t = t;
-                memcpy(s->text, after + 1, n);
-                s->text[n] = 0;
+        char line[JOBLOG_LINE + 32], *after; /* NUL-terminated for strtod: text is not */
+        size_t n = (size_t)(nl - p);
+        if (n < sizeof line) {
+            memcpy(line, p, n);
+            line[n] = 0;
+            double t = strtod(line, &after);
+            if (after > line && *after == ' ') {
+                joblog_line *s = joblog_slot(l);
+                if (!s)
+                    l->dropped++;
+                else
+                    s->t = t, snprintf(s->text, sizeof s->text, "%s", after + 1);
             }
         }
         p = nl + 1;

@@ -81,6 +81,29 @@ TEST(joblog_file_outlives_the_process_once_and_in_order) {
     CHECK(uv_loop_close(&loop) == 0, "requests left on the loop");
 }
 
+/* A damaged file (blank lines, no time, a line too long, no newline at
+ * the end) reads back as the lines that parse, without reading past it. */
+TEST(joblog_damaged_file_reads_back_what_parses) {
+    uv_loop_t loop;
+    uv_loop_init(&loop);
+    char path[256], err[600], got[4096];
+    double dropped;
+    snprintf(path, sizeof path, "%s", util_temp_path("joblog-damaged.log"));
+    FILE *f = fopen(path, "w");
+    CHECK(f != NULL, "cannot write %s", path);
+    if (!f) return;
+    fputs("\n   \n12.5\nnot a line\n7 kept\n", f);
+    for (int i = 0; i < 300; i++) fputc('9', f);
+    fputs(" too long\n8 also kept\n\n   \t 3", f);
+    fclose(f);
+    joblog *l = joblog_new();
+    CHECK(joblog_persist(l, &loop, path, 1, err, sizeof err) == 0, "%s", err);
+    lines_of(l, got, sizeof got, &dropped);
+    CHECK(strcmp(got, "kept|also kept") == 0, "read back: %s", got);
+    joblog_free(l);
+    CHECK(uv_loop_close(&loop) == 0, "requests left on the loop");
+}
+
 TEST(joblog_file_is_bounded_and_memory_keeps_the_last_lines) {
     uv_loop_t loop;
     uv_loop_init(&loop);
