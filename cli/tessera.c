@@ -659,6 +659,8 @@ static void usage_coordinator(FILE *f) {
             "                           separate secrets: a worker token only renders tiles, a client\n"
             "                           token only submits, watches, fetches and cancels its own jobs\n"
             "      --admin-token-file F a client with this one may cancel and fetch any job\n"
+            "      --client-tokens DIR  a token per user: DIR/NAME.token lets its holder, and only\n"
+            "                           its holder, act as client NAME (--client-name NAME)\n"
             "                           (SIGHUP re-reads every token file; docs/security.md)\n"
             "      --worker-drop S      disconnect a worker silent (or trickling a frame) for S s\n"
             "                           (default 30, or 6 x --worker-timeout if longer)\n"
@@ -683,7 +685,7 @@ static int cmd_coordinator(int argc, char **argv) {
                          .keep_s = 86400, .client_timeout_s = 30, .keep_jobs = 1000};
     farm_options_default(&o.farm);
     const char *listen = "127.0.0.1:7000", *token = NULL, *worker_token = NULL, *client_token = NULL,
-               *admin_token = NULL;
+               *admin_token = NULL, *users_dir = NULL;
     char host[256], err[300];
     int upload_mib = LIMIT_UPLOAD_DEFAULT_MIB, version = 0, insecure = 0, drop_given = 0;
     double keep_hours = 24;
@@ -713,6 +715,7 @@ static int cmd_coordinator(int argc, char **argv) {
         {.name = "worker-token-file", .kind = ARG_STRING, .dest = &worker_token},
         {.name = "client-token-file", .kind = ARG_STRING, .dest = &client_token},
         {.name = "admin-token-file", .kind = ARG_STRING, .dest = &admin_token},
+        {.name = "client-tokens", .kind = ARG_STRING, .dest = &users_dir},
         {.name = "audit", .kind = ARG_DOUBLE, .dest = &o.farm.audit, .lo = 0, .hi = 1},
         {.name = "blocklist-retry", .kind = ARG_DOUBLE, .dest = &o.farm.blocklist_s, .lo = 0.1, .hi = 1e7},
         {.name = "insecure", .kind = ARG_FLAG, .dest = &insecure},
@@ -729,14 +732,18 @@ static int cmd_coordinator(int argc, char **argv) {
     if (address_parse(listen, host, sizeof host, &o.farm.port, err, sizeof err))
         args_usage_error("tessera-coordinator", "--listen %s", err);
     o.farm.host = host;
-    if ((worker_token || client_token || admin_token) && !((token || worker_token) && (token || client_token)))
-        args_usage_error("tessera-coordinator", "--worker-token-file and --client-token-file go together (or with "
-                         "--token-file for the other class); --admin-token-file needs them too");
+    if ((worker_token || client_token || admin_token) && !((token || worker_token) && (token || client_token || users_dir)))
+        args_usage_error("tessera-coordinator", "--worker-token-file and --client-token-file (or --client-tokens) go "
+                         "together (or with --token-file for the other class); --admin-token-file needs them too");
+    if (users_dir && !token && !worker_token)
+        args_usage_error("tessera-coordinator", "--client-tokens needs --worker-token-file (or --token-file)");
     if (!token && !worker_token && !insecure && !address_is_loopback(host))
         args_usage_error("tessera-coordinator", "--listen %s without --token-file: links would be in clear beyond "
                          "this machine; add --token-file F, or --insecure on a network you trust", listen);
     if (auth_keyring_load(&o.farm.auth, token, worker_token, client_token, admin_token, err, sizeof err))
         args_usage_error("tessera-coordinator", "token file %s", err);
+    if (users_dir && auth_keyring_set_users(&o.farm.auth, users_dir, err, sizeof err))
+        args_usage_error("tessera-coordinator", "--client-tokens %s", err);
     if (!(o.farm.heartbeat_s < o.farm.timeout_s))
         args_usage_error("tessera-coordinator", "--worker-timeout must be longer than --heartbeat");
     if (drop_given && !(o.farm.drop_s > o.farm.timeout_s))

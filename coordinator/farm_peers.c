@@ -115,9 +115,11 @@ static void peer_hand_over(peer *p, const cJSON *hello, auth_class cls, const au
 
 void farm_add_proof(const farm *f, auth_class cls, const cJSON *hello, cJSON *welcome) {
     const cJSON *nonce = cJSON_GetObjectItemCaseSensitive(hello, "nonce");
-    if (cls <= AUTH_NONE || cls >= AUTH_CLASSES || !f->opt.auth.keys[cls].enabled || !cJSON_IsString(nonce)) return;
+    const cJSON *name = cJSON_GetObjectItemCaseSensitive(hello, "name");
+    const auth_key *k = auth_key_of(&f->opt.auth, cls, cJSON_IsString(name) ? name->valuestring : NULL);
+    if (!k || !cJSON_IsString(nonce)) return;
     char proof[AUTH_HEX];
-    auth_proof(&f->opt.auth.keys[cls], nonce->valuestring, "coordinator", proof);
+    auth_proof(k, nonce->valuestring, "coordinator", proof);
     cJSON_AddStringToObject(welcome, "proof", proof);
 }
 

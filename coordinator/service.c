@@ -590,6 +590,9 @@ static void on_sighup(uv_signal_t *h, int signum) {
         if (s->o.farm.auth.paths[c])
             snprintf(which + strlen(which), sizeof which - strlen(which), "%s%s", which[0] ? ", " : "",
                      auth_class_name((auth_class)c));
+    if (s->o.farm.auth.users_dir)
+        snprintf(which + strlen(which), sizeof which - strlen(which), "%s%d users", which[0] ? ", " : "",
+                 s->o.farm.auth.user_count);
     svc_log("SIGHUP: token files re-read (%s); new connections need the new tokens, open ones go on", which);
 }
 

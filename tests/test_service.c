@@ -11,6 +11,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -716,12 +717,61 @@ TEST(service_submit_wait_sigint_cancels_the_job) {
 /* Replace path's contents at once (a rename, as an operator rotating a
  * token would). */
 static void rewrite(const char *path, const char *text) {
-    char tmp[300];
+    char tmp[4200];
     snprintf(tmp, sizeof tmp, "%s.new", path);
     FILE *f = fopen(tmp, "w");
     fputs(text, f);
     fclose(f);
     rename(tmp, path);
+}
+
+/* --client-tokens DIR: a token per user (DIR/NAME.token). A user's token
+ * speaks as that user only; no one else may take the name, not even with
+ * the shared client token; a user cannot cancel another's job; a user
+ * whose file is deleted is refused after SIGHUP. */
+TEST(service_per_user_client_tokens) {
+    char wt[256], ct[256], dir[256], alice[300], bob[300], out[8192];
+    snprintf(wt, sizeof wt, "%s", util_write_temp("users-worker.token", "worker secret\n"));
+    snprintf(ct, sizeof ct, "%s", util_write_temp("users-client.token", "shared client secret\n"));
+    snprintf(dir, sizeof dir, "%s", util_temp_path("users.d"));
+    mkdir(dir, 0700);
+    snprintf(alice, sizeof alice, "%s/alice.token", dir);
+    snprintf(bob, sizeof bob, "%s/bob.token", dir);
+    rewrite(alice, "alice's own secret\n");
+    rewrite(bob, "bob's own secret\n");
+    service s = {.extra = {"--worker-token-file", wt, "--client-token-file", ct, "--client-tokens", dir}};
+    service_start(&s, "svc-users");
+    /* No worker: alice's job stays queued. */
+    int st = cli(&s, out, sizeof out, "submit " SCENE " --client-name alice --token-file %s", alice);
+    CHECK(st == 0 && job_id(out) == 1, "alice's submit with her own token (%d): %s", st, out);
+    st = cli(&s, out, sizeof out, "status --client-name alice --token-file %s", bob);
+    CHECK(st == 1 && strstr(out, "authentication failed"), "bob's token spoke as alice (%d): %s", st, out);
+    st = cli(&s, out, sizeof out, "status --client-name alice --token-file %s", ct);
+    CHECK(st == 1 && strstr(out, "authentication failed"), "the shared client token spoke as alice (%d): %s", st,
+          out);
+    st = cli(&s, out, sizeof out, "cancel 1 --client-name bob --token-file %s", bob);
+    CHECK(st == 1 && strstr(out, "belongs to client alice"), "bob cancelled alice's job (%d): %s", st, out);
+    st = cli(&s, out, sizeof out, "status --client-name carol --token-file %s", ct);
+    CHECK(st == 0, "the shared client token under a name no user has (%d): %s", st, out);
+    st = cli(&s, out, sizeof out, "status --client-name carol --token-file %s", alice);
+    CHECK(st == 1 && strstr(out, "authentication failed"), "alice's token spoke as carol (%d): %s", st, out);
+    /* bob's file goes: refused after SIGHUP; alice keeps her job. */
+    unlink(bob);
+    kill(s.pid, SIGHUP);
+    CHECK(util_wait_for_text(s.log, "SIGHUP: token files re-read (worker, client, 1 users)", LONG) == 0,
+          "no reload of the users folder logged; log %s", s.log);
+    rewrite(util_temp_path("users-bob-old.token"), "bob's own secret\n");
+    st = cli(&s, out, sizeof out, "status --client-name bob --token-file %s", util_temp_path("users-bob-old.token"));
+    CHECK(st == 1 && strstr(out, "authentication failed"), "bob's removed token still works (%d): %s", st, out);
+    st = cli(&s, out, sizeof out, "cancel 1 --client-name alice --token-file %s", alice);
+    CHECK(st == 0, "alice could not cancel her own job (%d): %s", st, out);
+    service_stop(&s);
+    /* Bad folders are refused at start, naming the folder. */
+    char cmd[2048];
+    snprintf(cmd, sizeof cmd, "%s --data-dir %s --worker-token-file %s --client-tokens %s/none 2>&1",
+             util_bin("tessera-coordinator"), util_temp_path("svc-users-bad"), wt, dir);
+    st = util_run(cmd, out, sizeof out);
+    CHECK(st == 2 && strstr(out, "users.d/none: cannot open the users folder"), "a missing folder (%d): %s", st, out);
 }
 
 /* Separate credentials: a worker token only renders, a client token only

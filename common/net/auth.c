@@ -2,6 +2,8 @@
 #include "auth.h"
 
 #include <ctype.h>
+#include <dirent.h>
+#include <errno.h>
 #include <sodium.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -77,18 +79,77 @@ int auth_check(const auth_key *k, const char *nonce, const char *who, const char
 int auth_keyring_enabled(const auth_keyring *r) {
     for (int c = AUTH_WORKER; c < AUTH_CLASSES; c++)
         if (r->keys[c].enabled) return 1;
-    return 0;
+    return r->user_count > 0;
+}
+
+/* Whether name is a user's name: 1 to AUTH_USER_NAME - 1 of [A-Za-z0-9._-]. */
+static int user_name_ok(const char *name, size_t n) {
+    if (n < 1 || n >= AUTH_USER_NAME) return 0;
+    for (size_t i = 0; i < n; i++)
+        if (!isalnum((unsigned char)name[i]) && !strchr("._-", name[i])) return 0;
+    return 1;
+}
+
+static int user_cmp(const void *a, const void *b) {
+    return strcmp(((const auth_user *)a)->name, ((const auth_user *)b)->name);
+}
+
+/* Read the users folder dir into users[] (sorted), *count of them. Returns
+ * 0, or -1 with "PATH: reason" in err. */
+static int users_load(const char *dir, auth_user *users, int *count, char *err, size_t err_len) {
+    *count = 0;
+    DIR *d = opendir(dir);
+    if (!d) {
+        snprintf(err, err_len, "%s: cannot open the users folder: %s", dir, strerror(errno));
+        return -1;
+    }
+    struct dirent *e;
+    int rc = 0;
+    while (rc == 0 && (e = readdir(d)) != NULL) {
+        size_t n = strlen(e->d_name);
+        if (n <= 6 || strcmp(e->d_name + n - 6, ".token") != 0 || !user_name_ok(e->d_name, n - 6)) continue;
+        if (*count == AUTH_USERS_MAX) {
+            snprintf(err, err_len, "%s: more than %d user tokens", dir, AUTH_USERS_MAX);
+            rc = -1;
+            break;
+        }
+        auth_user *u = &users[*count];
+        char path[4096];
+        snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+        snprintf(u->name, sizeof u->name, "%.*s", (int)(n - 6), e->d_name);
+        if (auth_key_load(path, &u->key, err, err_len)) rc = -1;
+        else (*count)++;
+    }
+    closedir(d);
+    qsort(users, (size_t)*count, sizeof *users, user_cmp);
+    return rc;
 }
 
 int auth_keyring_reload(auth_keyring *r, char *err, size_t err_len) {
     auth_key fresh[AUTH_CLASSES] = {{0}};
-    for (int c = AUTH_WORKER; c < AUTH_CLASSES; c++)
-        if (r->paths[c] && auth_key_load(r->paths[c], &fresh[c], err, err_len)) {
-            sodium_memzero(fresh, sizeof fresh);
-            return -1;
-        }
-    memcpy(r->keys, fresh, sizeof fresh);
+    auth_user users[AUTH_USERS_MAX];
+    int count = 0, rc = 0;
+    for (int c = AUTH_WORKER; c < AUTH_CLASSES && rc == 0; c++)
+        if (r->paths[c] && auth_key_load(r->paths[c], &fresh[c], err, err_len)) rc = -1;
+    if (rc == 0 && r->users_dir) rc = users_load(r->users_dir, users, &count, err, err_len);
+    if (rc == 0) {
+        memcpy(r->keys, fresh, sizeof fresh);
+        memcpy(r->users, users, sizeof users);
+        r->user_count = count;
+    }
     sodium_memzero(fresh, sizeof fresh);
+    sodium_memzero(users, sizeof users);
+    return rc;
+}
+
+int auth_keyring_set_users(auth_keyring *r, const char *dir, char *err, size_t err_len) {
+    const char *was = r->users_dir;
+    r->users_dir = dir;
+    if (dir && auth_keyring_reload(r, err, err_len)) {
+        r->users_dir = was;
+        return -1;
+    }
+    if (!dir) r->user_count = 0;
     return 0;
 }
 
@@ -125,14 +186,27 @@ auth_class auth_check_hello(const auth_keyring *r, const char *nonce, const cJSO
         proof_bytes(&r->keys[c], nonce, who, want);
         ok[c] = (sodium_memcmp(want, got, sizeof want) == 0) & !bad & r->keys[c].enabled;
     }
+    /* The users' tokens: every one tried (the work depends on their count,
+     * never on the proof); a match counts only for the user named. */
+    const auth_key *user_key = NULL;
+    int reserved = 0; /* the name is a user's: the shared client token may not claim it */
+    for (int u = 0; u < r->user_count; u++) {
+        const auth_user *us = &r->users[u];
+        proof_bytes(&us->key, nonce, who, want);
+        int match = (sodium_memcmp(want, got, sizeof want) == 0) & !bad & us->key.enabled;
+        int named = client && strcmp(us->name, name) == 0;
+        reserved |= named;
+        if (match & named) user_key = &us->key;
+    }
     sodium_memzero(want, sizeof want);
+    ok[AUTH_CLIENT] &= !reserved;
     auth_class proved = AUTH_NONE;
-    if (client) proved = ok[AUTH_ADMIN] ? AUTH_ADMIN : ok[AUTH_CLIENT] ? AUTH_CLIENT : AUTH_NONE;
+    if (client) proved = ok[AUTH_ADMIN] ? AUTH_ADMIN : (ok[AUTH_CLIENT] || user_key) ? AUTH_CLIENT : AUTH_NONE;
     else proved = ok[AUTH_WORKER] ? AUTH_WORKER : AUTH_NONE;
     *offered = AUTH_NONE;
     if (proved == AUTH_NONE)
         *offered = ok[AUTH_WORKER] ? AUTH_WORKER : ok[AUTH_ADMIN] ? AUTH_ADMIN : ok[AUTH_CLIENT] ? AUTH_CLIENT : AUTH_NONE;
-    *key = proved == AUTH_NONE ? NULL : &r->keys[proved];
+    *key = proved == AUTH_NONE ? NULL : proved == AUTH_CLIENT && !ok[AUTH_CLIENT] ? user_key : &r->keys[proved];
     return proved;
 }
 
@@ -148,4 +222,12 @@ void auth_link_keys(const auth_key *k, const char *coordinator_nonce, const char
     crypto_kdf_derive_from_key(down, AUTH_KEY_BYTES, 1, "tsr-link", master);
     crypto_kdf_derive_from_key(up, AUTH_KEY_BYTES, 2, "tsr-link", master);
     sodium_memzero(master, sizeof master);
+}
+
+const auth_key *auth_key_of(const auth_keyring *r, auth_class cls, const char *name) {
+    if (cls <= AUTH_NONE || cls >= AUTH_CLASSES) return NULL;
+    if (cls == AUTH_CLIENT && name)
+        for (int u = 0; u < r->user_count; u++)
+            if (strcmp(r->users[u].name, name) == 0) return &r->users[u].key;
+    return r->keys[cls].enabled ? &r->keys[cls] : NULL;
 }

@@ -29,21 +29,43 @@ typedef enum {
     AUTH_CLASSES = 4
 } auth_class;
 
+#define AUTH_USERS_MAX 64    /* per-user client tokens in a users folder */
+#define AUTH_USER_NAME 64    /* a user's name, NUL included */
+
+/* A client token of one user: only its holder may speak as name. */
+typedef struct {
+    char name[AUTH_USER_NAME];
+    auth_key key;
+} auth_user;
+
 /* The coordinator's credentials, one key per class (keys[AUTH_NONE] is
- * unused; a class whose key is not enabled cannot be proved). paths[] are
- * the token files, re-read by auth_keyring_reload. */
+ * unused; a class whose key is not enabled cannot be proved), and the
+ * users' own client tokens. paths[] are the token files and users_dir the
+ * users folder (NAME.token a user), re-read by auth_keyring_reload. A plain
+ * value: copying it copies the keys. */
 typedef struct {
     auth_key keys[AUTH_CLASSES];
     const char *paths[AUTH_CLASSES];
+    const char *users_dir; /* NULL: no per-user tokens */
+    int user_count;
+    auth_user users[AUTH_USERS_MAX]; /* sorted by name */
 } auth_keyring;
 
 /* Whether any class needs a token (then every peer must prove one and links
  * are sealed). */
 int auth_keyring_enabled(const auth_keyring *r);
 
-/* Load every class whose path is set. Returns 0, or -1 with "PATH: reason"
- * in err, leaving r as it was. */
+/* Load every class whose path is set, and the users folder if set.
+ * Returns 0, or -1 with "PATH: reason" in err, leaving r as it was. */
 int auth_keyring_reload(auth_keyring *r, char *err, size_t err_len);
+
+/* Per-user client tokens from the folder dir (kept by pointer; NULL:
+ * none): each file NAME.token is the token of user NAME (1 to 63 letters,
+ * digits, '.', '_', '-'), at most AUTH_USERS_MAX; other files are ignored.
+ * A client proving a user's token speaks as that user, and only as that
+ * user; a user's name may not be claimed with the shared client token.
+ * Returns 0, or -1 with "PATH: reason" in err, leaving r as it was. */
+int auth_keyring_set_users(auth_keyring *r, const char *dir, char *err, size_t err_len);
 
 /* Set the token files (NULL: none) and load them: both is the one
  * --token-file of old, the worker and the client token at once; worker and
@@ -57,6 +79,8 @@ const char *auth_class_name(auth_class c);
 
 /* Check a hello's proof against the ring for the role it claims ("role":
  * "client" or else a worker): proof = auth_proof(key, nonce, "ROLE:NAME").
+ * A client proves AUTH_CLIENT with the client token under a name that is no
+ * user's, or with the token of the user its name names.
  * Every key is tried and the proof compared in constant time whatever is
  * missing or wrong in hello, so a refusal costs the same whatever caused it.
  * Returns the class proved (AUTH_WORKER for a worker; AUTH_CLIENT or
@@ -66,6 +90,11 @@ const char *auth_class_name(auth_class c);
  * the key that seals the link. Can't fail. */
 auth_class auth_check_hello(const auth_keyring *r, const char *nonce, const cJSON *hello, auth_class *offered,
                             const auth_key **key);
+
+/* The key a peer of class cls named name proved (auth_check_hello): a
+ * user's own for a client under a user's name, else the class's; NULL when
+ * that key is not enabled. Can't fail. */
+const auth_key *auth_key_of(const auth_keyring *r, auth_class cls, const char *name);
 
 /* Read a token file (surrounding whitespace ignored) and derive the key.
  * Returns 0, or -1 with "PATH: reason" in err (unreadable, empty). */

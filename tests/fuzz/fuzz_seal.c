@@ -11,12 +11,14 @@
  *         A round trip of the same bytes sealed with the right key must
  *         open to exactly them, and fail once one byte is flipped.
  *   odd:  the rest is a hello (JSON) checked against a keyring of worker,
- *         client and admin keys for a fixed nonce: no input may prove a
+ *         client and admin keys and two users' for a fixed nonce: no input may prove a
  *         class, since the fuzzer knows no token. */
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <errno.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "net/auth.h"
@@ -46,6 +48,20 @@ static void setup(void) {
     }
     char err[300];
     if (auth_keyring_load(&ring, NULL, paths[0], paths[1], paths[2], err, sizeof err)) abort();
+    /* Two users' own tokens (--client-tokens): none may be proved either. */
+    static char dir[64], user[2][128];
+    snprintf(dir, sizeof dir, "/tmp/fuzz-seal-users-%d", (int)getpid());
+    if (mkdir(dir, 0700) && errno != EEXIST) abort();
+    for (int i = 0; i < 2; i++) {
+        snprintf(user[i], sizeof user[i], "%s/%s.token", dir, i ? "bob" : "alice");
+        FILE *f = fopen(user[i], "w");
+        if (!f) abort();
+        fputs(i ? "fuzz bob token" : "fuzz alice token", f);
+        fclose(f);
+    }
+    if (auth_keyring_set_users(&ring, dir, err, sizeof err) || ring.user_count != 2) abort();
+    for (int i = 0; i < 2; i++) remove(user[i]);
+    rmdir(dir);
     for (int i = 0; i < 3; i++) remove(names[i]);
     auth_link_keys(&ring.keys[AUTH_WORKER], challenge, "peer nonce of the fuzz link", down, up);
 }
