@@ -1,7 +1,7 @@
 /* joblog.c - a job's bounded event log (see joblog.h): a ring of fixed
  * lines that grows by doubling up to JOBLOG_MAX, then overwrites the
- * oldest; and its file, appended a batch at a time by one uv_fs_write in
- * flight, read back after a restart. */
+ * oldest; and its file, appended a batch at a time by one pool job in
+ * flight (open, write, close), read back after a restart. */
 #include "joblog.h"
 
 #include <errno.h>
@@ -28,39 +28,39 @@ struct joblog {
     joblog_line *lines;
     int cap, head, count; /* head: index of the oldest line */
     uint64_t dropped;
-    /* The file (joblog_persist); fd < 0: memory only. */
+    /* The file (joblog_persist); path NULL: memory only. No descriptor is
+     * held between batches: a coordinator keeping 10,000 jobs would
+     * otherwise hold 10,000 files open. */
     uv_loop_t *loop;
-    uv_file fd;
     char *path;
     size_t file_bytes;   /* in the file, or on their way there */
     int unread;          /* the file holds lines of an earlier run not read back yet */
-    int writing;         /* req is in flight with batch */
+    int writing;         /* work is in flight with batch */
     int closing;         /* joblog_free came while writing: the write's end frees */
     joblog_text pending; /* lines added since the batch in flight was taken */
     joblog_text batch;
-    uv_fs_t req;
+    size_t wrote;        /* bytes of batch the work wrote */
+    uv_work_t work;
 };
 
-joblog *joblog_new(void) {
-    joblog *l = calloc(1, sizeof(joblog));
-    if (l) l->fd = -1;
-    return l;
-}
+joblog *joblog_new(void) { return calloc(1, sizeof(joblog)); }
 
-/* Write text to fd from the loop thread, at once (shutdown, read-back).
- * Errors leave the lines in memory only. */
-static void write_now(joblog *l, const joblog_text *text) {
+/* Append text to the file: open, write, close. Returns the bytes written
+ * (fewer on an error: the rest stays in memory only). On any thread. */
+static size_t append_text(const char *path, const joblog_text *text) {
+    int fd = open(path, O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
     size_t off = 0;
-    while (off < text->len) {
-        ssize_t w = write(l->fd, text->data + off, text->len - off);
+    while (fd >= 0 && off < text->len) {
+        ssize_t w = write(fd, text->data + off, text->len - off);
         if (w < 0 && errno == EINTR) continue;
         if (w <= 0) break;
         off += (size_t)w;
     }
+    if (fd >= 0) close(fd);
+    return off;
 }
 
 static void joblog_release(joblog *l) {
-    if (l->fd >= 0) close(l->fd);
     free(l->pending.data);
     free(l->batch.data);
     free(l->path);
@@ -74,23 +74,29 @@ void joblog_free(joblog *l) {
         l->closing = 1;
         return;
     }
-    if (l->fd >= 0 && l->pending.len) write_now(l, &l->pending);
+    if (l->path && l->pending.len) append_text(l->path, &l->pending); /* rare: a batch that could not be queued */
     joblog_release(l);
 }
 
 static void start_write(joblog *l);
 
-/* The batch in flight was written (or failed: its lines stay in memory
- * only). Next: the lines that came meanwhile, or the free that waited. */
-static void on_written(uv_fs_t *req) {
-    joblog *l = req->data;
-    size_t wrote = req->result > 0 ? (size_t)req->result : 0;
-    uv_fs_req_cleanup(req);
+/* On the pool: the batch into the file. */
+static void write_work(uv_work_t *w) {
+    joblog *l = w->data;
+    l->wrote = append_text(l->path, &l->batch);
+}
+
+/* The batch in flight was written (or not all of it: those lines stay in
+ * memory only). Next: the lines that came meanwhile, or the free that
+ * waited. */
+static void write_done(uv_work_t *w, int status) {
+    joblog *l = w->data;
+    size_t wrote = status == 0 ? l->wrote : 0;
     if (wrote < l->batch.len) l->file_bytes -= l->batch.len - wrote; /* not in the file after all */
     l->writing = 0;
     l->batch.len = 0;
     if (l->closing) {
-        if (l->pending.len) write_now(l, &l->pending);
+        if (l->pending.len) append_text(l->path, &l->pending);
         joblog_release(l);
         return;
     }
@@ -102,9 +108,8 @@ static void start_write(joblog *l) {
     joblog_text t = l->batch; /* empty: swap the buffers */
     l->batch = l->pending;
     l->pending = t;
-    uv_buf_t b = uv_buf_init(l->batch.data, (unsigned)l->batch.len);
-    l->req.data = l;
-    if (uv_fs_write(l->loop, &l->req, l->fd, &b, 1, -1, on_written) == 0) {
+    l->work.data = l;
+    if (uv_queue_work(l->loop, &l->work, write_work, write_done) == 0) {
         l->writing = 1;
         return;
     }
@@ -137,22 +142,19 @@ static void pend_line(joblog *l, double t, const char *text) {
 
 int joblog_persist(joblog *l, uv_loop_t *loop, const char *path, int existing, char *err, size_t err_len) {
     if (!l) return 0;
-    int fd = open(path, O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC | (existing ? 0 : O_TRUNC), 0644);
     struct stat st;
-    if (fd < 0 || fstat(fd, &st) != 0) {
+    int have = stat(path, &st) == 0;
+    if (!existing && have && unlink(path) != 0) { /* a new job's log starts empty */
         snprintf(err, err_len, "%s: %s", path, strerror(errno));
-        if (fd >= 0) close(fd);
         return -1;
     }
     if (!(l->path = strdup(path))) {
         snprintf(err, err_len, "%s: out of memory", path);
-        close(fd);
         return -1;
     }
     l->loop = loop;
-    l->fd = fd;
-    l->file_bytes = (size_t)st.st_size;
-    l->unread = existing && st.st_size > 0;
+    l->file_bytes = existing && have ? (size_t)st.st_size : 0;
+    l->unread = l->file_bytes > 0;
     return 0;
 }
 
@@ -191,7 +193,7 @@ void joblog_add(joblog *l, double wall, const char *fmt, ...) {
     va_start(ap, fmt);
     vsnprintf(s->text, sizeof s->text, fmt, ap);
     va_end(ap);
-    if (l->fd < 0) return;
+    if (!l->path) return;
     pend_line(l, wall, s->text);
     if (!l->writing && l->pending.len) start_write(l);
 }

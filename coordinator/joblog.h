@@ -37,7 +37,7 @@ void joblog_free(joblog *l);
 /* Append l's lines from now on to the file at path too, one line "EPOCH
  * TEXT\n" each, written on loop's thread pool a batch at a time (no sync:
  * a crash may lose the last lines, never the job's work). Not existing: a
- * new job, the file is emptied. existing: the
+ * new job, an old file is removed. No file is held open between batches. existing: the
  * file may hold the lines of an earlier run (a restart), which
  * joblog_to_json then reads back on first use, the lines added since
  * included. Up to JOBLOG_FILE_MAX bytes are written; past that, lines are

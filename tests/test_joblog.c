@@ -6,6 +6,7 @@
  * memory). */
 #include <stdio.h>
 #include <string.h>
+#include <dirent.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -128,5 +129,40 @@ TEST(joblog_file_is_bounded_and_memory_keeps_the_last_lines) {
     lines_of(l, got, sizeof got, &dropped);
     CHECK(joblog_count(l) == JOBLOG_MAX && dropped > 0, "%d lines read back, %g dropped", joblog_count(l), dropped);
     joblog_free(l);
+    CHECK(uv_loop_close(&loop) == 0, "requests left on the loop");
+}
+
+/* Descriptors open in this process now. */
+static int open_fds(void) {
+    DIR *d = opendir("/proc/self/fd");
+    int n = 0;
+    while (d && readdir(d)) n++;
+    if (d) closedir(d);
+    return n;
+}
+
+/* A kept log holds no file open: a coordinator with thousands of jobs must
+ * not run out of descriptors (each batch opens, writes and closes). */
+TEST(joblog_files_hold_no_descriptor_between_batches) {
+    uv_loop_t loop;
+    uv_loop_init(&loop);
+    enum { LOGS = 200 };
+    static joblog *logs[LOGS];
+    char path[256], err[600];
+    int before = open_fds();
+    for (int i = 0; i < LOGS; i++) {
+        char name[64];
+        snprintf(name, sizeof name, "joblog-fd-%d.log", i);
+        snprintf(path, sizeof path, "%s", util_temp_path(name));
+        logs[i] = joblog_new();
+        CHECK(joblog_persist(logs[i], &loop, path, 0, err, sizeof err) == 0, "%s", err);
+        joblog_add(logs[i], 1, "job submitted");
+    }
+    uv_run(&loop, UV_RUN_DEFAULT);
+    int during = open_fds();
+    CHECK(during <= before + 2, "%d descriptors with %d logs kept, %d before", during, LOGS, before);
+    long size = file_size(path);
+    CHECK(size == (long)strlen("1.000 job submitted\n"), "the last log's file has %ld bytes", size);
+    for (int i = 0; i < LOGS; i++) joblog_free(logs[i]);
     CHECK(uv_loop_close(&loop) == 0, "requests left on the loop");
 }
