@@ -21,8 +21,12 @@ for r in $(seq "$rounds"); do
   lg=$!
   sleep 1
   t0=$(date +%s.%N)
-  TESSERA_COORDINATOR=127.0.0.1:$port "$bin/tessera" submit "$scene" --width 2048 --height 2048 --spp 1 \
-    --tile-size 16 --wait -o "$dir/out.pfm" > "$dir/submit.out" 2>&1 || { cat "$dir/submit.out"; exit 1; }
+  # bounded: simulated workers the coordinator refuses (loadgen from another build) would leave it waiting
+  TESSERA_COORDINATOR=127.0.0.1:$port timeout 300 "$bin/tessera" submit "$scene" --width 2048 --height 2048 --spp 1 \
+    --tile-size 16 --wait -o "$dir/out.pfm" > "$dir/submit.out" 2>&1 || {
+    tail -3 "$dir/submit.out"; grep -m1 refused "$dir/coord.log" || true
+    echo "journal.sh: the job did not finish within 300 s" >&2
+    kill "$lg" "$coord" 2>/dev/null || true; exit 1; }
   t1=$(date +%s.%N)
   kill "$lg" 2>/dev/null || true; kill "$coord"; wait "$coord" 2>/dev/null || true; wait "$lg" 2>/dev/null || true
   awk -v a="$t0" -v b="$t1" -v r="$r" -v n="$n" 'BEGIN { printf "round %d: %d connections, 16384 tiles in %.2f s: %.0f tiles/s\n", r, n, b - a, 16384 / (b - a) }'

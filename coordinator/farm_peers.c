@@ -161,6 +161,9 @@ static auth_class hello_auth(peer *p, const cJSON *m, const auth_key **key) {
     if (cls == AUTH_NONE && offered != AUTH_NONE)
         snprintf(fault, sizeof fault, "the %s token, which may not %s", auth_class_name(offered),
                  client ? "act as a client" : "register as a worker");
+    else if (cls == AUTH_NONE && client && cJSON_IsString(name) && auth_is_user(&p->f->opt.auth, name->valuestring))
+        snprintf(fault, sizeof fault, "%s token for user %.60s, who has a token of their own",
+                 cJSON_IsString(proof) ? "wrong" : "no", name->valuestring);
     else if (cls == AUTH_NONE)
         snprintf(fault, sizeof fault, "%s token", cJSON_IsString(proof) ? "wrong" : "no");
     else if (!(cJSON_IsString(nonce) && strlen(nonce->valuestring) >= 32 && strlen(nonce->valuestring) < 200))

@@ -749,6 +749,9 @@ TEST(service_per_user_client_tokens) {
     st = cli(&s, out, sizeof out, "status --client-name alice --token-file %s", ct);
     CHECK(st == 1 && strstr(out, "authentication failed"), "the shared client token spoke as alice (%d): %s", st,
           out);
+    CHECK(util_file_count(s.log, "(calling itself client alice): authentication failed (wrong token for user alice, "
+                                 "who has a token of their own)") == 2,
+          "the refusals of alice's name not logged with the reason; log %s", s.log);
     st = cli(&s, out, sizeof out, "cancel 1 --client-name bob --token-file %s", bob);
     CHECK(st == 1 && strstr(out, "belongs to client alice"), "bob cancelled alice's job (%d): %s", st, out);
     st = cli(&s, out, sizeof out, "status --client-name carol --token-file %s", ct);

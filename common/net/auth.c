@@ -224,10 +224,18 @@ void auth_link_keys(const auth_key *k, const char *coordinator_nonce, const char
     sodium_memzero(master, sizeof master);
 }
 
+/* users[] index of name, or -1. */
+static int user_index(const auth_keyring *r, const char *name) {
+    for (int u = 0; name && u < r->user_count; u++)
+        if (strcmp(r->users[u].name, name) == 0) return u;
+    return -1;
+}
+
+int auth_is_user(const auth_keyring *r, const char *name) { return user_index(r, name) >= 0; }
+
 const auth_key *auth_key_of(const auth_keyring *r, auth_class cls, const char *name) {
     if (cls <= AUTH_NONE || cls >= AUTH_CLASSES) return NULL;
-    if (cls == AUTH_CLIENT && name)
-        for (int u = 0; u < r->user_count; u++)
-            if (strcmp(r->users[u].name, name) == 0) return &r->users[u].key;
+    int u = cls == AUTH_CLIENT ? user_index(r, name) : -1;
+    if (u >= 0) return &r->users[u].key;
     return r->keys[cls].enabled ? &r->keys[cls] : NULL;
 }

@@ -96,6 +96,9 @@ auth_class auth_check_hello(const auth_keyring *r, const char *nonce, const cJSO
  * that key is not enabled. Can't fail. */
 const auth_key *auth_key_of(const auth_keyring *r, auth_class cls, const char *name);
 
+/* Whether name is one of the users' (--client-tokens). Can't fail. */
+int auth_is_user(const auth_keyring *r, const char *name);
+
 /* Read a token file (surrounding whitespace ignored) and derive the key.
  * Returns 0, or -1 with "PATH: reason" in err (unreadable, empty). */
 int auth_key_load(const char *path, auth_key *k, char *err, size_t err_len);
