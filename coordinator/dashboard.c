@@ -147,9 +147,10 @@ static void on_flush(uv_timer_t *t) {
 
 static int dash_secured(const dashboard *d) { return d->auth && auth_keyring_enabled(d->auth); }
 
-/* Which token (as typed or sent) this is: AUTH_ADMIN or AUTH_CLIENT, or
- * AUTH_NONE (a worker token opens nothing here). Both keys are compared
- * every time, in constant time. */
+/* Which token (as typed or sent) this is: AUTH_ADMIN, or AUTH_CLIENT (the
+ * client token or a user's own, --client-tokens), or AUTH_NONE (a worker
+ * token opens nothing here). Every key is compared every time, in
+ * constant time. */
 static auth_class token_class(const dashboard *d, const char *token, size_t len) {
     while (len && isspace((unsigned char)*token)) token++, len--;
     while (len && isspace((unsigned char)token[len - 1])) len--;
@@ -158,7 +159,18 @@ static auth_class token_class(const dashboard *d, const char *token, size_t len)
     const auth_key *a = &d->auth->keys[AUTH_ADMIN], *c = &d->auth->keys[AUTH_CLIENT];
     int admin = (sodium_memcmp(key, a->key, sizeof key) == 0) & a->enabled & (len > 0);
     int client = (sodium_memcmp(key, c->key, sizeof key) == 0) & c->enabled & (len > 0);
+    for (int u = 0; u < d->auth->user_count; u++) {
+        const auth_key *k = &d->auth->users[u].key;
+        client |= (sodium_memcmp(key, k->key, sizeof key) == 0) & k->enabled & (len > 0);
+    }
     return admin ? AUTH_ADMIN : client ? AUTH_CLIENT : AUTH_NONE;
+}
+
+/* Whether changing a job here needs the admin token: when there is one,
+ * and when users have tokens of their own (a page session is not tied to
+ * a user, so it may not change another's job). */
+static int changes_need_admin(const dashboard *d) {
+    return d->auth->keys[AUTH_ADMIN].enabled || d->auth->user_count > 0;
 }
 
 /* The class a request is authorised as: AUTH_ADMIN without tokens, the
@@ -445,7 +457,7 @@ static void on_request(void *ctx, http_conn *c, const http_request *rq) {
         if (strncmp(rq->path, "/api/jobs/", 10) != 0 || parse_job_path(rq->path, &id, &rest) ||
             (strcmp(rest, "priority") != 0 && strcmp(rest, "cancel") != 0))
             return send_text(c, 404, "not found\n");
-        if (cls != AUTH_ADMIN && d->auth->keys[AUTH_ADMIN].enabled)
+        if (cls != AUTH_ADMIN && changes_need_admin(d))
             return send_text(c, 403, "changing a job from the dashboard needs the admin token\n");
         if (strcmp(rest, "priority") == 0) return route_priority(d, c, id, rq);
         char err[300] = "cancel is not offered here";

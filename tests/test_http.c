@@ -17,6 +17,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -411,6 +412,27 @@ TEST(http_dashboard_token_and_binding) {
 /* Separate tokens: the dashboard opens to the client and the admin token,
  * never the worker token; cancelling from it needs the admin token when
  * there is one. */
+/* Log in to w's dashboard with token: into hdr the headers of the session
+ * (cookie and CSRF token) for a POST, and the CSRF token into csrf. Returns
+ * 0, or -1 (the login's answer in hdr). */
+static int web_session(const web *w, const char *token, char *hdr, size_t cap, char *csrf, size_t csrf_cap) {
+    static char out[1 << 16];
+    char body[300], cookie[200] = "";
+    snprintf(body, sizeof body, "token=%s", token);
+    csrf[0] = 0;
+    const char *ck = web_post(w->http, "/login", "", body, out, sizeof out) == 303
+                         ? strstr(out, "Set-Cookie: tessera_session=")
+                         : NULL;
+    if (!ck) return snprintf(hdr, cap, "%.200s", out), -1;
+    sscanf(ck + 12, "%199[^;]", cookie);
+    snprintf(hdr, cap, "Cookie: %s\r\n", cookie);
+    web_get(w->http, "/api/csrf", hdr, out, sizeof out);
+    const char *c = strstr(out, "\"csrf\":\"");
+    if (c) snprintf(csrf, csrf_cap, "%.64s", c + 8);
+    snprintf(hdr, cap, "Cookie: %s\r\nX-CSRF-Token: %s\r\n", cookie, csrf);
+    return 0;
+}
+
 TEST(http_dashboard_client_and_admin_tokens) {
     char wt[300], ct[300], at[300];
     snprintf(wt, sizeof wt, "%s", util_write_temp("web-worker-token", "web-worker-secret\n"));
@@ -430,22 +452,45 @@ TEST(http_dashboard_client_and_admin_tokens) {
           "login with the worker token: %.200s", out);
     CHECK(web_get(w.http, "/api/jobs", "Authorization: Bearer web-client-secret\r\n", out, sizeof out) == 200,
           "client bearer: %.100s", out);
-    CHECK(web_post(w.http, "/login", "", "token=web-client-secret", out, sizeof out) == 303 &&
-              strstr(out, "Set-Cookie: tessera_session="),
-          "login with the client token: %.200s", out);
-    char cookie[200] = "", csrf[128] = "", hdr[600];
-    const char *ck = strstr(out, "Set-Cookie: tessera_session=");
-    if (ck) sscanf(ck + 12, "%199[^;]", cookie);
-    snprintf(hdr, sizeof hdr, "Cookie: %s\r\n", cookie);
-    web_get(w.http, "/api/csrf", hdr, out, sizeof out);
-    const char *c = strstr(out, "\"csrf\":\"");
-    if (c) snprintf(csrf, sizeof csrf, "%.64s", c + 8);
-    snprintf(hdr, sizeof hdr, "Cookie: %s\r\nX-CSRF-Token: %s\r\n", cookie, csrf);
+    char csrf[128], hdr[600];
+    CHECK(web_session(&w, "web-client-secret", hdr, sizeof hdr, csrf, sizeof csrf) == 0,
+          "login with the client token: %.200s", hdr);
     CHECK(web_post(w.http, "/api/jobs/1/cancel", hdr, "", out, sizeof out) == 403 && strstr(out, "admin token"),
           "cancel with the client session: %.200s", out);
     snprintf(hdr, sizeof hdr, "Authorization: Bearer web-admin-secret\r\nX-CSRF-Token: %s\r\n", csrf);
     CHECK(web_post(w.http, "/api/jobs/1/cancel", hdr, "", out, sizeof out) == 409 && strstr(out, "no job 1"),
           "cancel with the admin token reaches the job service: %.200s", out);
+    web_stop(&w);
+}
+
+/* --client-tokens: a user's own token opens the dashboard too, but a page
+ * session is no user's, so changing a job there needs the admin token
+ * even when none is configured (else any user could cancel another's job
+ * from the page). */
+TEST(http_dashboard_user_tokens) {
+    char wt[300], dir[300], alice[400];
+    snprintf(wt, sizeof wt, "%s", util_write_temp("web-users-worker-token", "web-users-worker-secret\n"));
+    snprintf(dir, sizeof dir, "%s", util_temp_path("web-users.d"));
+    mkdir(dir, 0700);
+    snprintf(alice, sizeof alice, "%s/alice.token", dir);
+    FILE *f = fopen(alice, "w");
+    if (f) fputs("web-alice-secret\n", f), fclose(f);
+    const char *extra[] = {"--worker-token-file", wt, "--client-tokens", dir, NULL};
+    web w;
+    if (web_start(&w, "http-users", 0, extra)) {
+        CHECK(0, "coordinator did not start; log %s", w.log);
+        return;
+    }
+    static char out[1 << 16];
+    CHECK(web_get(w.http, "/api/jobs", "Authorization: Bearer web-alice-secret\r\n", out, sizeof out) == 200,
+          "alice's bearer token: %.100s", out);
+    CHECK(web_get(w.http, "/api/jobs", "Authorization: Bearer web-bob-secret\r\n", out, sizeof out) == 401,
+          "a token no one has opened the dashboard: %.100s", out);
+    char csrf[128], hdr[600];
+    CHECK(web_session(&w, "web-alice-secret", hdr, sizeof hdr, csrf, sizeof csrf) == 0,
+          "login with alice's token: %.200s", hdr);
+    CHECK(web_post(w.http, "/api/jobs/1/cancel", hdr, "", out, sizeof out) == 403 && strstr(out, "admin token"),
+          "cancel with a user's session: %.200s", out);
     web_stop(&w);
 }
 
