@@ -252,16 +252,22 @@ static void read_back(joblog *l) {
     l->unread = 0;
     /* What is surely in the file: all but the batch in flight (which may
      * or may not have landed) and the pending lines. */
-    size_t written = l->file_bytes - l->batch.len - l->pending.len;
+    size_t written = l->file_bytes - l->batch.len - l->pending.len, skip = 0;
+    if (written > JOBLOG_FILE_MAX) skip = written - JOBLOG_FILE_MAX; /* a file made elsewhere: its end */
     FILE *f = fopen(l->path, "rb");
     if (!f) return;
-    char *text = malloc(written + 1);
-    size_t len = text ? fread(text, 1, written, f) : 0;
+    char *text = malloc(written - skip + 1);
+    size_t len = text && fseeko(f, (off_t)skip, SEEK_SET) == 0 ? fread(text, 1, written - skip, f) : 0;
     fclose(f);
     if (!text) return;
+    const char *from = text;
+    if (skip) { /* from the first whole line on */
+        const char *nl = memchr(text, '\n', len);
+        from = nl ? nl + 1 : text + len;
+    }
     l->count = l->head = 0;
     l->dropped = 0;
-    ring_add_text(l, text, len);
+    ring_add_text(l, from, len - (size_t)(from - text));
     ring_add_text(l, l->batch.data, l->batch.len);
     ring_add_text(l, l->pending.data, l->pending.len);
     free(text);

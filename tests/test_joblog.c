@@ -108,7 +108,8 @@ TEST(joblog_damaged_file_reads_back_what_parses) {
 TEST(joblog_file_is_bounded_and_memory_keeps_the_last_lines) {
     uv_loop_t loop;
     uv_loop_init(&loop);
-    char path[256], err[600], got[4096];
+    static char got[1 << 20];
+    char path[256], err[600];
     double dropped;
     snprintf(path, sizeof path, "%s", util_temp_path("joblog-bounded.log"));
     joblog *l = joblog_new();
@@ -128,6 +129,19 @@ TEST(joblog_file_is_bounded_and_memory_keeps_the_last_lines) {
     CHECK(joblog_persist(l, &loop, path, 1, err, sizeof err) == 0, "%s", err);
     lines_of(l, got, sizeof got, &dropped);
     CHECK(joblog_count(l) == JOBLOG_MAX && dropped > 0, "%d lines read back, %g dropped", joblog_count(l), dropped);
+    joblog_free(l);
+    /* A file larger than the bound (not one this code writes): its last
+     * JOBLOG_FILE_MAX bytes are read, from the first whole line. */
+    FILE *f = fopen(path, "a");
+    CHECK(f != NULL, "cannot append to %s", path);
+    for (int i = 0; f && i < 50000; i++) fprintf(f, "%d.000 line %07d appended past the bound\n", 9000 + i, i);
+    if (f) fclose(f);
+    l = joblog_new();
+    CHECK(joblog_persist(l, &loop, path, 1, err, sizeof err) == 0, "%s", err);
+    lines_of(l, got, sizeof got, &dropped);
+    CHECK(joblog_count(l) == JOBLOG_MAX && strstr(got, "line 0049999 appended past the bound") &&
+              !strstr(got, "|ne ") && got[0] != 'n',
+          "%d lines read back from a file over the bound", joblog_count(l));
     joblog_free(l);
     CHECK(uv_loop_close(&loop) == 0, "requests left on the loop");
 }

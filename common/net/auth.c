@@ -149,7 +149,10 @@ int auth_keyring_set_users(auth_keyring *r, const char *dir, char *err, size_t e
         r->users_dir = was;
         return -1;
     }
-    if (!dir) r->user_count = 0;
+    if (!dir) {
+        sodium_memzero(r->users, sizeof r->users);
+        r->user_count = 0;
+    }
     return 0;
 }
 
