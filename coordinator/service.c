@@ -3,6 +3,8 @@
  * old jobs, signals and start-up. The job store is jobstore.c. */
 #define _GNU_SOURCE
 #include "service_internal.h"
+
+#include <sodium.h>
 #include "paging.h"
 
 void svc_log(const char *fmt, ...) {
@@ -474,6 +476,15 @@ static void client_on_close(conn *c, const char *reason) {
 
 static const conn_callbacks client_cbs = {client_on_frame, client_on_close};
 
+/* Into id, the BLAKE2b of the key cl proved as it is in s's ring now.
+ * Returns 1, or 0 without tokens or when that key is gone. */
+static int client_key_id(const service *s, const client *cl, unsigned char id[32]) {
+    const auth_key *k = auth_keyring_enabled(&s->o.farm.auth) ? auth_key_of(&s->o.farm.auth, cl->cls, cl->name) : NULL;
+    if (!k) return 0;
+    crypto_generichash(id, 32, k->key, sizeof k->key, NULL, 0);
+    return 1;
+}
+
 static void on_client(void *ctx, conn *c, const cJSON *hello, const char *addr, auth_class cls) {
     service *s = ctx;
     client *cl = calloc(1, sizeof *cl);
@@ -487,6 +498,7 @@ static void on_client(void *ctx, conn *c, const cJSON *hello, const char *addr, 
     const cJSON *name = cJSON_GetObjectItemCaseSensitive(hello, "name");
     snprintf(cl->name, sizeof cl->name, "%s", cJSON_IsString(name) ? name->valuestring : "?");
     cl->cls = auth_keyring_enabled(&s->o.farm.auth) ? cls : AUTH_ADMIN;
+    cl->keyed = client_key_id(s, cl, cl->key_id);
     cl->last_bytes = cl->last_frame = cl->window_start = svc_mono_now();
     cl->seen_bytes = conn_bytes_in(c);
     TAILQ_INSERT_TAIL(&s->clients, cl, link);
@@ -568,10 +580,28 @@ static void on_farm_closed(void *ctx) {
     uv_close((uv_handle_t *)&s->sighup, NULL);
 }
 
+/* After SIGHUP: a client whose token is no longer in the ring (a user
+ * whose file was deleted, a client or admin token replaced) is told so and
+ * its link closed: revoking a token cuts its holder off at once. Workers
+ * keep their links (their tiles in flight would be lost; a worker's token
+ * is rotated, not revoked). */
+static void close_revoked_clients(service *s) {
+    client *cl, *next;
+    TAILQ_FOREACH_SAFE(cl, &s->clients, link, next) {
+        unsigned char id[32];
+        if (!cl->keyed || (client_key_id(s, cl, id) && sodium_memcmp(id, cl->key_id, sizeof id) == 0)) continue;
+        svc_log("SIGHUP: client %s at %s: its %s token is gone; link closed", cl->name, cl->addr,
+                auth_class_name(cl->cls));
+        client_error(cl, "your token was revoked or replaced (SIGHUP): connect again with the current one");
+        conn_close(cl->c, "its token was revoked", 1);
+    }
+}
+
 /* SIGHUP: re-read the token files. New connections need the new tokens;
- * connections already authenticated keep going (their links are sealed
+ * worker links already authenticated keep going (their links are sealed
  * with session keys, which do not depend on the token any more), and so do
- * dashboard sessions already logged in. A file that cannot be read keeps
+ * dashboard sessions already logged in; a client link whose token is gone
+ * is closed (close_revoked_clients). A file that cannot be read keeps
  * every old token (logged). */
 static void on_sighup(uv_signal_t *h, int signum) {
     (void)signum;
@@ -586,6 +616,7 @@ static void on_sighup(uv_signal_t *h, int signum) {
         return;
     }
     farm_set_auth(s->f, &s->o.farm.auth);
+    close_revoked_clients(s);
     for (int c = AUTH_WORKER; c < AUTH_CLASSES; c++)
         if (s->o.farm.auth.paths[c])
             snprintf(which + strlen(which), sizeof which - strlen(which), "%s%s", which[0] ? ", " : "",
@@ -593,7 +624,7 @@ static void on_sighup(uv_signal_t *h, int signum) {
     if (s->o.farm.auth.users_dir)
         snprintf(which + strlen(which), sizeof which - strlen(which), "%s%d users", which[0] ? ", " : "",
                  s->o.farm.auth.user_count);
-    svc_log("SIGHUP: token files re-read (%s); new connections need the new tokens, open ones go on", which);
+    svc_log("SIGHUP: token files re-read (%s); new connections need the new tokens, open worker links go on", which);
 }
 
 static void on_signal(uv_signal_t *h, int signum) {

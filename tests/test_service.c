@@ -758,9 +758,21 @@ TEST(service_per_user_client_tokens) {
     CHECK(st == 0, "the shared client token under a name no user has (%d): %s", st, out);
     st = cli(&s, out, sizeof out, "status --client-name carol --token-file %s", alice);
     CHECK(st == 1 && strstr(out, "authentication failed"), "alice's token spoke as carol (%d): %s", st, out);
-    /* bob's file goes: refused after SIGHUP; alice keeps her job. */
+    /* bob waits on a job of his over an open link; his file goes: the link
+     * is cut at the SIGHUP and he is refused from then on; alice keeps her
+     * job. */
+    char waitlog[300];
+    snprintf(waitlog, sizeof waitlog, "%s", util_temp_path("svc-users-bob-wait.log"));
+    const char *wargv[] = {harness_tessera(), "submit", SCENE, "--wait", "--coordinator", s.addr, "--client-name", "bob",
+                           "--token-file", bob, NULL};
+    pid_t waiting = util_spawn(wargv, waitlog);
+    CHECK(util_wait_for_text(s.log, "job 2 submitted", LONG) == 0, "bob's job never came; log %s", s.log);
     unlink(bob);
     kill(s.pid, SIGHUP);
+    CHECK(util_wait(waiting, LONG, NULL) == 1 && util_file_count(waitlog, "your token was revoked or replaced"),
+          "bob's open link was not cut when his token went; his log %s", waitlog);
+    CHECK(util_file_count(s.log, "SIGHUP: client bob at ") && util_file_count(s.log, "its client token is gone"),
+          "the cut not logged; log %s", s.log);
     CHECK(util_wait_for_text(s.log, "SIGHUP: token files re-read (worker, client, 1 users)", LONG) == 0,
           "no reload of the users folder logged; log %s", s.log);
     rewrite(util_temp_path("users-bob-old.token"), "bob's own secret\n");
