@@ -62,7 +62,10 @@ struct dashboard {
     dashboard_source src;
     char csrf[AUTH_HEX];
     char sessions[DASH_SESSIONS][AUTH_HEX];
-    auth_class session_class[DASH_SESSIONS]; /* the token each session logged in with */
+    /* The key of the token each session logged in with: its class is looked
+     * up in the ring on every request, so a token taken away by SIGHUP ends
+     * its sessions. */
+    unsigned char session_key[DASH_SESSIONS][AUTH_KEY_BYTES];
     int next_session;
     uint64_t tiles_done, tiles_assigned, tiles_requeued, samples, joins, leaves;
     uint64_t latency_counts[LATENCY_BUCKETS + 1];
@@ -147,23 +150,29 @@ static void on_flush(uv_timer_t *t) {
 
 static int dash_secured(const dashboard *d) { return d->auth && auth_keyring_enabled(d->auth); }
 
-/* Which token (as typed or sent) this is: AUTH_ADMIN, or AUTH_CLIENT (the
- * client token or a user's own, --client-tokens), or AUTH_NONE (a worker
- * token opens nothing here). Every key is compared every time, in
- * constant time. */
-static auth_class token_class(const dashboard *d, const char *token, size_t len) {
-    while (len && isspace((unsigned char)*token)) token++, len--;
-    while (len && isspace((unsigned char)token[len - 1])) len--;
-    unsigned char key[AUTH_KEY_BYTES];
-    crypto_generichash(key, sizeof key, (const unsigned char *)token, len, NULL, 0);
+/* Which key of the ring key is: AUTH_ADMIN, or AUTH_CLIENT (the client
+ * token's or a user's own, --client-tokens), or AUTH_NONE (a worker token
+ * opens nothing here; nor does a token SIGHUP took away). Every key is
+ * compared every time, in constant time. */
+static auth_class key_class(const dashboard *d, const unsigned char key[AUTH_KEY_BYTES]) {
     const auth_key *a = &d->auth->keys[AUTH_ADMIN], *c = &d->auth->keys[AUTH_CLIENT];
-    int admin = (sodium_memcmp(key, a->key, sizeof key) == 0) & a->enabled & (len > 0);
-    int client = (sodium_memcmp(key, c->key, sizeof key) == 0) & c->enabled & (len > 0);
+    int admin = (sodium_memcmp(key, a->key, AUTH_KEY_BYTES) == 0) & a->enabled;
+    int client = (sodium_memcmp(key, c->key, AUTH_KEY_BYTES) == 0) & c->enabled;
     for (int u = 0; u < d->auth->user_count; u++) {
         const auth_key *k = &d->auth->users[u].key;
-        client |= (sodium_memcmp(key, k->key, sizeof key) == 0) & k->enabled & (len > 0);
+        client |= (sodium_memcmp(key, k->key, AUTH_KEY_BYTES) == 0) & k->enabled;
     }
     return admin ? AUTH_ADMIN : client ? AUTH_CLIENT : AUTH_NONE;
+}
+
+/* The token as typed or sent (surrounding whitespace ignored) made into
+ * its key; then key_class. An empty token is no token. */
+static auth_class token_class(const dashboard *d, const char *token, size_t len, unsigned char key[AUTH_KEY_BYTES]) {
+    while (len && isspace((unsigned char)*token)) token++, len--;
+    while (len && isspace((unsigned char)token[len - 1])) len--;
+    crypto_generichash(key, AUTH_KEY_BYTES, (const unsigned char *)token, len, NULL, 0);
+    auth_class cls = key_class(d, key);
+    return len > 0 ? cls : AUTH_NONE;
 }
 
 /* Whether changing a job here needs the admin token: when there is one,
@@ -177,12 +186,17 @@ static int changes_need_admin(const dashboard *d) {
  * bearer token's or the session's class, or AUTH_NONE. */
 static auth_class request_class(const dashboard *d, const http_request *rq) {
     if (!dash_secured(d)) return AUTH_ADMIN;
-    if (strncasecmp(rq->authorization, "Bearer ", 7) == 0)
-        return token_class(d, rq->authorization + 7, strlen(rq->authorization + 7));
+    if (strncasecmp(rq->authorization, "Bearer ", 7) == 0) {
+        unsigned char key[AUTH_KEY_BYTES];
+        auth_class cls = token_class(d, rq->authorization + 7, strlen(rq->authorization + 7), key);
+        sodium_memzero(key, sizeof key);
+        return cls;
+    }
     char sid[AUTH_HEX];
     if (http_cookie_get(rq->cookie, "tessera_session", sid, sizeof sid) || strlen(sid) != AUTH_HEX - 1) return AUTH_NONE;
     for (int i = 0; i < DASH_SESSIONS; i++)
-        if (d->sessions[i][0] && sodium_memcmp(d->sessions[i], sid, AUTH_HEX - 1) == 0) return d->session_class[i];
+        if (d->sessions[i][0] && sodium_memcmp(d->sessions[i], sid, AUTH_HEX - 1) == 0)
+            return key_class(d, d->session_key[i]);
     return AUTH_NONE;
 }
 
@@ -404,15 +418,16 @@ static void route_login(dashboard *d, http_conn *c, const http_request *rq) {
         return;
     }
     char token[1024];
-    auth_class cls = AUTH_NONE;
+    unsigned char key[AUTH_KEY_BYTES];
     if (!origin_ok(rq) || http_form_get(rq->body, "token", token, sizeof token) || !dash_secured(d) ||
-        (cls = token_class(d, token, strlen(token))) == AUTH_NONE) {
+        token_class(d, token, strlen(token), key) == AUTH_NONE) {
         sodium_memzero(token, sizeof token);
         http_respond(c, 303, "text/plain", "", 0, "Location: /login?failed=1\r\n");
         return;
     }
     sodium_memzero(token, sizeof token);
-    d->session_class[d->next_session] = cls;
+    memcpy(d->session_key[d->next_session], key, sizeof key);
+    sodium_memzero(key, sizeof key);
     char *sid = d->sessions[d->next_session];
     d->next_session = (d->next_session + 1) % DASH_SESSIONS;
     auth_nonce(sid);

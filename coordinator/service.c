@@ -599,9 +599,10 @@ static void close_revoked_clients(service *s) {
 
 /* SIGHUP: re-read the token files. New connections need the new tokens;
  * worker links already authenticated keep going (their links are sealed
- * with session keys, which do not depend on the token any more), and so do
- * dashboard sessions already logged in; a client link whose token is gone
- * is closed (close_revoked_clients). A file that cannot be read keeps
+ * with session keys, which do not depend on the token any more); a client
+ * link whose token is gone is closed (close_revoked_clients), and a
+ * dashboard session whose token is gone ends (dashboard.c looks its token
+ * up on every request). A file that cannot be read keeps
  * every old token (logged). */
 static void on_sighup(uv_signal_t *h, int signum) {
     (void)signum;

@@ -491,6 +491,15 @@ TEST(http_dashboard_user_tokens) {
           "login with alice's token: %.200s", hdr);
     CHECK(web_post(w.http, "/api/jobs/1/cancel", hdr, "", out, sizeof out) == 403 && strstr(out, "admin token"),
           "cancel with a user's session: %.200s", out);
+    /* alice's file goes: at the SIGHUP her session ends with her token. */
+    char cookie[300];
+    snprintf(cookie, sizeof cookie, "%.*s\r\n", (int)(strstr(hdr, "\r\n") - hdr), hdr);
+    CHECK(web_get(w.http, "/api/jobs", cookie, out, sizeof out) == 200, "alice's session: %.100s", out);
+    unlink(alice);
+    kill(w.pid, SIGHUP);
+    CHECK(util_wait_for_text(w.log, "SIGHUP: token files re-read", LONG) == 0, "no reload; log %s", w.log);
+    CHECK(web_get(w.http, "/api/jobs", cookie, out, sizeof out) == 401, "alice's session outlived her token: %.100s",
+          out);
     web_stop(&w);
 }
 
