@@ -476,15 +476,6 @@ static void client_on_close(conn *c, const char *reason) {
 
 static const conn_callbacks client_cbs = {client_on_frame, client_on_close};
 
-/* Into id, the BLAKE2b of the key cl proved as it is in s's ring now.
- * Returns 1, or 0 without tokens or when that key is gone. */
-static int client_key_id(const service *s, const client *cl, unsigned char id[32]) {
-    const auth_key *k = auth_keyring_enabled(&s->o.farm.auth) ? auth_key_of(&s->o.farm.auth, cl->cls, cl->name) : NULL;
-    if (!k) return 0;
-    crypto_generichash(id, 32, k->key, sizeof k->key, NULL, 0);
-    return 1;
-}
-
 static void on_client(void *ctx, conn *c, const cJSON *hello, const char *addr, auth_class cls) {
     service *s = ctx;
     client *cl = calloc(1, sizeof *cl);
@@ -498,7 +489,8 @@ static void on_client(void *ctx, conn *c, const cJSON *hello, const char *addr, 
     const cJSON *name = cJSON_GetObjectItemCaseSensitive(hello, "name");
     snprintf(cl->name, sizeof cl->name, "%s", cJSON_IsString(name) ? name->valuestring : "?");
     cl->cls = auth_keyring_enabled(&s->o.farm.auth) ? cls : AUTH_ADMIN;
-    cl->keyed = client_key_id(s, cl, cl->key_id);
+    const auth_key *k = auth_key_of(&s->o.farm.auth, cl->cls, cl->name); /* NULL without tokens */
+    if ((cl->keyed = k != NULL)) memcpy(cl->key, k->key, sizeof cl->key);
     cl->last_bytes = cl->last_frame = cl->window_start = svc_mono_now();
     cl->seen_bytes = conn_bytes_in(c);
     TAILQ_INSERT_TAIL(&s->clients, cl, link);
@@ -588,8 +580,8 @@ static void on_farm_closed(void *ctx) {
 static void close_revoked_clients(service *s) {
     client *cl, *next;
     TAILQ_FOREACH_SAFE(cl, &s->clients, link, next) {
-        unsigned char id[32];
-        if (!cl->keyed || (client_key_id(s, cl, id) && sodium_memcmp(id, cl->key_id, sizeof id) == 0)) continue;
+        const auth_key *k = auth_key_of(&s->o.farm.auth, cl->cls, cl->name); /* the key it needs now */
+        if (!cl->keyed || (k && sodium_memcmp(k->key, cl->key, sizeof cl->key) == 0)) continue;
         svc_log("SIGHUP: client %s at %s: its %s token is gone; link closed", cl->name, cl->addr,
                 auth_class_name(cl->cls));
         client_error(cl, "your token was revoked or replaced (SIGHUP): connect again with the current one");

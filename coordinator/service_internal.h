@@ -141,8 +141,8 @@ typedef struct client {
     char addr[64];
     char name[128];  /* from its hello (bound to its proof when there are tokens) */
     auth_class cls;  /* the credential it proved; AUTH_ADMIN without tokens */
-    int keyed;       /* with tokens: key_id names the key it proved */
-    unsigned char key_id[32]; /* BLAKE2b of that key, to tell whether SIGHUP took it away */
+    int keyed;       /* with tokens: key is the key it proved */
+    unsigned char key[AUTH_KEY_BYTES]; /* to tell whether SIGHUP took it away */
     uint8_t *bundle; /* the last scene uploaded, inside bundle_mem */
     uint8_t *bundle_mem; /* owned: its frame's memory */
     size_t bundle_len;

@@ -125,6 +125,13 @@ static int users_load(const char *dir, auth_user *users, int *count, char *err, 
     return rc;
 }
 
+/* users[0..count) into r, the slots after them zeroed. */
+static void users_store(auth_keyring *r, const auth_user *users, int count) {
+    memcpy(r->users, users, (size_t)count * sizeof *users);
+    sodium_memzero(r->users + count, (size_t)(AUTH_USERS_MAX - count) * sizeof *users);
+    r->user_count = count;
+}
+
 int auth_keyring_reload(auth_keyring *r, char *err, size_t err_len) {
     auth_key fresh[AUTH_CLASSES] = {{0}};
     auth_user users[AUTH_USERS_MAX];
@@ -134,8 +141,7 @@ int auth_keyring_reload(auth_keyring *r, char *err, size_t err_len) {
     if (rc == 0 && r->users_dir) rc = users_load(r->users_dir, users, &count, err, err_len);
     if (rc == 0) {
         memcpy(r->keys, fresh, sizeof fresh);
-        memcpy(r->users, users, sizeof users);
-        r->user_count = count;
+        users_store(r, users, count);
     }
     sodium_memzero(fresh, sizeof fresh);
     sodium_memzero(users, sizeof users);
@@ -143,16 +149,15 @@ int auth_keyring_reload(auth_keyring *r, char *err, size_t err_len) {
 }
 
 int auth_keyring_set_users(auth_keyring *r, const char *dir, char *err, size_t err_len) {
-    const char *was = r->users_dir;
-    r->users_dir = dir;
-    if (dir && auth_keyring_reload(r, err, err_len)) {
-        r->users_dir = was;
+    auth_user users[AUTH_USERS_MAX];
+    int count = 0;
+    if (dir && users_load(dir, users, &count, err, err_len)) {
+        sodium_memzero(users, sizeof users);
         return -1;
     }
-    if (!dir) {
-        sodium_memzero(r->users, sizeof r->users);
-        r->user_count = 0;
-    }
+    r->users_dir = dir;
+    users_store(r, users, count);
+    sodium_memzero(users, sizeof users);
     return 0;
 }
 
