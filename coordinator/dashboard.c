@@ -150,54 +150,88 @@ static void on_flush(uv_timer_t *t) {
 
 static int dash_secured(const dashboard *d) { return d->auth && auth_keyring_enabled(d->auth); }
 
-/* Which key of the ring key is: AUTH_ADMIN, or AUTH_CLIENT (the client
- * token's or a user's own, --client-tokens), or AUTH_NONE (a worker token
- * opens nothing here; nor does a token SIGHUP took away). Every key is
- * compared every time, in constant time. */
-static auth_class key_class(const dashboard *d, const unsigned char key[AUTH_KEY_BYTES]) {
+/* Who a request is: its class, and for a user's own token (--client-tokens)
+ * the user's name ("" for the admin or the shared client token). */
+typedef struct {
+    auth_class cls;
+    char user[AUTH_USER_NAME];
+} dash_who;
+
+/* Which key of the ring key is (every key compared every time, in constant
+ * time): AUTH_ADMIN, or AUTH_CLIENT (the client token's, or a user's own,
+ * then with the user's name), or AUTH_NONE (a worker token opens nothing
+ * here; nor does a token SIGHUP took away). */
+static dash_who key_who(const dashboard *d, const unsigned char key[AUTH_KEY_BYTES]) {
     const auth_key *a = &d->auth->keys[AUTH_ADMIN], *c = &d->auth->keys[AUTH_CLIENT];
     int admin = (sodium_memcmp(key, a->key, AUTH_KEY_BYTES) == 0) & a->enabled;
     int client = (sodium_memcmp(key, c->key, AUTH_KEY_BYTES) == 0) & c->enabled;
+    int user = -1;
     for (int u = 0; u < d->auth->user_count; u++) {
         const auth_key *k = &d->auth->users[u].key;
-        client |= (sodium_memcmp(key, k->key, AUTH_KEY_BYTES) == 0) & k->enabled;
+        int match = (sodium_memcmp(key, k->key, AUTH_KEY_BYTES) == 0) & k->enabled;
+        if (match) user = u;
+        client |= match;
     }
-    return admin ? AUTH_ADMIN : client ? AUTH_CLIENT : AUTH_NONE;
+    dash_who w = {admin ? AUTH_ADMIN : client ? AUTH_CLIENT : AUTH_NONE, ""};
+    if (w.cls == AUTH_CLIENT && user >= 0) snprintf(w.user, sizeof w.user, "%s", d->auth->users[user].name);
+    return w;
 }
 
 /* The token as typed or sent (surrounding whitespace ignored) made into
- * its key; then key_class. An empty token is no token. */
-static auth_class token_class(const dashboard *d, const char *token, size_t len, unsigned char key[AUTH_KEY_BYTES]) {
+ * its key; then key_who. An empty token is no token. */
+static dash_who token_who(const dashboard *d, const char *token, size_t len, unsigned char key[AUTH_KEY_BYTES]) {
     while (len && isspace((unsigned char)*token)) token++, len--;
     while (len && isspace((unsigned char)token[len - 1])) len--;
     crypto_generichash(key, AUTH_KEY_BYTES, (const unsigned char *)token, len, NULL, 0);
-    auth_class cls = key_class(d, key);
-    return len > 0 ? cls : AUTH_NONE;
+    dash_who w = key_who(d, key);
+    if (len == 0) w = (dash_who){AUTH_NONE, ""};
+    return w;
 }
 
-/* Whether changing a job here needs the admin token: when there is one,
- * and when users have tokens of their own (a page session is not tied to
- * a user, so it may not change another's job). */
-static int changes_need_admin(const dashboard *d) {
-    return d->auth->keys[AUTH_ADMIN].enabled || d->auth->user_count > 0;
-}
-
-/* The class a request is authorised as: AUTH_ADMIN without tokens, the
- * bearer token's or the session's class, or AUTH_NONE. */
-static auth_class request_class(const dashboard *d, const http_request *rq) {
-    if (!dash_secured(d)) return AUTH_ADMIN;
+/* Who a request is: the admin without tokens, else the bearer token's or
+ * the session's holder, or AUTH_NONE. */
+static dash_who request_who(const dashboard *d, const http_request *rq) {
+    if (!dash_secured(d)) return (dash_who){AUTH_ADMIN, ""};
     if (strncasecmp(rq->authorization, "Bearer ", 7) == 0) {
         unsigned char key[AUTH_KEY_BYTES];
-        auth_class cls = token_class(d, rq->authorization + 7, strlen(rq->authorization + 7), key);
+        dash_who w = token_who(d, rq->authorization + 7, strlen(rq->authorization + 7), key);
         sodium_memzero(key, sizeof key);
-        return cls;
+        return w;
     }
     char sid[AUTH_HEX];
-    if (http_cookie_get(rq->cookie, "tessera_session", sid, sizeof sid) || strlen(sid) != AUTH_HEX - 1) return AUTH_NONE;
+    if (http_cookie_get(rq->cookie, "tessera_session", sid, sizeof sid) || strlen(sid) != AUTH_HEX - 1)
+        return (dash_who){AUTH_NONE, ""};
     for (int i = 0; i < DASH_SESSIONS; i++)
         if (d->sessions[i][0] && sodium_memcmp(d->sessions[i], sid, AUTH_HEX - 1) == 0)
-            return key_class(d, d->session_key[i]);
-    return AUTH_NONE;
+            return key_who(d, d->session_key[i]);
+    return (dash_who){AUTH_NONE, ""};
+}
+
+/* The owner of job id into owner ("" when it has none, or when the source
+ * does not say). Returns 0, or -1 when there is no such job. */
+static int job_owner(const dashboard *d, uint32_t id, char *owner, size_t len) {
+    owner[0] = '\0';
+    return d->src.owner ? d->src.owner(d->src.ctx, id, owner, len) : 0;
+}
+
+/* Whether w may see the pixels of a job owned by owner (its preview and
+ * image), as `tessera fetch` may: the admin any job; a user their own and
+ * those without an owner; the shared client token (which names no one)
+ * any job but a user's. */
+static int may_view(const dashboard *d, const dash_who *w, const char *owner) {
+    if (w->cls == AUTH_ADMIN || !owner[0]) return 1;
+    if (w->user[0]) return strcmp(owner, w->user) == 0;
+    return !auth_is_user(d->auth, owner);
+}
+
+/* Whether w may cancel or reprioritise a job owned by owner: the admin any
+ * job; a user their own and those without an owner; the shared client token
+ * only when there is neither an admin token nor users (then it is the
+ * only credential there is). */
+static int may_change(const dashboard *d, const dash_who *w, const char *owner) {
+    if (w->cls == AUTH_ADMIN) return 1;
+    if (w->user[0]) return !owner[0] || strcmp(owner, w->user) == 0;
+    return !d->auth->keys[AUTH_ADMIN].enabled && d->auth->user_count == 0;
 }
 
 /* Browsers send Origin on POSTs; one that is not this server is refused. */
@@ -420,7 +454,7 @@ static void route_login(dashboard *d, http_conn *c, const http_request *rq) {
     char token[1024];
     unsigned char key[AUTH_KEY_BYTES];
     if (!origin_ok(rq) || http_form_get(rq->body, "token", token, sizeof token) || !dash_secured(d) ||
-        token_class(d, token, strlen(token), key) == AUTH_NONE) {
+        token_who(d, token, strlen(token), key).cls == AUTH_NONE) {
         sodium_memzero(token, sizeof token);
         http_respond(c, 303, "text/plain", "", 0, "Location: /login?failed=1\r\n");
         return;
@@ -448,6 +482,85 @@ static int parse_job_path(const char *path, uint32_t *id, const char **rest) {
     return 0;
 }
 
+/* POST /api/jobs/N/priority or /cancel, from w (signed in): refused unless
+ * may_change; the source then decides. */
+static void route_change(dashboard *d, http_conn *c, const http_request *rq, const dash_who *w) {
+    if (d->o.read_only) return send_text(c, 403, "read-only dashboard\n");
+    if (!origin_ok(rq) || strlen(rq->csrf) != AUTH_HEX - 1 || sodium_memcmp(rq->csrf, d->csrf, AUTH_HEX - 1))
+        return send_text(c, 403, "missing or wrong CSRF token\n");
+    uint32_t id;
+    const char *rest;
+    char owner[128], err[300] = "cancel is not offered here";
+    if (strncmp(rq->path, "/api/jobs/", 10) != 0 || parse_job_path(rq->path, &id, &rest) ||
+        (strcmp(rest, "priority") != 0 && strcmp(rest, "cancel") != 0))
+        return send_text(c, 404, "not found\n");
+    int missing = job_owner(d, id, owner, sizeof owner); /* owner "": refusals without one come first */
+    if (!may_change(d, w, owner)) {
+        if (w->user[0])
+            snprintf(err, sizeof err, "job %u belongs to %s: only they, or the admin token, may change it\n", id,
+                     owner);
+        else
+            snprintf(err, sizeof err, "changing a job from the dashboard needs the admin token%s\n",
+                     d->auth->user_count ? " or its owner's own token" : "");
+        return send_text(c, 403, err);
+    }
+    if (missing) {
+        snprintf(err, sizeof err, "no job %u\n", id);
+        return send_text(c, 409, err);
+    }
+    if (strcmp(rest, "priority") == 0) return route_priority(d, c, id, rq);
+    if (!d->src.cancel || d->src.cancel(d->src.ctx, id, err, sizeof err)) return send_text(c, 409, err);
+    send_text(c, 200, "cancelled\n");
+}
+
+/* GET /api/jobs: the source's jobs, each with what w may do with it
+ * ("view": its preview and image; "change": cancel, priority). */
+static void route_jobs(dashboard *d, http_conn *c, const dash_who *w) {
+    cJSON *jobs = jobs_array(d), *j;
+    cJSON_ArrayForEach(j, jobs) {
+        const cJSON *o = cJSON_GetObjectItemCaseSensitive(j, "owner");
+        const char *owner = cJSON_IsString(o) ? o->valuestring : "";
+        cJSON_AddBoolToObject(j, "view", may_view(d, w, owner));
+        cJSON_AddBoolToObject(j, "change", may_change(d, w, owner) && !d->o.read_only);
+    }
+    send_json(c, jobs);
+}
+
+/* GET /api/csrf: the page's token for POSTs, what is offered, and who
+ * signed in ("user": a user's name, or null; "admin"). */
+static void route_csrf(dashboard *d, http_conn *c, const dash_who *w) {
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddStringToObject(o, "csrf", d->csrf);
+    cJSON_AddBoolToObject(o, "read_only", d->o.read_only);
+    cJSON_AddBoolToObject(o, "priority", d->src.priority != NULL);
+    cJSON_AddBoolToObject(o, "cancel", d->src.cancel != NULL);
+    if (w->user[0]) cJSON_AddStringToObject(o, "user", w->user);
+    else cJSON_AddNullToObject(o, "user");
+    cJSON_AddBoolToObject(o, "admin", w->cls == AUTH_ADMIN);
+    send_json(c, o);
+}
+
+/* GET /api/jobs/N/REST: the preview, the image and the log; 0, or -1 when
+ * REST is none of those. Pixels only for who may_view them (the log, as
+ * `tessera logs`, for anyone signed in). */
+static int route_job_get(dashboard *d, http_conn *c, const http_request *rq, const dash_who *w) {
+    uint32_t id;
+    const char *rest;
+    if (strncmp(rq->path, "/api/jobs/", 10) != 0 || parse_job_path(rq->path, &id, &rest)) return -1;
+    if (strcmp(rest, "log") == 0) return route_log(d, c, id, rq->query), 0;
+    int preview = strcmp(rest, "preview.png") == 0, exr = strcmp(rest, "image.exr") == 0;
+    if (!preview && !exr && strcmp(rest, "image.png") != 0) return -1;
+    char owner[128], err[300];
+    if (!job_owner(d, id, owner, sizeof owner) && !may_view(d, w, owner)) {
+        snprintf(err, sizeof err, "job %u belongs to %s: only they, or the admin token, may see its pixels\n", id,
+                 owner);
+        return send_text(c, 403, err), 0;
+    }
+    if (preview) route_preview(d, c, id, rq->query);
+    else route_download(d, c, id, rq->query, exr);
+    return 0;
+}
+
 static void on_request(void *ctx, http_conn *c, const http_request *rq) {
     dashboard *d = ctx;
     d->requests++;
@@ -456,53 +569,24 @@ static void on_request(void *ctx, http_conn *c, const http_request *rq) {
     if (!host_ok(d, rq)) return send_text(c, 403, "this dashboard answers to loopback names only\n");
     if (strcmp(rq->path, "/healthz") == 0) return send_text(c, 200, "ok\n");
     if (strcmp(rq->path, "/login") == 0 && (get || post)) return route_login(d, c, rq);
-    auth_class cls = request_class(d, rq);
-    if (cls == AUTH_NONE) {
+    dash_who w = request_who(d, rq);
+    if (w.cls == AUTH_NONE) {
         if (get && strncmp(rq->path, "/api/", 5) != 0 && strcmp(rq->path, "/metrics") != 0)
             return http_respond(c, 303, "text/plain", "", 0, "Location: /login\r\n");
         return http_respond(c, 401, "text/plain; charset=utf-8", "401 token required\n", 19,
                             "WWW-Authenticate: Bearer realm=\"tessera\"\r\n");
     }
-    if (post) {
-        if (d->o.read_only) return send_text(c, 403, "read-only dashboard\n");
-        if (!origin_ok(rq) || strlen(rq->csrf) != AUTH_HEX - 1 || sodium_memcmp(rq->csrf, d->csrf, AUTH_HEX - 1))
-            return send_text(c, 403, "missing or wrong CSRF token\n");
-        uint32_t id;
-        const char *rest;
-        if (strncmp(rq->path, "/api/jobs/", 10) != 0 || parse_job_path(rq->path, &id, &rest) ||
-            (strcmp(rest, "priority") != 0 && strcmp(rest, "cancel") != 0))
-            return send_text(c, 404, "not found\n");
-        if (cls != AUTH_ADMIN && changes_need_admin(d))
-            return send_text(c, 403, "changing a job from the dashboard needs the admin token\n");
-        if (strcmp(rest, "priority") == 0) return route_priority(d, c, id, rq);
-        char err[300] = "cancel is not offered here";
-        if (!d->src.cancel || d->src.cancel(d->src.ctx, id, err, sizeof err)) return send_text(c, 409, err);
-        return send_text(c, 200, "cancelled\n");
-    }
+    if (post) return route_change(d, c, rq, &w);
     if (!get) return http_respond(c, 405, "text/plain", "405\n", 4, "Allow: GET, POST\r\n");
     if (strcmp(rq->path, "/metrics") == 0) return route_metrics(d, c);
-    if (strcmp(rq->path, "/api/jobs") == 0) return send_json(c, jobs_array(d));
+    if (strcmp(rq->path, "/api/jobs") == 0) return route_jobs(d, c, &w);
     if (strcmp(rq->path, "/api/workers") == 0) return route_workers(d, c);
     if (strcmp(rq->path, "/api/events") == 0) {
         http_stream_start(c);
         return;
     }
-    if (strcmp(rq->path, "/api/csrf") == 0) {
-        cJSON *o = cJSON_CreateObject();
-        cJSON_AddStringToObject(o, "csrf", d->csrf);
-        cJSON_AddBoolToObject(o, "read_only", d->o.read_only);
-        cJSON_AddBoolToObject(o, "priority", d->src.priority != NULL);
-        cJSON_AddBoolToObject(o, "cancel", d->src.cancel != NULL);
-        return send_json(c, o);
-    }
-    uint32_t id;
-    const char *rest;
-    if (strncmp(rq->path, "/api/jobs/", 10) == 0 && !parse_job_path(rq->path, &id, &rest)) {
-        if (strcmp(rest, "preview.png") == 0) return route_preview(d, c, id, rq->query);
-        if (strcmp(rest, "image.png") == 0 || strcmp(rest, "image.exr") == 0)
-            return route_download(d, c, id, rq->query, rest[6] == 'e');
-        if (strcmp(rest, "log") == 0) return route_log(d, c, id, rq->query);
-    }
+    if (strcmp(rq->path, "/api/csrf") == 0) return route_csrf(d, c, &w);
+    if (route_job_get(d, c, rq, &w) == 0) return;
     if (strcmp(rq->path, "/") == 0 || strcmp(rq->path, "/workers") == 0 || strncmp(rq->path, "/job/", 5) == 0)
         return http_respond(c, 200, "text/html; charset=utf-8", web_index_html, strlen(web_index_html),
                             "Content-Security-Policy: default-src 'self'; script-src 'unsafe-inline'; "

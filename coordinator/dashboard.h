@@ -33,7 +33,8 @@
 typedef struct {
     /* Append one object per job to arr: id, name, state, tiles_done,
      * tiles_total, samples, priority, width, height, spp, submitted,
-     * started, finished (epoch seconds, 0 when not yet), submitter. */
+     * started, finished (epoch seconds, 0 when not yet), submitter, and
+     * owner when it has one. */
     void (*jobs)(void *ctx, cJSON *arr);
     /* The job's frame, width * height * 3 floats (valid until the next
      * callback), or -1 when there is none. *owned: the caller frees it. */
@@ -51,6 +52,10 @@ typedef struct {
      * lines, 0: all), or -1 when there is no such job. NULL: the page
      * shows only the events it sees live. */
     int (*log)(void *ctx, uint32_t id, int last, cJSON *out);
+    /* The job's owner, the name of the client that submitted it, into
+     * owner ("" when it has none). 0, or -1 when there is no such job.
+     * NULL: jobs have no owners (anyone signed in may see and change any). */
+    int (*owner)(void *ctx, uint32_t id, char *owner, size_t len);
     /* 0: the dashboard takes the farm's event callback; 1: the source
      * keeps it and hands each event on with dashboard_farm_event. */
     int forwards_events;

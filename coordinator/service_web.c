@@ -25,6 +25,7 @@ static void web_jobs(void *ctx, cJSON *arr) {
         cJSON_AddNumberToObject(o, "spp", j->desc.spp);
         cJSON_AddNumberToObject(o, "submitted", j->submitted);
         cJSON_AddStringToObject(o, "submitter", j->submitter);
+        if (j->owner[0]) cJSON_AddStringToObject(o, "owner", j->owner);
         cJSON_AddNumberToObject(o, "started", j->started);
         cJSON_AddNumberToObject(o, "finished", j->state == SJOB_RUNNING ? 0 : j->finished);
         cJSON_AddNumberToObject(o, "now", now);
@@ -84,6 +85,13 @@ static int web_priority(void *ctx, uint32_t id, int priority, char *err, size_t 
     return store_set_priority(ctx, id, priority, "the dashboard", err, err_len);
 }
 
+static int web_owner(void *ctx, uint32_t id, char *owner, size_t len) {
+    sjob *j = store_find_job(ctx, id);
+    if (!j) return -1;
+    snprintf(owner, len, "%s", j->owner);
+    return 0;
+}
+
 static int web_log(void *ctx, uint32_t id, int last, cJSON *out) {
     sjob *j = store_find_job(ctx, id);
     return j ? joblog_to_json(j->log, out, last) : -1;
@@ -114,7 +122,8 @@ int service_web_start(service *s, char *err, size_t err_len) {
     dashboard_options o = *s->o.http;
     o.auth = &s->o.farm.auth;
     dashboard_source src = {.jobs = web_jobs, .frame = web_frame, .image = web_image, .cancel = web_cancel,
-                            .priority = web_priority, .log = web_log, .forwards_events = 1, .ctx = s};
+                            .priority = web_priority, .log = web_log, .owner = web_owner, .forwards_events = 1,
+                            .ctx = s};
     s->web = dashboard_new(&s->loop, s->f, &o, &src, err, err_len);
     if (!s->web) return -1;
     svc_log("dashboard on http://%s:%d/%s", o.host ? o.host : "127.0.0.1", dashboard_port(s->web),

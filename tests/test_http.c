@@ -8,6 +8,7 @@
  * finished Cornell box's job page (red wall on the left).
  * Every wait is bounded. */
 #include <arpa/inet.h>
+#include <cjson/cJSON.h>
 #include <ctype.h>
 #include <errno.h>
 #include <netinet/in.h>
@@ -463,38 +464,82 @@ TEST(http_dashboard_client_and_admin_tokens) {
     web_stop(&w);
 }
 
-/* --client-tokens: a user's own token opens the dashboard too, but a page
- * session is no user's, so changing a job there needs the admin token
- * even when none is configured (else any user could cancel another's job
- * from the page). */
+/* In the dashboard's job list text: job id's "view" (1) and "change" (2)
+ * rights added up, or -1 when the job or either field is missing. */
+static int job_rights(const char *text, int id) {
+    cJSON *arr = cJSON_Parse(web_body(text)), *j;
+    int r = -1;
+    cJSON_ArrayForEach(j, arr) {
+        const cJSON *i = cJSON_GetObjectItemCaseSensitive(j, "id");
+        const cJSON *v = cJSON_GetObjectItemCaseSensitive(j, "view"), *c = cJSON_GetObjectItemCaseSensitive(j, "change");
+        if (cJSON_IsNumber(i) && i->valueint == id && cJSON_IsBool(v) && cJSON_IsBool(c))
+            r = cJSON_IsTrue(v) + 2 * cJSON_IsTrue(c);
+    }
+    cJSON_Delete(arr);
+    return r;
+}
+
+/* --client-tokens: a user's own token opens the dashboard as that user:
+ * they may change and see the pixels of their own jobs, not another
+ * user's (as `tessera cancel` and `fetch` allow); the shared client token,
+ * which names no one, may change nothing while users exist; SIGHUP ends a
+ * session whose token is gone. */
 TEST(http_dashboard_user_tokens) {
-    char wt[300], dir[300], alice[400];
+    char wt[300], ct[300], dir[300], alice[400], bob[400];
     snprintf(wt, sizeof wt, "%s", util_write_temp("web-users-worker-token", "web-users-worker-secret\n"));
+    snprintf(ct, sizeof ct, "%s", util_write_temp("web-users-client-token", "web-users-shared-secret\n"));
     snprintf(dir, sizeof dir, "%s", util_temp_path("web-users.d"));
     mkdir(dir, 0700);
     snprintf(alice, sizeof alice, "%s/alice.token", dir);
+    snprintf(bob, sizeof bob, "%s/bob.token", dir);
     FILE *f = fopen(alice, "w");
     if (f) fputs("web-alice-secret\n", f), fclose(f);
-    const char *extra[] = {"--worker-token-file", wt, "--client-tokens", dir, NULL};
+    f = fopen(bob, "w");
+    if (f) fputs("web-bob-secret\n", f), fclose(f);
+    const char *extra[] = {"--worker-token-file", wt, "--client-token-file", ct, "--client-tokens", dir, NULL};
     web w;
     if (web_start(&w, "http-users", 0, extra)) {
         CHECK(0, "coordinator did not start; log %s", w.log);
         return;
     }
     static char out[1 << 16];
-    CHECK(web_get(w.http, "/api/jobs", "Authorization: Bearer web-alice-secret\r\n", out, sizeof out) == 200,
-          "alice's bearer token: %.100s", out);
-    CHECK(web_get(w.http, "/api/jobs", "Authorization: Bearer web-bob-secret\r\n", out, sizeof out) == 401,
+    char args[1200];
+    /* No worker: jobs 1 (alice's) and 2 (bob's) stay queued. */
+    snprintf(args, sizeof args, SCENE " --client-name alice --token-file %s", alice);
+    CHECK(submit(&w, args, out, sizeof out) == 0, "alice's submit: %s", out);
+    snprintf(args, sizeof args, SCENE " --client-name bob --token-file %s", bob);
+    CHECK(submit(&w, args, out, sizeof out) == 0, "bob's submit: %s", out);
+    CHECK(web_get(w.http, "/api/jobs", "Authorization: Bearer web-carol-secret\r\n", out, sizeof out) == 401,
           "a token no one has opened the dashboard: %.100s", out);
     char csrf[128], hdr[600];
     CHECK(web_session(&w, "web-alice-secret", hdr, sizeof hdr, csrf, sizeof csrf) == 0,
           "login with alice's token: %.200s", hdr);
-    CHECK(web_post(w.http, "/api/jobs/1/cancel", hdr, "", out, sizeof out) == 403 && strstr(out, "admin token"),
-          "cancel with a user's session: %.200s", out);
-    /* alice's file goes: at the SIGHUP her session ends with her token. */
     char cookie[300];
     snprintf(cookie, sizeof cookie, "%.*s\r\n", (int)(strstr(hdr, "\r\n") - hdr), hdr);
-    CHECK(web_get(w.http, "/api/jobs", cookie, out, sizeof out) == 200, "alice's session: %.100s", out);
+    CHECK(web_get(w.http, "/api/csrf", cookie, out, sizeof out) == 200 && strstr(out, "\"user\":\"alice\""),
+          "the page is not told who signed in: %.200s", out);
+    CHECK(web_get(w.http, "/api/jobs", cookie, out, sizeof out) == 200 && job_rights(out, 1) == 3 &&
+              job_rights(out, 2) == 0,
+          "alice's rights per job (view and change: 3 for her job 1, 0 for bob's 2): %.600s", out);
+    CHECK(web_get(w.http, "/api/jobs/2/preview.png", cookie, out, sizeof out) == 403 && strstr(out, "belongs to bob"),
+          "alice saw bob's pixels: %.200s", out);
+    CHECK(web_get(w.http, "/api/jobs/1/preview.png", cookie, out, sizeof out) != 403, "alice's own preview: %.100s",
+          out);
+    CHECK(web_post(w.http, "/api/jobs/2/cancel", hdr, "", out, sizeof out) == 403 && strstr(out, "belongs to bob"),
+          "alice cancelled bob's job: %.200s", out);
+    CHECK(web_post(w.http, "/api/jobs/1/priority", hdr, "priority=5", out, sizeof out) == 200,
+          "alice could not reprioritise her own job: %.200s", out);
+    CHECK(web_post(w.http, "/api/jobs/1/cancel", hdr, "", out, sizeof out) == 200, "alice could not cancel her job: %.200s",
+          out);
+    /* The shared client token names no one: it watches, changes nothing. */
+    char shdr[600], scsrf[128];
+    CHECK(web_session(&w, "web-users-shared-secret", shdr, sizeof shdr, scsrf, sizeof scsrf) == 0,
+          "login with the shared client token: %.200s", shdr);
+    CHECK(web_post(w.http, "/api/jobs/2/cancel", shdr, "", out, sizeof out) == 403 && strstr(out, "admin token"),
+          "the shared client token cancelled a user's job: %.200s", out);
+    CHECK(web_get(w.http, "/api/jobs/2/image.exr", shdr, out, sizeof out) == 403,
+          "the shared client token fetched a user's image: %.100s", out);
+    /* alice's file goes: at the SIGHUP her session ends with her token. */
     unlink(alice);
     kill(w.pid, SIGHUP);
     CHECK(util_wait_for_text(w.log, "SIGHUP: token files re-read", LONG) == 0, "no reload; log %s", w.log);
