@@ -2,6 +2,7 @@
  * lines that grows by doubling up to JOBLOG_MAX, then overwrites the
  * oldest; and its file, appended a batch at a time by one pool job in
  * flight (open, write, close), read back after a restart. */
+#define _GNU_SOURCE /* memrchr */
 #include "joblog.h"
 
 #include <errno.h>
@@ -244,6 +245,22 @@ static void ring_add_text(joblog *l, const char *text, size_t len) {
     }
 }
 
+/* The start of the last max whole lines of text[0, len) (lines end in
+ * '\n'; what follows the last one is no line), and how many lines come
+ * before it into *before. */
+static const char *last_lines(const char *text, size_t len, int max, uint64_t *before) {
+    const char *nl = len ? memrchr(text, '\n', len) : NULL, *start = text;
+    size_t pos = nl ? (size_t)(nl - text) : 0; /* the last line's newline */
+    for (int n = 0; nl && n < max; n++) {
+        nl = memrchr(text, '\n', pos);
+        if (nl) pos = (size_t)(nl - text), start = nl + 1;
+        else start = text;
+    }
+    *before = 0;
+    for (const char *p = text; p < start && (p = memchr(p, '\n', (size_t)(start - p))); p++) (*before)++;
+    return start;
+}
+
 /* After a restart: the ring made anew from the file (the earlier run's
  * lines and this run's written so far), then the batch in flight and the
  * pending lines, which are this run's latest. Unreadable: the ring stays
@@ -265,9 +282,14 @@ static void read_back(joblog *l) {
         const char *nl = memchr(text, '\n', len);
         from = nl ? nl + 1 : text + len;
     }
+    /* Only the last JOBLOG_MAX lines can stay in the ring: those before are
+     * counted as dropped, not parsed (a 4 MiB file: 10-15 ms on the loop
+     * parsed whole, 2 ms this way; tests/test_joblog.c). */
+    uint64_t before;
+    const char *last = last_lines(from, len - (size_t)(from - text), JOBLOG_MAX, &before);
     l->count = l->head = 0;
-    l->dropped = 0;
-    ring_add_text(l, from, len - (size_t)(from - text));
+    l->dropped = before;
+    ring_add_text(l, last, len - (size_t)(last - text));
     ring_add_text(l, l->batch.data, l->batch.len);
     ring_add_text(l, l->pending.data, l->pending.len);
     free(text);

@@ -105,6 +105,15 @@ TEST(joblog_damaged_file_reads_back_what_parses) {
     CHECK(uv_loop_close(&loop) == 0, "requests left on the loop");
 }
 
+/* Lines (newlines) in the file at path, or -1. */
+static long count_lines(const char *path) {
+    FILE *f = fopen(path, "rb");
+    long n = f ? 0 : -1;
+    for (int c; f && (c = getc(f)) != EOF;) n += c == '\n';
+    if (f) fclose(f);
+    return n;
+}
+
 TEST(joblog_file_is_bounded_and_memory_keeps_the_last_lines) {
     uv_loop_t loop;
     uv_loop_init(&loop);
@@ -128,7 +137,12 @@ TEST(joblog_file_is_bounded_and_memory_keeps_the_last_lines) {
     l = joblog_new(); /* restart: the file's last JOBLOG_MAX lines */
     CHECK(joblog_persist(l, &loop, path, 1, err, sizeof err) == 0, "%s", err);
     lines_of(l, got, sizeof got, &dropped);
-    CHECK(joblog_count(l) == JOBLOG_MAX && dropped > 0, "%d lines read back, %g dropped", joblog_count(l), dropped);
+    long in_file = count_lines(path);
+    char first[64];
+    snprintf(first, sizeof first, "line %07ld of", in_file - JOBLOG_MAX);
+    CHECK(joblog_count(l) == JOBLOG_MAX && dropped == (double)(in_file - JOBLOG_MAX) && strncmp(got, first, 15) == 0,
+          "%d lines read back, %g dropped, of %ld in the file; first %.30s, expected %s", joblog_count(l), dropped,
+          in_file, got, first);
     joblog_free(l);
     /* A file larger than the bound (not one this code writes): its last
      * JOBLOG_FILE_MAX bytes are read, from the first whole line. */
