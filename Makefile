@@ -317,7 +317,8 @@ FUZZ_TARGETS += http
 # check run when these are present and print a skip line otherwise.
 DEB_PACKAGES += chromium python3-prometheus-client
 fuzz: $(FUZZ_BUILD)/fuzz_http
-$(FUZZ_BUILD)/fuzz_http: tests/fuzz/fuzz_http.c $(FUZZ_BUILD)/coordinator/http.o $(FUZZ_COMMON_OBJ)
+$(FUZZ_BUILD)/fuzz_http: tests/fuzz/fuzz_http.c $(FUZZ_BUILD)/coordinator/http.o $(FUZZ_BUILD)/coordinator/connlimit.o \
+                         $(FUZZ_COMMON_OBJ)
 	clang $(FUZZ_CFLAGS) -fsanitize=fuzzer -o $@ $^ $(LDLIBS)
 
 # ---- Reliability (issue 20, issue 18 item 3) --------------------------------

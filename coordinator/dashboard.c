@@ -327,6 +327,8 @@ static void route_metrics(dashboard *d, http_conn *c) {
         {"tessera_http_requests_total", "HTTP requests answered by the dashboard.", d->requests},
         {"tessera_http_streams_dropped_total", "Event streams dropped for falling behind.",
          http_server_dropped(d->http)},
+        {"tessera_http_refused_total", "HTTP connections refused (503) over the per-address or total cap.",
+         http_server_refused(d->http)},
     };
     for (size_t i = 0; i < sizeof counters / sizeof counters[0]; i++)
         sb_printf(&b, "# HELP %s %s\n# TYPE %s counter\n%s %llu\n", counters[i].name, counters[i].help,

@@ -9,6 +9,7 @@
 #include <ctype.h>
 #include <strings.h>
 
+#include "connlimit.h"
 #include "list.h"
 #include "net/blob.h"
 
@@ -214,6 +215,8 @@ struct http_conn {
     uv_timer_t idle;
     http_reqparser *rp;
     int streaming, closing, answered;
+    int counted;   /* in s->limits under ip */
+    char ip[64];
     LIST_ENTRY(http_conn) link;
 };
 
@@ -224,7 +227,8 @@ struct http_server {
     http_handler handler;
     void *ctx;
     int port, conns, closing, open_handles;
-    uint64_t dropped;
+    uint64_t dropped, refused;
+    connlimit *limits; /* connections per address and in all */
     LIST_HEAD(, http_conn) all;
     void (*closed_cb)(void *);
     void *closed_ctx;
@@ -246,6 +250,7 @@ static void server_maybe_done(http_server *s) {
     if (s->closing && s->open_handles == 0 && s->conns == 0) {
         void (*cb)(void *) = s->closed_cb;
         void *ctx = s->closed_ctx;
+        connlimit_free(s->limits);
         free(s);
         if (cb) cb(ctx);
     }
@@ -258,6 +263,7 @@ static void conn_on_handle_closed(uv_handle_t *h) {
     if ((c->answered & 6) != 6) return;
     http_server *s = c->s;
     s->conns--;
+    if (c->counted) connlimit_release(s->limits, c->ip, CONNLIMIT_OPEN);
     free(c);
     server_maybe_done(s);
 }
@@ -430,6 +436,38 @@ static void conn_on_idle(uv_timer_t *t) {
     if (!(c->answered & 1)) conn_close(c);
 }
 
+/* The peer's address of c into c->ip ("" when unknown). */
+static void conn_peer_ip(http_conn *c) {
+    struct sockaddr_storage a;
+    int n = sizeof a;
+    c->ip[0] = '\0';
+    if (uv_tcp_getpeername(&c->tcp, (struct sockaddr *)&a, &n)) return;
+    if (a.ss_family == AF_INET6) uv_ip6_name((struct sockaddr_in6 *)&a, c->ip, sizeof c->ip);
+    else uv_ip4_name((struct sockaddr_in *)&a, c->ip, sizeof c->ip);
+}
+
+/* Count the new connection c under its address; over a cap (one address
+ * holding max_per_address, or max_conns in all: nginx's limit_conn), answer
+ * 503 naming the cap and close. Returns 0 (admitted), or -1 (refused). */
+static int conn_admit(http_conn *c) {
+    http_server *s = c->s;
+    char why[200], text[300];
+    conn_peer_ip(c);
+    if (connlimit_admit(s->limits, c->ip, why, sizeof why) == 0) {
+        c->counted = 1;
+        return 0;
+    }
+    s->refused++;
+    if (connlimit_last_kind(s->limits) == 1)
+        snprintf(text, sizeof text, "503 too many connections: %s has %d open to this dashboard (at most %d)\n", c->ip,
+                 s->o.max_per_address, s->o.max_per_address);
+    else
+        snprintf(text, sizeof text, "503 too many connections: this dashboard has %d open (at most %d)\n", s->o.max_conns,
+                 s->o.max_conns);
+    http_respond(c, 503, "text/plain; charset=utf-8", text, strlen(text), "Retry-After: 1\r\n");
+    return -1;
+}
+
 static void server_on_connection(uv_stream_t *listener, int status) {
     http_server *s = listener->data;
     if (status < 0 || s->closing) return;
@@ -441,8 +479,12 @@ static void server_on_connection(uv_stream_t *listener, int status) {
     c->tcp.data = c->idle.data = c;
     s->conns++;
     LIST_INSERT_HEAD(&s->all, c, link);
-    if (uv_accept(listener, (uv_stream_t *)&c->tcp) || s->conns > s->o.max_conns ||
-        !(c->rp = malloc(sizeof *c->rp))) {
+    if (uv_accept(listener, (uv_stream_t *)&c->tcp)) {
+        conn_close(c);
+        return;
+    }
+    if (conn_admit(c)) return;
+    if (!(c->rp = malloc(sizeof *c->rp))) {
         conn_close(c);
         return;
     }
@@ -464,6 +506,13 @@ http_server *http_server_new(uv_loop_t *loop, const http_options *o, http_handle
     if (!s->o.max_request) s->o.max_request = 64 << 10;
     if (!s->o.max_headers) s->o.max_headers = 64;
     if (!s->o.max_conns) s->o.max_conns = 512;
+    if (!s->o.max_per_address) s->o.max_per_address = 64;
+    connlimit_caps caps = {.max_total = s->o.max_conns, .max_open = s->o.max_per_address};
+    if (!(s->limits = connlimit_new(&caps))) {
+        snprintf(err, err_len, "out of memory");
+        free(s);
+        return NULL;
+    }
     if (!(s->o.idle_s > 0)) s->o.idle_s = 10;
     if (!s->o.max_queue) s->o.max_queue = 256 << 10;
     s->handler = h;
@@ -474,6 +523,7 @@ http_server *http_server_new(uv_loop_t *loop, const http_options *o, http_handle
     if (rc) rc = uv_ip6_addr(o->host, o->port, (struct sockaddr_in6 *)&addr);
     if (rc) {
         snprintf(err, err_len, "cannot listen on %s:%d: not a numeric IPv4 or IPv6 address", o->host, o->port);
+        connlimit_free(s->limits);
         free(s);
         return NULL;
     }
@@ -485,6 +535,7 @@ http_server *http_server_new(uv_loop_t *loop, const http_options *o, http_handle
         snprintf(err, err_len, "cannot listen on %s:%d: %s", o->host, o->port, uv_strerror(rc));
         uv_close((uv_handle_t *)&s->listener, NULL);
         uv_run(loop, UV_RUN_NOWAIT);
+        connlimit_free(s->limits);
         free(s);
         return NULL;
     }
@@ -501,6 +552,8 @@ int http_server_port(const http_server *s) { return s->port; }
 int http_server_conns(const http_server *s) { return s->conns; }
 
 uint64_t http_server_dropped(const http_server *s) { return s->dropped; }
+
+uint64_t http_server_refused(const http_server *s) { return s->refused; }
 
 static void server_on_listener_closed(uv_handle_t *h) {
     http_server *s = h->data;

@@ -85,6 +85,7 @@ typedef struct {
     size_t max_request; /* default 64 KiB */
     int max_headers;    /* default 64 */
     int max_conns;      /* default 512 */
+    int max_per_address; /* connections from one address, default 64 (beyond: 503) */
     double idle_s;      /* default 10 s */
     size_t max_queue;   /* default 256 KiB (an event stream's socket buffer: 64 KiB) */
 } http_options;
@@ -111,6 +112,10 @@ int http_server_broadcast(http_server *s, const char *data, size_t len);
 /* Connections open now, and streams dropped for falling behind so far. */
 int http_server_conns(const http_server *s);
 uint64_t http_server_dropped(const http_server *s);
+
+/* Connections answered 503 and closed at once for being over max_conns or
+ * max_per_address. */
+uint64_t http_server_refused(const http_server *s);
 
 /* Close the listener and every connection; cb(ctx) runs when all are
  * closed and the server freed. */

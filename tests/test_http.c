@@ -779,3 +779,76 @@ TEST(http_dashboard_stalled_stream_dropped) {
     close(fd);
     web_stop(&w);
 }
+
+/* A connection to the dashboard from source address src (dotted IPv4),
+ * or -1. */
+static int web_connect_from(int port, const char *src) {
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    struct sockaddr_in b = {.sin_family = AF_INET}, a = {.sin_family = AF_INET, .sin_port = htons((uint16_t)port)};
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (fd < 0 || inet_pton(AF_INET, src, &b.sin_addr) != 1 || bind(fd, (struct sockaddr *)&b, sizeof b) ||
+        connect(fd, (struct sockaddr *)&a, sizeof a)) {
+        if (fd >= 0) close(fd);
+        return -1;
+    }
+    return fd;
+}
+
+/* GET path over a connection from source address src; the status (0:
+ * none) and the answer in out. */
+static int web_get_from(int port, const char *src, const char *path, char *out, size_t cap) {
+    int fd = web_connect_from(port, src);
+    size_t len = 0;
+    char req[300];
+    int n = snprintf(req, sizeof req, "GET %s HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n", path);
+    if (fd >= 0 && send(fd, req, (size_t)n, MSG_NOSIGNAL) != n) len = 0;
+    for (int waited = 0; fd >= 0 && waited < 5000 && len + 1 < cap;) {
+        struct pollfd p = {fd, POLLIN, 0};
+        if (poll(&p, 1, 100) <= 0) {
+            waited += 100;
+            continue;
+        }
+        ssize_t r = recv(fd, out + len, cap - 1 - len, 0);
+        if (r <= 0) break;
+        len += (size_t)r;
+    }
+    out[len] = '\0';
+    if (fd >= 0) close(fd);
+    int status = 0;
+    sscanf(out, "HTTP/1.1 %d", &status);
+    return status;
+}
+
+/* One address may hold at most 64 of the dashboard's connections (the
+ * total is 512): the 65th from 127.0.0.3 is answered 503 naming the
+ * address and the cap, while another address is still served, and the
+ * address is served again once its connections close. Without the cap,
+ * anyone who can reach the port could hold every slot by reconnecting
+ * within the 10 s request timeout. */
+TEST(http_dashboard_connections_per_address) {
+    web w;
+    if (web_start(&w, "http-peraddr", 0, NULL)) {
+        CHECK(0, "coordinator did not start; log %s", w.log);
+        return;
+    }
+    int held[64], n = 0;
+    for (int i = 0; i < 64; i++)
+        if ((held[n] = web_connect_from(w.http, "127.0.0.3")) >= 0) n++;
+    CHECK(n == 64, "only %d connections from 127.0.0.3", n);
+    static char out[1 << 16];
+    CHECK(web_get_from(w.http, "127.0.0.3", "/healthz", out, sizeof out) == 503 &&
+              strstr(out, "127.0.0.3 has 64 open to this dashboard (at most 64)"),
+          "the 65th connection from one address: %.300s", out);
+    CHECK(web_get(w.http, "/healthz", "", out, sizeof out) == 200, "another address was refused too: %.200s", out);
+    for (int i = 0; i < n; i++) close(held[i]);
+    int st = 0;
+    for (int tries = 0; tries < 50 && st != 200; tries++) {
+        usleep(20000);
+        st = web_get_from(w.http, "127.0.0.3", "/healthz", out, sizeof out);
+    }
+    CHECK(st == 200, "127.0.0.3 not served after closing its connections: %.200s", out);
+    web_get(w.http, "/metrics", "", out, sizeof out);
+    CHECK(metric(web_body(out), "tessera_http_refused_total") >= 1, "refusals not counted: %g",
+          metric(web_body(out), "tessera_http_refused_total"));
+    web_stop(&w);
+}
