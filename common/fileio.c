@@ -12,42 +12,48 @@
 #include "memhint.h"
 #include <unistd.h>
 
-char *file_read_all(const char *path, size_t max_len, size_t *len, char *err, size_t err_len) {
+long long file_read_with(const char *path, size_t max_len, file_alloc_cb alloc, void *ctx, char *err, size_t err_len) {
     FILE *f = fopen(path, "rb");
     if (!f) {
         snprintf(err, err_len, "%s: cannot open: %s", path, strerror(errno));
-        return NULL;
+        return -1;
     }
     struct stat st;
-    if (fstat(fileno(f), &st) != 0 || !S_ISREG(st.st_mode)) {
+    size_t n = 0;
+    char *buf;
+    int ok = 0;
+    if (fstat(fileno(f), &st) != 0 || !S_ISREG(st.st_mode))
         snprintf(err, err_len, "%s: not a regular file", path);
-        fclose(f);
-        return NULL;
-    }
-    if ((unsigned long long)st.st_size > max_len) {
-        snprintf(err, err_len, "%s: file is %lld bytes, more than the limit of %zu", path,
-                 (long long)st.st_size, max_len);
-        fclose(f);
-        return NULL;
-    }
-    size_t n = (size_t)st.st_size;
-    char *buf = malloc(n + 1);
-    memhint_huge(buf, n + 1);
-    if (!buf) {
+    else if ((unsigned long long)st.st_size > max_len)
+        snprintf(err, err_len, "%s: file is %lld bytes, more than the limit of %zu", path, (long long)st.st_size,
+                 max_len);
+    else if (n = (size_t)st.st_size, !(buf = alloc(n, ctx)))
         snprintf(err, err_len, "%s: out of memory reading %zu bytes", path, n);
-        fclose(f);
-        return NULL;
-    }
-    size_t got = fread(buf, 1, n, f);
-    int read_error = ferror(f);
-    fclose(f);
-    if (got != n || read_error) {
+    else if (fread(buf, 1, n, f) != n || ferror(f))
         snprintf(err, err_len, "%s: read error", path);
+    else
+        ok = 1;
+    fclose(f);
+    return ok ? (long long)n : -1;
+}
+
+/* file_read_all's room: the length and a NUL, on huge pages where it pays. */
+static void *alloc_plain(size_t len, void *ctx) {
+    char **out = ctx;
+    *out = malloc(len + 1);
+    if (*out) memhint_huge(*out, len + 1);
+    return *out;
+}
+
+char *file_read_all(const char *path, size_t max_len, size_t *len, char *err, size_t err_len) {
+    char *buf = NULL;
+    long long n = file_read_with(path, max_len, alloc_plain, &buf, err, err_len);
+    if (n < 0) {
         free(buf);
         return NULL;
     }
     buf[n] = '\0';
-    *len = n;
+    *len = (size_t)n;
     return buf;
 }
 

@@ -11,6 +11,18 @@
  * "PATH: reason" to err. */
 char *file_read_all(const char *path, size_t max_len, size_t *len, char *err, size_t err_len);
 
+/* Where file_read_with puts a file of len bytes: len writable bytes, or
+ * NULL when out of memory. ctx is file_read_with's. */
+typedef void *(*file_alloc_cb)(size_t len, void *ctx);
+
+/* file_read_all into memory of the caller's: open path, refuse anything
+ * but a regular file of at most max_len bytes, ask alloc for room for its
+ * bytes and read them there (so that a caller who wants them behind a
+ * header of its own does not copy them). What alloc returned is the
+ * caller's, also on failure. Returns the file's length, or -1 with "PATH:
+ * reason" in err. */
+long long file_read_with(const char *path, size_t max_len, file_alloc_cb alloc, void *ctx, char *err, size_t err_len);
+
 /* Replace the file at path with len bytes of data, atomically and durably:
  * written to a unique temporary file in the same folder (mode 0666 less the
  * umask), synced, renamed over path, and the folder synced, so that after a

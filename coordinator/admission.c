@@ -50,15 +50,26 @@ typedef struct {
     char err[600];
 } admit_read;
 
-/* On the pool: read the scene and frame it (the read buffer and the frame
- * exist together for a moment: up to twice --max-upload). */
+/* file_read_with's room for the scene: the body of a frame (*ctx, a
+ * conn_blob pointer), so that the scene is read straight into the frame
+ * the workers are sent. */
+static void *alloc_frame(size_t len, void *ctx) {
+    conn_blob **b = ctx;
+    *b = len < UINT32_MAX ? conn_blob_new(WIRE_HEADER_BYTES + len) : NULL;
+    return *b ? (*b)->data + WIRE_HEADER_BYTES : NULL;
+}
+
+/* On the pool: read the scene into its frame (held once: before, the read
+ * buffer and a copy of it as the frame were held together for a moment,
+ * up to twice --max-upload). */
 static void admit_read_work(uv_work_t *w) {
     admit_read *a = w->data;
-    size_t len = 0;
-    char *bundle = file_read_all(a->path, a->max_len, &len, a->err, sizeof a->err);
-    if (bundle && !(a->framed = conn_blob_frame(WIRE_KIND_SCENE, (const uint8_t *)bundle, len)))
-        snprintf(a->err, sizeof a->err, "out of memory for the scene's %zu bytes", len);
-    free(bundle);
+    if (file_read_with(a->path, a->max_len, alloc_frame, &a->framed, a->err, sizeof a->err) < 0) {
+        conn_blob_unref(a->framed);
+        a->framed = NULL;
+        return;
+    }
+    conn_blob_set_frame_header(a->framed, WIRE_KIND_SCENE);
 }
 
 /* Back on the loop: start the job unless it was cancelled (or the service

@@ -1,5 +1,5 @@
-/* test_fileio.c - the one atomic write: replaces whole, leaves no temporary,
- * names the file when it cannot write. */
+/* test_fileio.c - the one atomic write (replaces whole, leaves no temporary,
+ * names the file when it cannot write) and reads into the caller's memory. */
 #include <dirent.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -44,4 +44,37 @@ TEST(fileio_atomic_write_names_the_file_it_cannot_write) {
     const char *path = "/nonexistent-folder-tessera/x.bin";
     CHECK(file_write_atomic(path, "x", 1, err, sizeof err) == -1, "a write into a missing folder succeeded");
     CHECK(strstr(err, path) && strstr(err, "cannot write") && strstr(err, "No such file"), "error: %s", err);
+}
+
+/* file_read_with's room: 8 bytes of header then the file (ctx: a buffer of
+ * 64 bytes), counting its calls in the buffer's first byte. */
+static void *room_behind_header(size_t len, void *ctx) {
+    unsigned char *b = ctx;
+    b[0]++;
+    return len <= 56 ? b + 8 : NULL;
+}
+
+/* file_read_with reads the file into the caller's room once, in place (what
+ * admission uses to read a scene straight into its frame), and refuses
+ * what file_read_all refuses, naming the file. */
+TEST(fileio_read_with_reads_into_the_callers_room) {
+    char path[300], err[700] = "";
+    unsigned char buf[64] = {0};
+    snprintf(path, sizeof path, "%s", util_write_temp("read-with.txt", "scene bytes"));
+    CHECK(file_read_with(path, 100, room_behind_header, buf, err, sizeof err) == 11 && buf[0] == 1 &&
+              memcmp(buf + 8, "scene bytes", 11) == 0,
+          "read: %d calls, %.11s; %s", buf[0], (const char *)buf + 8, err);
+    CHECK(file_read_with(path, 10, room_behind_header, buf, err, sizeof err) == -1 && strstr(err, path) &&
+              strstr(err, "more than the limit of 10") && buf[0] == 1,
+          "a file over the limit: %s (%d calls)", err, buf[0]);
+    char big[100];
+    memset(big, 'x', sizeof big - 1);
+    big[sizeof big - 1] = '\0';
+    snprintf(path, sizeof path, "%s", util_write_temp("read-with-big.txt", big));
+    CHECK(file_read_with(path, 1000, room_behind_header, buf, err, sizeof err) == -1 && strstr(err, "out of memory") &&
+              strstr(err, path),
+          "no room: %s", err);
+    CHECK(file_read_with("/", 1000, room_behind_header, buf, err, sizeof err) == -1 &&
+              strstr(err, "not a regular file"),
+          "a folder: %s", err);
 }

@@ -28,6 +28,11 @@ conn_blob *conn_blob_new(size_t len);
  * does not fit a frame's 32-bit length. */
 conn_blob *conn_blob_frame(int kind, const uint8_t *body, size_t len);
 
+/* Write the header of a frame of the given kind at the start of b, whose
+ * body (b->len - WIRE_HEADER_BYTES bytes, less than UINT32_MAX) is already
+ * in place behind it: conn_blob_frame without the copy. Can't fail. */
+void conn_blob_set_frame_header(conn_blob *b, int kind);
+
 /* Drop one reference; the last frees b. NULL is fine. */
 void conn_blob_unref(conn_blob *b);
 
