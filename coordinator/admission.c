@@ -48,6 +48,10 @@ typedef struct {
     size_t max_len;
     conn_blob *framed; /* the scene as a frame, or NULL with err */
     char err[600];
+    int width, height, tile_size, tile_count;
+    char journal[4096];
+    store_resume resume; /* prepared, or -1 in prepared: out of memory */
+    int prepared;
 } admit_read;
 
 /* file_read_with's room for the scene: the body of a frame (*ctx, a
@@ -61,7 +65,8 @@ static void *alloc_frame(size_t len, void *ctx) {
 
 /* On the pool: read the scene into its frame (held once: before, the read
  * buffer and a copy of it as the frame were held together for a moment,
- * up to twice --max-upload). */
+ * up to twice --max-upload) and replay the job's journal, however long,
+ * off the loop. */
 static void admit_read_work(uv_work_t *w) {
     admit_read *a = w->data;
     if (file_read_with(a->path, a->max_len, alloc_frame, &a->framed, a->err, sizeof a->err) < 0) {
@@ -70,6 +75,7 @@ static void admit_read_work(uv_work_t *w) {
         return;
     }
     conn_blob_set_frame_header(a->framed, WIRE_KIND_SCENE);
+    a->prepared = store_resume_prepare(a->journal, a->width, a->height, a->tile_size, a->tile_count, &a->resume);
 }
 
 /* Back on the loop: start the job unless it was cancelled (or the service
@@ -81,11 +87,13 @@ static void admit_read_done(uv_work_t *w, int status) {
     if (status == 0 && !a->s->stopping && j->state == SJOB_RUNNING) {
         const uint8_t *bundle = a->framed ? a->framed->data + WIRE_HEADER_BYTES : NULL;
         size_t len = a->framed ? a->framed->len - WIRE_HEADER_BYTES : 0;
-        if (store_job_resume_with(a->s, j, bundle, len, a->framed, a->err)) /* the failure is recorded in the job */
+        store_resume *r = a->framed && a->prepared == 0 ? &a->resume : NULL;
+        if (store_job_resume_with(a->s, j, bundle, len, a->framed, a->err, r)) /* the failure is recorded in the job */
             svc_memory_released(a->s); /* its need no longer counts, though it may never have held a frame */
     } else {
         svc_memory_released(a->s); /* its need no longer counts */
     }
+    store_resume_free(&a->resume); /* what the job did not take (zeroed when nothing was prepared) */
     conn_blob_unref(a->framed);
     free(a);
 }
@@ -108,6 +116,9 @@ void svc_admit_waiting(service *s) {
         a->max_len = s->o.max_upload;
         a->work.data = a;
         store_scene_path(s, j, a->path, sizeof a->path);
+        store_job_path(s, j->desc.id, "tiles", a->journal, sizeof a->journal);
+        a->width = j->desc.width, a->height = j->desc.height;
+        a->tile_size = j->tile_size, a->tile_count = j->tile_count;
         if (uv_queue_work(&s->loop, &a->work, admit_read_work, admit_read_done)) {
             free(a);
             j->admitting = 0;

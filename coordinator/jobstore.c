@@ -409,21 +409,37 @@ int store_running_jobs(const service *s) {
     return n;
 }
 
-/* Replay jobs/ID.tiles into j->rgb; a torn or corrupt tail is cut off. */
-static void replay_tiles(service *s, sjob *j, const tile_rect *rects) {
-    char path[4096], err[512];
-    store_job_path(s, j->desc.id, "tiles", path, sizeof path);
+int store_resume_prepare(const char *journal, int width, int height, int tile_size, int tile_count, store_resume *r) {
+    memset(r, 0, sizeof *r);
+    snprintf(r->journal, sizeof r->journal, "%s", journal);
+    tile_rect *rects = calloc((size_t)tile_count, sizeof *rects);
+    r->rgb = calloc((size_t)width * (size_t)height * 3, sizeof(float));
+    r->journaled = calloc((size_t)tile_count, 1);
+    char err[512], *data = NULL;
     size_t len = 0;
-    char *data = file_read_all(path, (size_t)1 << 40, &len, err, sizeof err);
-    if (!data) return; /* no journal yet */
-    film f = {j->rgb, j->desc.width, j->desc.height, 3};
-    size_t off = journal_replay((const uint8_t *)data, len, rects, j->tile_count, &f, j->journaled, &j->tiles_resumed);
-    if (off < len) {
-        svc_log("job %u: %s: dropping %zu bytes of a torn or corrupt record at the end", j->desc.id, path, len - off);
-        if (truncate(path, (off_t)off) != 0) svc_log("%s: cannot truncate: %s", path, strerror(errno));
+    if (!rects || !r->rgb || !r->journaled) {
+        free(rects);
+        store_resume_free(r);
+        return -1;
+    }
+    render_split_tiles(width, height, tile_size, rects, tile_count);
+    if ((data = file_read_all(journal, (size_t)1 << 40, &len, err, sizeof err))) { /* NULL: no journal yet */
+        film f = {r->rgb, width, height, 3};
+        r->journal_len = len;
+        r->journal_good = journal_replay((const uint8_t *)data, len, rects, tile_count, &f, r->journaled,
+                                         &r->tiles_resumed);
+        if (r->journal_good < len && truncate(journal, (off_t)r->journal_good) != 0) r->truncate_errno = errno;
     }
     free(data);
-    j->tiles_done = j->tiles_resumed;
+    free(rects);
+    return 0;
+}
+
+void store_resume_free(store_resume *r) {
+    free(r->rgb);
+    free(r->journaled);
+    r->rgb = NULL;
+    r->journaled = NULL;
 }
 
 /* Read one job file; resume it if it was running. */
@@ -498,36 +514,36 @@ static void load_job(service *s, const char *file) {
 }
 
 int store_job_resume_with(service *s, sjob *j, const uint8_t *bundle, size_t len, conn_blob *framed,
-                          const char *read_err) {
+                          const char *read_err, store_resume *r) {
     char err[600];
-    const proto_job d = j->desc;
-    tile_rect *rects = calloc((size_t)j->tile_count, sizeof *rects);
-    j->rgb = calloc((size_t)d.width * (size_t)d.height * 3, sizeof(float));
-    j->journaled = calloc((size_t)j->tile_count, 1);
-    int rc = 0;
-    if (!bundle || !rects || !j->rgb || !j->journaled) {
+    if (!bundle || !r || !r->rgb) {
         j->state = SJOB_FAILED;
         snprintf(j->error, sizeof j->error, "cannot resume: %.480s", bundle ? "out of memory" : read_err);
-        svc_log("job %u: %s", d.id, j->error);
+        svc_log("job %u: %s", j->desc.id, j->error);
         store_save_job(j, err, sizeof err);
         store_job_release(j);
-        rc = -1;
-    } else {
-        render_split_tiles(d.width, d.height, j->tile_size, rects, j->tile_count);
-        replay_tiles(s, j, rects);
-        svc_log("job %u resumed: %d of %d tiles from the journal", d.id, j->tiles_resumed, j->tile_count);
-        joblog_add(j->log, svc_wall_now(), "job resumed after a restart: %d of %d tiles from the journal",
-                   j->tiles_resumed, j->tile_count);
-        if (store_job_start(s, j, bundle, len, framed, err, sizeof err)) {
-            j->state = SJOB_FAILED;
-            snprintf(j->error, sizeof j->error, "%.500s", err);
-            store_save_job(j, err, sizeof err);
-            store_job_release(j);
-            rc = -1;
-        }
+        return -1;
     }
-    free(rects);
-    return rc;
+    if (r->journal_good < r->journal_len)
+        svc_log("job %u: %s: dropping %zu bytes of a torn or corrupt record at the end", j->desc.id, r->journal,
+                r->journal_len - r->journal_good);
+    if (r->truncate_errno) svc_log("%s: cannot truncate: %s", r->journal, strerror(r->truncate_errno));
+    j->rgb = r->rgb;
+    j->journaled = r->journaled;
+    r->rgb = NULL;
+    r->journaled = NULL;
+    j->tiles_resumed = j->tiles_done = r->tiles_resumed;
+    svc_log("job %u resumed: %d of %d tiles from the journal", j->desc.id, j->tiles_resumed, j->tile_count);
+    joblog_add(j->log, svc_wall_now(), "job resumed after a restart: %d of %d tiles from the journal",
+               j->tiles_resumed, j->tile_count);
+    if (store_job_start(s, j, bundle, len, framed, err, sizeof err)) {
+        j->state = SJOB_FAILED;
+        snprintf(j->error, sizeof j->error, "%.500s", err);
+        store_save_job(j, err, sizeof err);
+        store_job_release(j);
+        return -1;
+    }
+    return 0;
 }
 
 void store_scene_path(const service *s, const sjob *j, char *path, size_t path_len) {
@@ -537,9 +553,13 @@ void store_scene_path(const service *s, const sjob *j, char *path, size_t path_l
 int store_job_resume(service *s, sjob *j) {
     char path[4096], err[600];
     size_t len = 0;
+    store_resume r;
+    store_job_path(s, j->desc.id, "tiles", path, sizeof path);
+    int prepared = store_resume_prepare(path, j->desc.width, j->desc.height, j->tile_size, j->tile_count, &r);
     store_scene_path(s, j, path, sizeof path);
     char *bundle = file_read_all(path, s->o.max_upload, &len, err, sizeof err);
-    int rc = store_job_resume_with(s, j, (const uint8_t *)bundle, len, NULL, err);
+    int rc = store_job_resume_with(s, j, (const uint8_t *)bundle, len, NULL, err, prepared ? NULL : &r);
+    if (!prepared) store_resume_free(&r);
     free(bundle);
     return rc;
 }

@@ -211,12 +211,36 @@ int store_running_jobs(const service *s);
  * handed to the farm. Returns 0, or -1 with the job failed and saved. */
 int store_job_resume(service *s, sjob *j);
 
-/* store_job_resume with the scene already read: bundle (len bytes; NULL
- * when reading failed, read_err saying why) and, if not NULL, the same
- * bytes framed for the farm (a reference is taken). The caller keeps and
- * frees both. */
+/* What a job resumed after a restart starts from: its frame and done
+ * tiles replayed from its journal (a torn or corrupt tail
+ * cut off the file). store_resume_prepare touches no service or job state,
+ * so admission runs it on the thread pool with the scene's read: a long
+ * journal is not replayed on the loop. */
+typedef struct {
+    float *rgb;
+    uint8_t *journaled;
+    int tiles_resumed;
+    size_t journal_len, journal_good; /* good < len: a tail was cut off */
+    int truncate_errno;               /* the cut failed with it (0: fine) */
+    char journal[4096];               /* the journal's path */
+} store_resume;
+
+/* Fill r for a job of width x height cut in tiles of tile_size
+ * (tile_count of them) whose journal is at journal. Returns 0, or -1 when
+ * out of memory (r then holds nothing to free). On any thread. */
+int store_resume_prepare(const char *journal, int width, int height, int tile_size, int tile_count, store_resume *r);
+
+/* Free what r still holds (store_job_resume_with takes the frame and the
+ * done tiles). Can be called again. */
+void store_resume_free(store_resume *r);
+
+/* store_job_resume with the scene already read and the journal replayed:
+ * bundle (len bytes; NULL when reading failed, read_err saying why), if not
+ * NULL the same bytes framed for the farm (a reference is taken), and r
+ * (NULL or r->rgb NULL: out of memory), whose frame and done tiles j takes.
+ * The caller keeps and frees bundle, framed and r. */
 int store_job_resume_with(service *s, sjob *j, const uint8_t *bundle, size_t len, conn_blob *framed,
-                          const char *read_err);
+                          const char *read_err, store_resume *r);
 
 /* The path of j's scene in the data dir: scenes/HASH. */
 void store_scene_path(const service *s, const sjob *j, char *path, size_t path_len);

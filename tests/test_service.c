@@ -242,6 +242,58 @@ TEST(service_restart_resumes_without_rerendering) {
     service_stop(&s);
 }
 
+/* A job that must wait for memory after a restart is admitted later from
+ * libuv's thread pool, which reads its scene and now also replays its
+ * journal there, not on the loop: it still resumes with the tiles it had
+ * (20 of 64) and its image is the same bytes as one rendered in one go. */
+TEST(service_job_admitted_after_a_restart_resumes_its_journal) {
+    const char *frame = "--width 1024 --height 1024 --spp 1 --tile-size 128"; /* 64 tiles, 24 MiB of need */
+    char out[8192], img[256], ref[256], cmd[2048];
+    snprintf(ref, sizeof ref, "%s", util_temp_path("svc-admit-ref.pfm"));
+    snprintf(cmd, sizeof cmd, "%s render " SCENE " %s --workers 0 -o %s", harness_tessera(), frame, ref);
+    CHECK(util_run(cmd, out, sizeof out) == 0, "%s: %s", cmd, out);
+    service s = {0};
+    service_start(&s, "svc-admit");
+    int st = cli(&s, out, sizeof out, "submit " SCENE " %s", frame);
+    CHECK(st == 0 && job_id(out) == 1, "submit 1 (%d): %s", st, out);
+    st = cli(&s, out, sizeof out, "submit " SCENE " %s --priority 5", frame);
+    CHECK(st == 0 && job_id(out) == 2, "submit 2 (%d): %s", st, out);
+    char hold[256];
+    snprintf(hold, sizeof hold, "%s", util_temp_path("svc-admit.hold"));
+    util_touch(hold);
+    pid_t w = worker_start_held(&s, "wadmit", hold, 20); /* job 2's first 20 tiles, then it keeps one */
+    int done = 0;
+    for (int i = 0; i < (int)(LONG * 20) && done < 20; i++) {
+        cli(&s, out, sizeof out, "status 2 --json");
+        const char *p = strstr(out, "\"tiles_done\":");
+        if (p) sscanf(p, "\"tiles_done\":\t%d", &done);
+        if (done < 20) util_sleep(0.05);
+    }
+    CHECK(done == 20, "job 2 had %d tiles done before the kill; 20 expected", done);
+    kill(s.pid, SIGKILL);
+    util_wait(s.pid, LONG, NULL);
+    unlink(hold);
+    kill(w, SIGKILL);
+    util_wait(w, LONG, NULL);
+    /* Room for one of the two jobs: job 1 is resumed at start, job 2 waits. */
+    s.extra[0] = "--max-memory";
+    s.extra[1] = "40M";
+    service_start(&s, "svc-admit");
+    CHECK(util_wait_for_text(s.log, "job 1 resumed: 0 of 64", LONG) == 0, "job 1 not resumed; log %s", s.log);
+    CHECK(util_file_count(s.log, "job 2: waiting for memory") == 1, "job 2 did not wait; log %s", s.log);
+    st = cli(&s, out, sizeof out, "cancel 1");
+    CHECK(st == 0, "cancel 1 (%d): %s", st, out);
+    CHECK(util_wait_for_text(s.log, "job 2 resumed: 20 of 64 tiles from the journal", LONG) == 0,
+          "job 2 admitted without its journal; log %s", s.log);
+    pid_t w2 = worker_start(&s, "wadmit2", "0");
+    snprintf(img, sizeof img, "%s", util_temp_path("svc-admit.pfm"));
+    CHECK(util_wait_for_text(s.log, "job 2 done (", LONG) == 0, "job 2 never finished; log %s", s.log);
+    st = cli(&s, out, sizeof out, "fetch 2 -o %s", img);
+    CHECK(st == 0 && util_same_file(img, ref), "job 2's image after its admission differs (%d): %s", st, out);
+    worker_stop(w2);
+    service_stop(&s);
+}
+
 /* `tessera submit --noise-threshold` is adaptive sampling on the service:
  * the image is the bytes of `tessera render --noise-threshold` in one
  * process (rounds decided on the whole image, whatever the tiles and
