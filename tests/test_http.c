@@ -88,11 +88,11 @@ static int web_connect(int port) {
     return fd;
 }
 
-/* Send req raw and read the answer until the server closes (or timeout_s);
- * returns the HTTP status (0 when none) and the whole answer in out. */
-static int web_raw(int port, const char *req, size_t req_len, char *out, size_t cap, double timeout_s) {
+/* Send req over fd and read the answer until the server closes (or
+ * timeout_s), then close fd (-1: no connection); returns the HTTP status (0
+ * when none) and the whole answer in out. */
+static int web_exchange(int fd, const char *req, size_t req_len, char *out, size_t cap, double timeout_s) {
     out[0] = '\0';
-    int fd = web_connect(port);
     if (fd < 0) return 0;
     size_t off = 0;
     while (off < req_len) {
@@ -116,6 +116,11 @@ static int web_raw(int port, const char *req, size_t req_len, char *out, size_t 
     int status = 0;
     sscanf(out, "HTTP/1.1 %d", &status);
     return status;
+}
+
+/* web_exchange over a new connection to port. */
+static int web_raw(int port, const char *req, size_t req_len, char *out, size_t cap, double timeout_s) {
+    return web_exchange(web_connect(port), req, req_len, out, cap, timeout_s);
 }
 
 /* GET path with extra header lines ("" for none). */
@@ -797,26 +802,9 @@ static int web_connect_from(int port, const char *src) {
 /* GET path over a connection from source address src; the status (0:
  * none) and the answer in out. */
 static int web_get_from(int port, const char *src, const char *path, char *out, size_t cap) {
-    int fd = web_connect_from(port, src);
-    size_t len = 0;
     char req[300];
     int n = snprintf(req, sizeof req, "GET %s HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n", path);
-    if (fd >= 0 && send(fd, req, (size_t)n, MSG_NOSIGNAL) != n) len = 0;
-    for (int waited = 0; fd >= 0 && waited < 5000 && len + 1 < cap;) {
-        struct pollfd p = {fd, POLLIN, 0};
-        if (poll(&p, 1, 100) <= 0) {
-            waited += 100;
-            continue;
-        }
-        ssize_t r = recv(fd, out + len, cap - 1 - len, 0);
-        if (r <= 0) break;
-        len += (size_t)r;
-    }
-    out[len] = '\0';
-    if (fd >= 0) close(fd);
-    int status = 0;
-    sscanf(out, "HTTP/1.1 %d", &status);
-    return status;
+    return web_exchange(web_connect_from(port, src), req, (size_t)n, out, cap, 5);
 }
 
 /* One address may hold at most 64 of the dashboard's connections (the

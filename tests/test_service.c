@@ -189,6 +189,20 @@ TEST(service_queue_priority_and_cancel) {
     service_stop(&s);
 }
 
+/* Poll `status JOB` until the coordinator counts want tiles done (all
+ * journaled) or LONG passes; the last count. */
+static int tiles_done_reach(const service *s, int job, int want) {
+    char out[8192];
+    int done = 0;
+    for (int i = 0; i < (int)(LONG * 20) && done < want; i++) {
+        cli(s, out, sizeof out, "status %d --json", job);
+        const char *p = strstr(out, "\"tiles_done\":");
+        if (p) sscanf(p, "\"tiles_done\":\t%d", &done);
+        if (done < want) util_sleep(0.05);
+    }
+    return done;
+}
+
 TEST(service_restart_resumes_without_rerendering) {
     service s = {0};
     service_start(&s, "svc-restart");
@@ -200,13 +214,7 @@ TEST(service_restart_resumes_without_rerendering) {
     int st = cli(&s, out, sizeof out, "submit " SCENE " --tile-size 8");
     CHECK(st == 0 && job_id(out) == 1, "submit (%d): %s", st, out);
     CHECK(util_wait_for_text(util_temp_path("w.log"), UTIL_HOLDING, LONG) == 0, "the worker never held a tile");
-    int done = 0;
-    for (int i = 0; i < (int)(LONG * 20) && done < 20; i++) { /* until the coordinator has journaled all 20 */
-        cli(&s, out, sizeof out, "status 1 --json");
-        const char *p = strstr(out, "\"tiles_done\":");
-        if (p) sscanf(p, "\"tiles_done\":\t%d", &done);
-        if (done < 20) util_sleep(0.05);
-    }
+    int done = tiles_done_reach(&s, 1, 20);
     CHECK(done == 20, "%d tiles done before the kill; 20 expected", done);
     kill(s.pid, SIGKILL);
     util_wait(s.pid, LONG, NULL);
@@ -262,13 +270,7 @@ TEST(service_job_admitted_after_a_restart_resumes_its_journal) {
     snprintf(hold, sizeof hold, "%s", util_temp_path("svc-admit.hold"));
     util_touch(hold);
     pid_t w = worker_start_held(&s, "wadmit", hold, 20); /* job 2's first 20 tiles, then it keeps one */
-    int done = 0;
-    for (int i = 0; i < (int)(LONG * 20) && done < 20; i++) {
-        cli(&s, out, sizeof out, "status 2 --json");
-        const char *p = strstr(out, "\"tiles_done\":");
-        if (p) sscanf(p, "\"tiles_done\":\t%d", &done);
-        if (done < 20) util_sleep(0.05);
-    }
+    int done = tiles_done_reach(&s, 2, 20);
     CHECK(done == 20, "job 2 had %d tiles done before the kill; 20 expected", done);
     kill(s.pid, SIGKILL);
     util_wait(s.pid, LONG, NULL);
