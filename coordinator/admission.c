@@ -50,7 +50,7 @@ typedef struct {
     char err[600];
     int width, height, tile_size, tile_count;
     char journal[4096];
-    store_resume resume; /* prepared, or -1 in prepared: out of memory */
+    store_resume resume; /* the journal replayed when prepared is 0 (-1: out of memory) */
     int prepared;
 } admit_read;
 

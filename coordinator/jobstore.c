@@ -559,7 +559,7 @@ int store_job_resume(service *s, sjob *j) {
     store_scene_path(s, j, path, sizeof path);
     char *bundle = file_read_all(path, s->o.max_upload, &len, err, sizeof err);
     int rc = store_job_resume_with(s, j, (const uint8_t *)bundle, len, NULL, err, prepared ? NULL : &r);
-    if (!prepared) store_resume_free(&r);
+    store_resume_free(&r); /* what j did not take */
     free(bundle);
     return rc;
 }
