@@ -469,6 +469,44 @@ TEST(http_dashboard_client_and_admin_tokens) {
     web_stop(&w);
 }
 
+/* A coordinator with --http, a worker token and --client-tokens: user i
+ * is users[i][0] with the token text users[i][1] (in DIR/NAME.token, DIR
+ * into dir), and client, when not NULL, the shared client token's text;
+ * then one job per user, in order, each submitted with the user's own
+ * token (no worker: they stay queued). Returns 0, or -1 after a failed
+ * check. */
+static int web_start_users(web *w, const char *name, const char *const users[][2], int n, const char *client, char *dir,
+                           size_t dir_len) {
+    char wt[300], ct[300] = "", path[700], tname[128], args[1200];
+    static char out[1 << 16];
+    snprintf(tname, sizeof tname, "%s-worker-token", name);
+    snprintf(wt, sizeof wt, "%s", util_write_temp(tname, "users' worker secret\n"));
+    snprintf(tname, sizeof tname, "%s.d", name);
+    snprintf(dir, dir_len, "%s", util_temp_path(tname));
+    mkdir(dir, 0700);
+    for (int i = 0; i < n; i++) {
+        snprintf(path, sizeof path, "%s/%s.token", dir, users[i][0]);
+        FILE *f = fopen(path, "w");
+        if (f) fputs(users[i][1], f), fclose(f);
+    }
+    snprintf(tname, sizeof tname, "%s-client-token", name);
+    if (client) snprintf(ct, sizeof ct, "%s", util_write_temp(tname, client));
+    const char *extra[] = {"--worker-token-file", wt, "--client-tokens", dir, client ? "--client-token-file" : NULL, ct,
+                           NULL};
+    if (web_start(w, name, 0, extra)) {
+        CHECK(0, "coordinator did not start; log %s", w->log);
+        return -1;
+    }
+    for (int i = 0; i < n; i++) {
+        snprintf(args, sizeof args, SCENE " --client-name %s --token-file %s/%s.token", users[i][0], dir, users[i][0]);
+        if (submit(w, args, out, sizeof out)) {
+            CHECK(0, "%s's submit: %s", users[i][0], out);
+            return -1;
+        }
+    }
+    return 0;
+}
+
 /* In the dashboard's job list text: job id's "view" (1) and "change" (2)
  * rights added up, or -1 when the job or either field is missing. */
 static int job_rights(const char *text, int id) {
@@ -490,30 +528,13 @@ static int job_rights(const char *text, int id) {
  * which names no one, may change nothing while users exist; SIGHUP ends a
  * session whose token is gone. */
 TEST(http_dashboard_user_tokens) {
-    char wt[300], ct[300], dir[300], alice[400], bob[400];
-    snprintf(wt, sizeof wt, "%s", util_write_temp("web-users-worker-token", "web-users-worker-secret\n"));
-    snprintf(ct, sizeof ct, "%s", util_write_temp("web-users-client-token", "web-users-shared-secret\n"));
-    snprintf(dir, sizeof dir, "%s", util_temp_path("web-users.d"));
-    mkdir(dir, 0700);
-    snprintf(alice, sizeof alice, "%s/alice.token", dir);
-    snprintf(bob, sizeof bob, "%s/bob.token", dir);
-    FILE *f = fopen(alice, "w");
-    if (f) fputs("web-alice-secret\n", f), fclose(f);
-    f = fopen(bob, "w");
-    if (f) fputs("web-bob-secret\n", f), fclose(f);
-    const char *extra[] = {"--worker-token-file", wt, "--client-token-file", ct, "--client-tokens", dir, NULL};
+    static const char *const users[][2] = {{"alice", "web-alice-secret\n"}, {"bob", "web-bob-secret\n"}};
+    char dir[300], alice[400];
     web w;
-    if (web_start(&w, "http-users", 0, extra)) {
-        CHECK(0, "coordinator did not start; log %s", w.log);
-        return;
-    }
+    /* Jobs 1 (alice's) and 2 (bob's), queued. */
+    if (web_start_users(&w, "http-users", users, 2, "web-users-shared-secret\n", dir, sizeof dir)) return;
+    snprintf(alice, sizeof alice, "%s/alice.token", dir);
     static char out[1 << 16];
-    char args[1200];
-    /* No worker: jobs 1 (alice's) and 2 (bob's) stay queued. */
-    snprintf(args, sizeof args, SCENE " --client-name alice --token-file %s", alice);
-    CHECK(submit(&w, args, out, sizeof out) == 0, "alice's submit: %s", out);
-    snprintf(args, sizeof args, SCENE " --client-name bob --token-file %s", bob);
-    CHECK(submit(&w, args, out, sizeof out) == 0, "bob's submit: %s", out);
     CHECK(web_get(w.http, "/api/jobs", "Authorization: Bearer web-carol-secret\r\n", out, sizeof out) == 401,
           "a token no one has opened the dashboard: %.100s", out);
     char csrf[128], hdr[600];
@@ -648,6 +669,36 @@ static double job_field(const web *w, int job, const char *field) {
     snprintf(key, sizeof key, "\"%s\":", field);
     const char *p = strstr(out, key);
     return p ? strtod(p + strlen(key), NULL) : -1;
+}
+
+/* The page signed in with a user's own token, in headless Chromium
+ * (tests/browser_users.py): the header names the user, Cancel and priority
+ * only on their job, another user's job page without image or downloads,
+ * their own with its image, and their Cancel works. No worker: both jobs
+ * stay queued until then. */
+TEST(http_dashboard_browser_users) {
+    if (system("chromium --version >/dev/null 2>&1") != 0) {
+        printf("    SKIP: chromium cannot start here (install Debian's chromium to run this test)\n");
+        return;
+    }
+    static const char *const users[][2] = {{"carol", "carol's page secret\n"}, {"dave", "dave's page secret\n"}};
+    char dir[300], profile[300], cmd[4096];
+    static char out[1 << 16];
+    web w;
+    if (web_start_users(&w, "http-browser-users", users, 2, NULL, dir, sizeof dir)) return;
+    snprintf(profile, sizeof profile, "%s", util_temp_path("chromium-users-profile"));
+    snprintf(cmd, sizeof cmd, "timeout 300 python3 tests/browser_users.py %d \"carol's page secret\" carol dave %s 2>&1",
+             w.http, profile);
+    int st = util_run(cmd, out, sizeof out);
+    printf("%s", out);
+    CHECK(st == 0, "the browser checks failed (%d); coordinator log %s", st, w.log);
+    CHECK(web_get(w.http, "/api/jobs", "Authorization: Bearer dave's page secret\r\n", out, sizeof out) == 200 &&
+              strstr(out, "\"owner\":\"dave\""),
+          "dave's job after carol's page: %.300s", out);
+    CHECK(util_file_count(w.log, "job 1 cancelled from the dashboard") == 1 &&
+              util_file_count(w.log, "job 2 cancelled") == 0,
+          "carol's page should have cancelled her job 1 and not dave's job 2; log %s", w.log);
+    web_stop(&w);
 }
 
 /* `tessera priority`: a queued job raised runs before one submitted earlier;
