@@ -283,8 +283,9 @@ static void read_back(joblog *l) {
         from = nl ? nl + 1 : text + len;
     }
     /* Only the last JOBLOG_MAX lines can stay in the ring: those before are
-     * counted as dropped, not parsed (a 4 MiB file: 10-15 ms on the loop
-     * parsed whole, 2 ms this way; tests/test_joblog.c). */
+     * counted as dropped, not parsed (a 4 MiB file, best of 5 runs of a
+     * scratch program timing joblog_to_json: 9.9 ms parsed whole, 2.1 ms
+     * this way; the lines and the count: tests/test_joblog.c). */
     uint64_t before;
     const char *last = last_lines(from, len - (size_t)(from - text), JOBLOG_MAX, &before);
     l->count = l->head = 0;
