@@ -312,12 +312,18 @@ docker-test: docker $(TESSERA) $(WORKER)
 # lives with the coordinator, not in common/.
 DEB_PACKAGES += libhttp-parser-dev
 LDLIBS += -lhttp_parser
+# HTTPS for the dashboard (--http-cert, --http-key; coordinator/tls.c):
+# OpenSSL's memory BIOs under the server's own libuv sockets. The tests make
+# their certificates with the openssl command and fetch with curl.
+DEB_PACKAGES += libssl-dev openssl curl
+LDLIBS += -lssl -lcrypto
 FUZZ_TARGETS += http
 # The browser test (headless Chromium screenshot) and the Prometheus parser
 # check run when these are present and print a skip line otherwise.
 DEB_PACKAGES += chromium python3-prometheus-client
 fuzz: $(FUZZ_BUILD)/fuzz_http
 $(FUZZ_BUILD)/fuzz_http: tests/fuzz/fuzz_http.c $(FUZZ_BUILD)/coordinator/http.o $(FUZZ_BUILD)/coordinator/connlimit.o \
+                         $(FUZZ_BUILD)/coordinator/tls.o \
                          $(FUZZ_COMMON_OBJ)
 	clang $(FUZZ_CFLAGS) -fsanitize=fuzzer -o $@ $^ $(LDLIBS)
 

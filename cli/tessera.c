@@ -96,6 +96,8 @@ static void usage_render(FILE *f) {
             "      --http ADDR:PORT   watch the render in a browser while it runs (loopback unless\n"
             "                         --token-file or --insecure)\n"
             "                         here; port 0 picks a free one (printed on stderr)\n"
+            "      --http-cert F, --http-key F  serve it over HTTPS with this PEM certificate\n"
+            "                         chain and private key\n"
             "      --heartbeat S      farm heartbeat interval in seconds (default 1)\n"
             "      --worker-timeout S a silent worker's tiles go to others after S s (default 5)\n"
             "      --lease S          longest a worker may hold one tile (default 300)\n"
@@ -213,6 +215,8 @@ static void render_args_check(render_args *a) {
     char herr[300];
     if (a->http && dashboard_parse_address(a->http, &a->web, a->web_host, sizeof a->web_host, herr, sizeof herr))
         args_usage_error("tessera render", "--http %s", herr);
+    if (!a->http && (a->web.tls_cert || a->web.tls_key))
+        args_usage_error("tessera render", "--http-cert and --http-key serve --http: give --http ADDR:PORT");
     if (a->workers < 0) a->workers = a->listen ? 0 : (int)sysconf(_SC_NPROCESSORS_ONLN);
     if (a->http && !a->listen && a->workers == 0)
         args_usage_error("tessera render", "--http watches a farm render: not with --workers 0 and no --listen");
@@ -255,6 +259,8 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         {.name = "max-memory", .kind = ARG_CUSTOM, .dest = &a->max_memory, .parse = membudget_parse},
         {.name = "listen", .kind = ARG_STRING, .dest = &a->listen},
         {.name = "http", .kind = ARG_STRING, .dest = &a->http},
+        {.name = "http-cert", .kind = ARG_STRING, .dest = &a->web.tls_cert},
+        {.name = "http-key", .kind = ARG_STRING, .dest = &a->web.tls_key},
         {.name = "token-file", .kind = ARG_STRING, .dest = &a->token_file},
         {.name = "camera", .kind = ARG_STRING, .dest = &a->camera},
         {.name = "audit", .kind = ARG_DOUBLE, .dest = &a->farm.audit, .lo = 0, .hi = 1, .given = &a->audit_given},
@@ -669,6 +675,8 @@ static void usage_coordinator(FILE *f) {
             "                           as for tessera render\n"
             "      --http ADDR:PORT     serve the web dashboard and /metrics there (loopback unless\n"
             "                           a token is set or --insecure); --http-read-only: no cancel\n"
+            "      --http-cert F, --http-key F  serve it over HTTPS with this PEM certificate chain\n"
+            "                           and private key (SIGHUP re-reads them)\n"
             "  -v, --verbose            log every worker event\n");
 }
 
@@ -696,6 +704,8 @@ static int cmd_coordinator(int argc, char **argv) {
         {.name = "listen", .kind = ARG_STRING, .dest = &listen},
         {.name = "http", .kind = ARG_STRING, .dest = &http},
         {.name = "http-read-only", .kind = ARG_FLAG, .dest = &web.read_only},
+        {.name = "http-cert", .kind = ARG_STRING, .dest = &web.tls_cert},
+        {.name = "http-key", .kind = ARG_STRING, .dest = &web.tls_key},
         {.name = "data-dir", .kind = ARG_STRING, .dest = &o.data_dir},
         {.name = "tile-size", .kind = ARG_INT, .dest = &o.tile_size, .lo = 1, .hi = 4096},
         {.name = "max-upload", .kind = ARG_INT, .dest = &upload_mib, .lo = 1, .hi = LIMIT_UPLOAD_MAX_MIB},
@@ -752,6 +762,8 @@ static int cmd_coordinator(int argc, char **argv) {
     if (o.tile_size > o.farm.max_tile_side) o.farm.max_tile_side = o.tile_size;
     if (http && dashboard_parse_address(http, &web, web_host, sizeof web_host, err, sizeof err))
         args_usage_error("tessera-coordinator", "--http %s", err);
+    if (!http && (web.tls_cert || web.tls_key))
+        args_usage_error("tessera-coordinator", "--http-cert and --http-key serve --http: give --http ADDR:PORT");
     if (http) o.http = &web;
     return service_run(&o);
 }

@@ -58,6 +58,8 @@ struct dashboard {
     farm *f;
     http_server *http;
     dashboard_options o;
+    int https;                /* served over TLS (o.tls_cert, o.tls_key) */
+    char cert[400];           /* the certificate served, for logs (tls_config_describe) */
     const auth_keyring *auth; /* NULL: no tokens; the owner's ring, which SIGHUP may change */
     dashboard_source src;
     char csrf[AUTH_HEX];
@@ -329,6 +331,8 @@ static void route_metrics(dashboard *d, http_conn *c) {
          http_server_dropped(d->http)},
         {"tessera_http_refused_total", "HTTP connections refused (503) over the per-address or total cap.",
          http_server_refused(d->http)},
+        {"tessera_http_tls_failures_total", "HTTPS connections that ended before a request (handshake failed, "
+         "plain HTTP, peer gone).", http_server_tls_failed(d->http)},
     };
     for (size_t i = 0; i < sizeof counters / sizeof counters[0]; i++)
         sb_printf(&b, "# HELP %s %s\n# TYPE %s counter\n%s %llu\n", counters[i].name, counters[i].help,
@@ -469,7 +473,8 @@ static void route_login(dashboard *d, http_conn *c, const http_request *rq) {
     auth_nonce(sid);
     char hdr[300];
     snprintf(hdr, sizeof hdr,
-             "Set-Cookie: tessera_session=%s; HttpOnly; SameSite=Strict; Path=/\r\nLocation: /\r\n", sid);
+             "Set-Cookie: tessera_session=%s; HttpOnly; SameSite=Strict; Path=/%s\r\nLocation: /\r\n", sid,
+             d->https ? "; Secure" : "");
     http_respond(c, 303, "text/plain", "", 0, hdr);
 }
 
@@ -613,8 +618,15 @@ dashboard *dashboard_new(uv_loop_t *loop, farm *f, const dashboard_options *o, c
         snprintf(err, err_len, "libsodium could not start");
         return NULL;
     }
+    if (!o->tls_cert != !o->tls_key) {
+        snprintf(err, err_len, "HTTPS needs both a certificate (--http-cert) and its key (--http-key)");
+        return NULL;
+    }
+    tls_config *tls = NULL;
+    if (o->tls_cert && !(tls = tls_config_load(o->tls_cert, o->tls_key, err, err_len))) return NULL;
     dashboard *d = calloc(1, sizeof *d);
     if (!d) {
+        tls_config_unref(tls);
         snprintf(err, err_len, "out of memory");
         return NULL;
     }
@@ -626,8 +638,11 @@ dashboard *dashboard_new(uv_loop_t *loop, farm *f, const dashboard_options *o, c
     d->src = *src;
     auth_nonce(d->csrf);
     http_options ho = {.host = host, .port = o->port, .max_request = DASH_MAX_REQUEST,
-                       .max_headers = DASH_MAX_HEADERS};
+                       .max_headers = DASH_MAX_HEADERS, .tls = tls};
     d->http = http_server_new(loop, &ho, on_request, d, err, err_len);
+    d->https = tls != NULL;
+    if (tls) tls_config_describe(tls, d->cert, sizeof d->cert);
+    tls_config_unref(tls); /* the server holds its own reference */
     if (!d->http) {
         free(d);
         return NULL;
@@ -643,6 +658,25 @@ dashboard *dashboard_new(uv_loop_t *loop, farm *f, const dashboard_options *o, c
 }
 
 int dashboard_port(const dashboard *d) { return http_server_port(d->http); }
+
+const char *dashboard_scheme(const dashboard *d) { return d->https ? "https" : "http"; }
+
+int dashboard_tls_describe(const dashboard *d, char *out, size_t len) {
+    if (!d->https) return 0;
+    snprintf(out, len, "%s", d->cert);
+    return 1;
+}
+
+int dashboard_reload_tls(dashboard *d, char *what, size_t what_len) {
+    if (!d->https) return 0;
+    tls_config *t = tls_config_load(d->o.tls_cert, d->o.tls_key, what, what_len);
+    if (!t) return -1;
+    http_server_set_tls(d->http, t);
+    tls_config_describe(t, d->cert, sizeof d->cert);
+    snprintf(what, what_len, "%s", d->cert);
+    tls_config_unref(t);
+    return 1;
+}
 
 static void on_part_closed(dashboard *d) {
     if (--d->open_parts > 0) return;

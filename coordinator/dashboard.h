@@ -68,6 +68,8 @@ typedef struct {
                                * every login, so a rotation by SIGHUP applies at once) */
     int read_only;        /* no POSTs but /login */
     int insecure;         /* allow a non-loopback address without a token */
+    const char *tls_cert, *tls_key; /* HTTPS with this PEM certificate chain and key (both or
+                                     * neither; the paths must outlive the dashboard) */
 } dashboard_options;
 
 typedef struct dashboard dashboard;
@@ -84,6 +86,19 @@ dashboard *dashboard_new(uv_loop_t *loop, farm *f, const dashboard_options *o, c
                          char *err, size_t err_len);
 
 int dashboard_port(const dashboard *d);
+
+/* "https" or "http", for the address the owner prints. */
+const char *dashboard_scheme(const dashboard *d);
+
+/* The certificate served ("/CN=..., expires ...") into out. Returns 1, or 0
+ * (nothing written) without HTTPS. */
+int dashboard_tls_describe(const dashboard *d, char *out, size_t len);
+
+/* Read the certificate and key files again (a renewed certificate; SIGHUP):
+ * new connections get them, open ones go on. Returns 1 (re-read, what into
+ * what: "CN=..., expires ..."), 0 (no HTTPS here), or -1 with the reason in
+ * what (the previous certificate stays). */
+int dashboard_reload_tls(dashboard *d, char *what, size_t what_len);
 
 /* A farm event, for a source with forwards_events (d: the dashboard). */
 void dashboard_farm_event(dashboard *d, const farm_event *e);

@@ -216,6 +216,8 @@ struct http_conn {
     http_reqparser *rp;
     int streaming, closing, answered;
     int counted;   /* in s->limits under ip */
+    tls_conn *tls; /* HTTPS: the session (freed with c) */
+    int sniffed;   /* HTTPS: the first byte has been looked at */
     char ip[64];
     LIST_ENTRY(http_conn) link;
 };
@@ -227,7 +229,8 @@ struct http_server {
     http_handler handler;
     void *ctx;
     int port, conns, closing, open_handles;
-    uint64_t dropped, refused;
+    uint64_t dropped, refused, tls_failed;
+    tls_config *tls; /* new connections' certificate, or NULL */
     connlimit *limits; /* connections per address and in all */
     LIST_HEAD(, http_conn) all;
     void (*closed_cb)(void *);
@@ -251,6 +254,7 @@ static void server_maybe_done(http_server *s) {
         void (*cb)(void *) = s->closed_cb;
         void *ctx = s->closed_ctx;
         connlimit_free(s->limits);
+        tls_config_unref(s->tls);
         free(s);
         if (cb) cb(ctx);
     }
@@ -264,6 +268,7 @@ static void conn_on_handle_closed(uv_handle_t *h) {
     http_server *s = c->s;
     s->conns--;
     if (c->counted) connlimit_release(s->limits, c->ip, CONNLIMIT_OPEN);
+    tls_conn_free(c->tls);
     free(c);
     server_maybe_done(s);
 }
@@ -286,19 +291,16 @@ static void on_written(uv_write_t *req, int status) {
     http_conn *c = req->data;
     conn_blob_unref(w->blob);
     free(w);
-    if (status < 0 || (!c->streaming && uv_stream_get_write_queue_size((uv_stream_t *)&c->tcp) == 0))
+    /* answered and everything sent (a TLS handshake's writes come before
+     * the answer): done */
+    if (status < 0 ||
+        ((c->answered & 1) && !c->streaming && uv_stream_get_write_queue_size((uv_stream_t *)&c->tcp) == 0))
         conn_close(c);
 }
 
-/* Queue the blob's bytes (a reference is taken). Returns 0, or -1 (the
- * connection is closed). */
-static int conn_write_blob(http_conn *c, conn_blob *b) {
-    if (c->closing) return -1;
-    if (c->streaming && uv_stream_get_write_queue_size((uv_stream_t *)&c->tcp) > c->s->o.max_queue) {
-        c->s->dropped++;
-        conn_close(c);
-        return -1;
-    }
+/* Queue the blob's bytes on the socket as they are (a reference is taken).
+ * Returns 0, or -1 (the connection is closed). */
+static int conn_send(http_conn *c, conn_blob *b) {
     http_write *w = malloc(sizeof *w);
     if (!w) {
         conn_close(c);
@@ -315,6 +317,40 @@ static int conn_write_blob(http_conn *c, conn_blob *b) {
         return -1;
     }
     return 0;
+}
+
+/* Send what the TLS session has for the peer. Returns 0, or -1 (the
+ * connection is closed). */
+static int conn_flush_tls(http_conn *c) {
+    size_t n = c->tls ? tls_conn_pending(c->tls) : 0;
+    if (!n || c->closing) return 0;
+    conn_blob *b = conn_blob_new(n);
+    if (!b) {
+        conn_close(c);
+        return -1;
+    }
+    b->len = tls_conn_take(c->tls, b->data, n);
+    int rc = conn_send(c, b);
+    conn_blob_unref(b);
+    return rc;
+}
+
+/* Queue the blob's bytes for the peer, encrypted on an HTTPS connection (a
+ * reference is taken). An event stream with more than max_queue bytes
+ * waiting is closed instead. Returns 0, or -1 (the connection is closed). */
+static int conn_write_blob(http_conn *c, conn_blob *b) {
+    if (c->closing) return -1;
+    if (c->streaming && uv_stream_get_write_queue_size((uv_stream_t *)&c->tcp) > c->s->o.max_queue) {
+        c->s->dropped++;
+        conn_close(c);
+        return -1;
+    }
+    if (!c->tls) return conn_send(c, b);
+    if (tls_conn_write(c->tls, b->data, b->len)) {
+        conn_close(c);
+        return -1;
+    }
+    return conn_flush_tls(c);
 }
 
 /* Queue len bytes (copied). Returns 0, or -1 (the connection is closed). */
@@ -370,7 +406,10 @@ void http_respond(http_conn *c, int status, const char *content_type, const void
     }
     memcpy(b->data, head, (size_t)n);
     if (len) memcpy(b->data + n, body, len);
-    conn_write_blob(c, b);
+    if (conn_write_blob(c, b) == 0 && c->tls) {
+        tls_conn_shutdown(c->tls);
+        conn_flush_tls(c);
+    }
     conn_blob_unref(b);
 }
 
@@ -412,14 +451,10 @@ static void conn_refuse(http_conn *c, int status) {
     http_respond(c, status, "text/plain; charset=utf-8", msg, (size_t)n, NULL);
 }
 
-static void conn_on_read(uv_stream_t *st, ssize_t nread, const uv_buf_t *buf) {
-    http_conn *c = st->data;
-    if (nread < 0) {
-        conn_close(c);
-        return;
-    }
-    if (nread == 0 || c->streaming || (c->answered & 1)) return; /* a stream's client has nothing to say */
-    int rc = http_reqparser_feed(c->rp, buf->base, (size_t)nread);
+/* Request bytes in plain text, from the socket or the TLS session. */
+static void conn_on_plain(http_conn *c, const char *data, size_t len) {
+    if (c->closing || c->streaming || (c->answered & 1)) return; /* a stream's client has nothing to say */
+    int rc = http_reqparser_feed(c->rp, data, len);
     if (rc == 0) return;
     uv_timer_stop(&c->idle);
     if (rc == 1) c->s->handler(c->s->ctx, c, &c->rp->rq);
@@ -429,6 +464,51 @@ static void conn_on_read(uv_stream_t *st, ssize_t nread, const uv_buf_t *buf) {
         free(c->rp);
         c->rp = NULL;
     }
+}
+
+/* An HTTPS connection ends before a request: counted, closed. */
+static void conn_tls_fail(http_conn *c) {
+    if (!(c->answered & 1)) c->s->tls_failed++;
+    conn_close(c);
+}
+
+/* Bytes from the socket of an HTTPS connection: a first byte that does not
+ * open a TLS handshake record (22) is plain HTTP, answered in plain text;
+ * otherwise decrypted into conn_on_plain, and the session's replies sent. */
+static void conn_on_cipher(http_conn *c, const char *data, size_t len) {
+    static char plain[16384]; /* one loop thread; consumed before the next read */
+    if (!c->sniffed) {
+        c->sniffed = 1;
+        if ((unsigned char)data[0] != 22) {
+            static const char msg[] = "400 this dashboard is served over HTTPS: use https:// in the address\n";
+            tls_conn_free(c->tls);
+            c->tls = NULL;
+            c->s->tls_failed++;
+            http_respond(c, 400, "text/plain; charset=utf-8", msg, sizeof msg - 1, NULL);
+            return;
+        }
+    }
+    if (tls_conn_feed(c->tls, data, len)) return conn_tls_fail(c);
+    for (;;) {
+        if (c->closing) return;
+        ssize_t n = tls_conn_read(c->tls, plain, sizeof plain);
+        if (n < 0) return conn_tls_fail(c);
+        if (n == 0) break;
+        conn_on_plain(c, plain, (size_t)n);
+    }
+    conn_flush_tls(c);
+}
+
+static void conn_on_read(uv_stream_t *st, ssize_t nread, const uv_buf_t *buf) {
+    http_conn *c = st->data;
+    if (nread < 0) {
+        if (c->tls) return conn_tls_fail(c);
+        conn_close(c);
+        return;
+    }
+    if (nread == 0) return;
+    if (c->tls) conn_on_cipher(c, buf->base, (size_t)nread);
+    else conn_on_plain(c, buf->base, (size_t)nread);
 }
 
 static void conn_on_idle(uv_timer_t *t) {
@@ -458,6 +538,10 @@ static int conn_admit(http_conn *c) {
         return 0;
     }
     s->refused++;
+    if (s->tls) { /* no session to answer in */
+        conn_close(c);
+        return -1;
+    }
     if (connlimit_last_kind(s->limits) == 1)
         snprintf(text, sizeof text, "503 too many connections: %s has %d open to this dashboard (at most %d)\n", c->ip,
                  s->o.max_per_address, s->o.max_per_address);
@@ -484,6 +568,10 @@ static void server_on_connection(uv_stream_t *listener, int status) {
         return;
     }
     if (conn_admit(c)) return;
+    if (s->tls && !(c->tls = tls_conn_new(s->tls))) {
+        conn_close(c);
+        return;
+    }
     if (!(c->rp = malloc(sizeof *c->rp))) {
         conn_close(c);
         return;
@@ -517,6 +605,7 @@ http_server *http_server_new(uv_loop_t *loop, const http_options *o, http_handle
     if (!s->o.max_queue) s->o.max_queue = 256 << 10;
     s->handler = h;
     s->ctx = ctx;
+    s->o.tls = NULL; /* the reference is taken once the server exists */
     LIST_INIT(&s->all);
     struct sockaddr_storage addr;
     int rc = uv_ip4_addr(o->host, o->port, (struct sockaddr_in *)&addr);
@@ -544,6 +633,7 @@ http_server *http_server_new(uv_loop_t *loop, const http_options *o, http_handle
     s->port = ntohs(addr.ss_family == AF_INET ? ((struct sockaddr_in *)&addr)->sin_port
                                                : ((struct sockaddr_in6 *)&addr)->sin6_port);
     s->open_handles = 1;
+    if (o->tls) s->tls = tls_config_ref(o->tls);
     return s;
 }
 
@@ -554,6 +644,14 @@ int http_server_conns(const http_server *s) { return s->conns; }
 uint64_t http_server_dropped(const http_server *s) { return s->dropped; }
 
 uint64_t http_server_refused(const http_server *s) { return s->refused; }
+
+uint64_t http_server_tls_failed(const http_server *s) { return s->tls_failed; }
+
+void http_server_set_tls(http_server *s, tls_config *t) {
+    if (!s->tls || !t) return;
+    tls_config_unref(s->tls);
+    s->tls = tls_config_ref(t);
+}
 
 static void server_on_listener_closed(uv_handle_t *h) {
     http_server *s = h->data;

@@ -19,6 +19,8 @@
 
 #include <http_parser.h>
 
+#include "tls.h"
+
 #define HTTP_PATH_MAX 512
 #define HTTP_VALUE_MAX 1024
 
@@ -88,10 +90,15 @@ typedef struct {
     int max_per_address; /* connections from one address, default 64 (beyond: 503) */
     double idle_s;      /* default 10 s */
     size_t max_queue;   /* default 256 KiB (an event stream's socket buffer: 64 KiB) */
+    tls_config *tls;    /* HTTPS with this certificate (the server takes a reference), or NULL */
 } http_options;
 
-/* Listen on o->host:o->port. Returns the server, or NULL with the reason in
- * err ("cannot listen on 127.0.0.1:8080: address already in use"). */
+/* Listen on o->host:o->port. With o->tls every connection is HTTPS: a
+ * plain HTTP request is answered in plain text with 400 naming https, and
+ * a connection over the caps is closed without an answer (there is no
+ * session to answer in yet). Answers end with TLS close_notify. Returns
+ * the server, or NULL with the reason in err ("cannot listen on
+ * 127.0.0.1:8080: address already in use"). */
 http_server *http_server_new(uv_loop_t *loop, const http_options *o, http_handler h, void *ctx, char *err,
                              size_t err_len);
 
@@ -116,6 +123,15 @@ uint64_t http_server_dropped(const http_server *s);
 /* Connections answered 503 and closed at once for being over max_conns or
  * max_per_address. */
 uint64_t http_server_refused(const http_server *s);
+
+/* Serve new connections with t (a reference is taken; the previous
+ * config's is dropped, and its open connections go on with it). t NULL on
+ * a server without TLS: nothing happens. Can't fail. */
+void http_server_set_tls(http_server *s, tls_config *t);
+
+/* TLS connections that ended before a request: failed handshakes, plain
+ * HTTP on the TLS port, peers that went away mid-handshake. */
+uint64_t http_server_tls_failed(const http_server *s);
 
 /* Close the listener and every connection; cb(ctx) runs when all are
  * closed and the server freed. */

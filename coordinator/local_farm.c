@@ -437,8 +437,8 @@ int local_farm_render(const local_farm_options *o, const proto_job *job, const u
             run_free(r);
             return -1;
         }
-        fprintf(stderr, "tessera: watch the render at http://%s:%d/job/%u\n", wo.host ? wo.host : "127.0.0.1",
-                dashboard_port(r->web), r->job->id);
+        fprintf(stderr, "tessera: watch the render at %s://%s:%d/job/%u\n", dashboard_scheme(r->web),
+                wo.host ? wo.host : "127.0.0.1", dashboard_port(r->web), r->job->id);
         fflush(stderr);
     }
     if (o->listening) {

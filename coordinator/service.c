@@ -589,7 +589,8 @@ static void close_revoked_clients(service *s) {
     }
 }
 
-/* SIGHUP: re-read the token files. New connections need the new tokens;
+/* SIGHUP: re-read the dashboard's certificate and key, and the token
+ * files. New connections need the new tokens;
  * worker links already authenticated keep going (their links are sealed
  * with session keys, which do not depend on the token any more); a client
  * link whose token is gone is closed (close_revoked_clients), and a
@@ -600,6 +601,11 @@ static void on_sighup(uv_signal_t *h, int signum) {
     (void)signum;
     service *s = h->data;
     char err[600], which[64] = "";
+    if (s->web) { /* a renewed dashboard certificate */
+        int rc = dashboard_reload_tls(s->web, err, sizeof err);
+        if (rc > 0) svc_log("SIGHUP: dashboard certificate re-read (%s); new connections get it", err);
+        else if (rc < 0) svc_log("SIGHUP: %s; the dashboard keeps its previous certificate", err);
+    }
     if (!auth_keyring_enabled(&s->o.farm.auth)) {
         svc_log("SIGHUP: no token files to re-read");
         return;

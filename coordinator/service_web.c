@@ -5,6 +5,7 @@
  * calls service_web_start once its farm listens. */
 #include "service_internal.h"
 #include "dashboard.h"
+#include "net/address.h"
 
 static void web_jobs(void *ctx, cJSON *arr) {
     service *s = ctx;
@@ -126,8 +127,13 @@ int service_web_start(service *s, char *err, size_t err_len) {
                             .ctx = s};
     s->web = dashboard_new(&s->loop, s->f, &o, &src, err, err_len);
     if (!s->web) return -1;
-    svc_log("dashboard on http://%s:%d/%s", o.host ? o.host : "127.0.0.1", dashboard_port(s->web),
-            o.read_only ? " (read-only)" : "");
+    svc_log("dashboard on %s://%s:%d/%s", dashboard_scheme(s->web), o.host ? o.host : "127.0.0.1",
+            dashboard_port(s->web), o.read_only ? " (read-only)" : "");
+    char what[400];
+    if (dashboard_tls_describe(s->web, what, sizeof what)) svc_log("dashboard certificate: %s", what);
+    else if (o.host && !address_is_loopback(o.host))
+        svc_log("warning: the dashboard on %s is plain HTTP beyond loopback: its token and pixels cross the network "
+                "in clear; give --http-cert and --http-key, or keep it on loopback behind a TLS proxy", o.host);
     return 0;
 }
 

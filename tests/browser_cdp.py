@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """browser_cdp.py - Debian's headless Chromium driven over the DevTools
 protocol (--remote-debugging-pipe: no extra library), for the dashboard's
-browser tests (browser_dashboard.py, browser_users.py): pages, JavaScript
+browser tests (browser_dashboard.py, browser_users.py, browser_https.py): pages, JavaScript
 evaluated in them, bounded waits, screenshots. fail() prints "FAIL: ..."
 and exits 1."""
 import base64, json, os, select, subprocess, sys, time
@@ -16,7 +16,7 @@ class Chromium:
     """One headless Chromium; DevTools messages are NUL-separated JSON on
     fds 3 (to it) and 4 (from it)."""
 
-    def __init__(self, profile):
+    def __init__(self, profile, extra=()):
         to_r, self.to_w = os.pipe()
         self.from_r, from_w = os.pipe()
 
@@ -24,7 +24,7 @@ class Chromium:
             os.dup2(to_r, 3)
             os.dup2(from_w, 4)
         self.p = subprocess.Popen(["chromium", "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
-                                   "--remote-debugging-pipe", f"--user-data-dir={profile}", "about:blank"],
+                                   "--remote-debugging-pipe", f"--user-data-dir={profile}", *extra, "about:blank"],
                                   pass_fds=(3, 4), preexec_fn=fds, stdout=subprocess.DEVNULL,
                                   stderr=subprocess.DEVNULL)
         os.close(to_r)

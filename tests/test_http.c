@@ -891,3 +891,247 @@ TEST(http_dashboard_connections_per_address) {
           metric(web_body(out), "tessera_http_refused_total"));
     web_stop(&w);
 }
+
+/* ---- HTTPS (--http-cert, --http-key; coordinator/tls.c) ------------------ */
+
+/* A self-signed EC certificate for 127.0.0.1 named cn into dir/NAME.pem and
+ * its key into dir/NAME.key (openssl req; days < 0: already expired).
+ * Returns 0, or -1 with openssl's output in out. */
+static int make_cert(const char *dir, const char *name, const char *cn, int days, char *out, size_t cap) {
+    char cmd[4096];
+    if (days >= 0)
+        snprintf(cmd, sizeof cmd,
+                 "openssl req -x509 -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes -keyout %s/%s.key "
+                 "-out %s/%s.pem -days %d -subj /CN=%s -addext subjectAltName=IP:127.0.0.1 2>&1",
+                 dir, name, dir, name, days, cn);
+    else
+        snprintf(cmd, sizeof cmd,
+                 "openssl ecparam -name prime256v1 -genkey -noout -out %s/%s.key 2>&1 && "
+                 "openssl req -new -key %s/%s.key -subj /CN=%s -out %s/%s.csr 2>&1 && "
+                 "openssl x509 -req -in %s/%s.csr -signkey %s/%s.key -days %d -out %s/%s.pem 2>&1",
+                 dir, name, dir, name, cn, dir, name, dir, name, dir, name, days, dir, name);
+    return util_run(cmd, out, cap) == 0 ? 0 : -1;
+}
+
+/* curl ARGS against https://127.0.0.1:PORT PATH trusting only ca (headers
+ * and body into out). Returns curl's exit status (60: the certificate is
+ * not the one trusted); *status gets the HTTP status (0 when none). */
+static int https_get(int port, const char *ca, const char *path, const char *args, char *out, size_t cap,
+                     int *status) {
+    char cmd[4096];
+    snprintf(cmd, sizeof cmd, "curl -sS -i --max-time 20 --cacert %s %s https://127.0.0.1:%d%s 2>&1", ca, args,
+             port, path);
+    int rc = util_run(cmd, out, cap);
+    *status = 0;
+    const char *h = strstr(out, "HTTP/1.1 ");
+    if (h) sscanf(h, "HTTP/1.1 %d", status);
+    return rc;
+}
+
+/* The dashboard over HTTPS: pages, login (a Secure cookie), a download and
+ * the event stream through curl trusting only the served certificate; plain
+ * HTTP answered with 400 naming https; a stalled handshake holding no one
+ * up; the certificate renewed by SIGHUP (a broken one keeps the old). */
+TEST(http_dashboard_https) {
+    char dir[300], out2[4096], cert[400], key[400];
+    static char out[1 << 16];
+    snprintf(dir, sizeof dir, "%s", util_temp_path("https-certs"));
+    char cmd[4096];
+    snprintf(cmd, sizeof cmd, "rm -rf %s && mkdir -p %s", dir, dir);
+    util_run(cmd, out2, sizeof out2);
+    if (make_cert(dir, "a", "tessera-a", 2, out2, sizeof out2) || make_cert(dir, "b", "tessera-b", 2, out2, sizeof out2)) {
+        CHECK(0, "openssl could not make the test certificates: %s", out2);
+        return;
+    }
+    snprintf(cert, sizeof cert, "%s/served.pem", dir);
+    snprintf(key, sizeof key, "%s/served.key", dir);
+    snprintf(cmd, sizeof cmd, "cp %s/a.pem %s && cp %s/a.key %s", dir, cert, dir, key);
+    util_run(cmd, out2, sizeof out2);
+    char token[300], ca_a[400], ca_b[400], bearer[100] = "-H 'Authorization: Bearer sesame-tls-5'";
+    snprintf(token, sizeof token, "%s", util_write_temp("https-token", "sesame-tls-5\n"));
+    snprintf(ca_a, sizeof ca_a, "%s/a.pem", dir);
+    snprintf(ca_b, sizeof ca_b, "%s/b.pem", dir);
+    const char *extra[] = {"--token-file", token, "--http-cert", cert, "--http-key", key, NULL};
+    web w;
+    if (web_start(&w, "http-https", 0, extra)) {
+        CHECK(0, "coordinator did not start; log %s", w.log);
+        return;
+    }
+    CHECK(util_file_count(w.log, "dashboard on https://") == 1 && util_file_count(w.log, "CN=tessera-a"),
+          "the log names neither https nor the certificate: %s", w.log);
+    int status;
+    CHECK(https_get(w.http, ca_a, "/healthz", "", out, sizeof out, &status) == 0 && status == 200 &&
+              strcmp(web_body(out), "ok\n") == 0,
+          "/healthz over HTTPS (%d): %.300s", status, out);
+    CHECK(https_get(w.http, ca_b, "/healthz", "", out, sizeof out, &status) == 60,
+          "curl trusting another certificate was not refused: %.300s", out);
+    /* plain HTTP on the HTTPS port: told so, in plain text */
+    CHECK(web_get(w.http, "/healthz", "", out, sizeof out) == 400 && strstr(out, "served over HTTPS"),
+          "plain HTTP to the HTTPS port: %.300s", out);
+    /* login: the cookie is Secure, and works */
+    CHECK(https_get(w.http, ca_a, "/login", "-d token=sesame-tls-5", out, sizeof out, &status) == 0 &&
+              status == 303,
+          "login over HTTPS (%d): %.300s", status, out);
+    const char *ck = strstr(out, "Set-Cookie: tessera_session=");
+    char cookie[200] = "", args[400];
+    if (ck) sscanf(ck + 12, "%199[^;]", cookie);
+    CHECK(ck && strstr(ck, "; Secure") && strstr(ck, "HttpOnly"), "the session cookie is not Secure: %.300s", out);
+    snprintf(args, sizeof args, "-H 'Cookie: %s'", cookie);
+    CHECK(https_get(w.http, ca_a, "/api/jobs", args, out, sizeof out, &status) == 0 && status == 200,
+          "/api/jobs with the cookie (%d): %.300s", status, out);
+    /* a peer that stalls mid-handshake holds no one up */
+    int stall = web_connect(w.http);
+    CHECK(stall >= 0 && send(stall, "\x16\x03\x01\x00\xff\x01", 6, MSG_NOSIGNAL) == 6, "cannot start a stalled handshake");
+    /* the event stream, opened before a job that a worker renders */
+    char events[300], path[4096], wlog[300], url[128], curl_ca[420];
+    snprintf(events, sizeof events, "%s", util_temp_path("https-events.txt"));
+    snprintf(url, sizeof url, "https://127.0.0.1:%d/api/events", w.http);
+    snprintf(curl_ca, sizeof curl_ca, "%s", ca_a);
+    const char *cargv[] = {"/usr/bin/curl", "-sS", "-N", "--max-time", "60", "--cacert", curl_ca, "-H",
+                           "Authorization: Bearer sesame-tls-5", url, NULL};
+    pid_t ev = util_spawn(cargv, events);
+    CHECK(util_wait_for_text(events, ": tessera", 20) == 0, "no event stream over HTTPS: %s", events);
+    snprintf(path, sizeof path, "%s", util_bin("tessera-worker"));
+    snprintf(wlog, sizeof wlog, "%s.worker", w.log);
+    const char *wargv[] = {path, "--connect", w.addr, "--threads", "1", "--name", "tlsworker", "--token-file", token,
+                           "--retry-max", "1", NULL};
+    w.worker = util_spawn(wargv, wlog);
+    char sub[4096], subcmd[4096];
+    snprintf(subcmd, sizeof subcmd, "TESSERA_TOKEN_FILE=%s TESSERA_COORDINATOR=%s %s submit %s --tile-size 16 --spp 16 --wait",
+             token, w.addr, harness_tessera(), SCENE);
+    int st = util_run(subcmd, sub, sizeof sub);
+    CHECK(st == 0, "submit --wait failed (%d): %s", st, sub);
+    CHECK(util_wait_for_text(events, "\"kind\":\"done\"", 20) == 0, "no tile events in the HTTPS stream: %s",
+          events);
+    kill(ev, SIGTERM);
+    util_wait(ev, LONG, NULL);
+    /* a download: the whole PNG through TLS */
+    char png[300], dl[600];
+    snprintf(png, sizeof png, "%s", util_temp_path("https-image.png"));
+    snprintf(dl, sizeof dl, "%s --no-include -o %s", bearer, png);
+    CHECK(https_get(w.http, ca_a, "/api/jobs/1/image.png", dl, out, sizeof out, &status) == 0, "download: %.300s",
+          out);
+    png_image img = {.version = PNG_IMAGE_VERSION};
+    CHECK(png_image_begin_read_from_file(&img, png) && img.width > 0 && img.height > 0,
+          "the PNG downloaded over HTTPS does not decode: %s", png);
+    png_image_free(&img);
+    if (stall >= 0) close(stall);
+    CHECK(https_get(w.http, ca_a, "/metrics", bearer, out, sizeof out, &status) == 0 &&
+              metric(web_body(out), "tessera_http_tls_failures_total") >= 2,
+          "the failures (plain HTTP, the other certificate) are not counted: %.2000s", out);
+    /* SIGHUP: a renewed certificate for new connections; a broken one keeps the last */
+    snprintf(cmd, sizeof cmd, "cp %s/b.pem %s && cp %s/b.key %s", dir, cert, dir, key);
+    util_run(cmd, out2, sizeof out2);
+    kill(w.pid, SIGHUP);
+    CHECK(util_wait_for_text(w.log, "dashboard certificate re-read (/CN=tessera-b", 20) == 0, "no re-read in %s",
+          w.log);
+    CHECK(https_get(w.http, ca_b, "/healthz", "", out, sizeof out, &status) == 0 && status == 200,
+          "the renewed certificate is not served (%d): %.300s", status, out);
+    CHECK(https_get(w.http, ca_a, "/healthz", "", out, sizeof out, &status) == 60, "the old certificate is still served");
+    util_write_temp("https-garbage", "not a certificate\n");
+    snprintf(cmd, sizeof cmd, "cp %s %s", util_temp_path("https-garbage"), cert);
+    util_run(cmd, out2, sizeof out2);
+    kill(w.pid, SIGHUP);
+    CHECK(util_wait_for_text(w.log, "the dashboard keeps its previous certificate", 20) == 0,
+          "a broken certificate was not reported in %s", w.log);
+    CHECK(https_get(w.http, ca_b, "/healthz", "", out, sizeof out, &status) == 0 && status == 200,
+          "a broken renewal took the dashboard down (%d): %.300s", status, out);
+    web_stop(&w);
+}
+
+/* Every bad certificate or key stops the start-up with a message naming
+ * the file and the fault. */
+TEST(http_dashboard_https_bad_files) {
+    char dir[300], out[4096], cmd[8192];
+    snprintf(dir, sizeof dir, "%s", util_temp_path("https-bad"));
+    snprintf(cmd, sizeof cmd, "rm -rf %s && mkdir -p %s", dir, dir);
+    util_run(cmd, out, sizeof out);
+    if (make_cert(dir, "a", "tessera-a", 2, out, sizeof out) || make_cert(dir, "b", "tessera-b", 2, out, sizeof out) ||
+        make_cert(dir, "old", "tessera-old", -1, out, sizeof out)) {
+        CHECK(0, "openssl could not make the test certificates: %s", out);
+        return;
+    }
+    static const struct {
+        const char *cert, *key, *want;
+    } cases[] = {
+        {"missing.pem", "a.key", "certificate %s/missing.pem: No such file or directory"},
+        {"a.pem", "missing.key", "private key %s/missing.key: No such file or directory"},
+        {"a.key", "a.key", "certificate %s/a.key: not a PEM certificate chain"},
+        {"a.pem", "a.pem", "private key %s/a.pem: not a PEM private key"},
+        {"a.pem", "b.key", "private key %s/b.key does not match certificate "},
+        {"old.pem", "old.key", "certificate %s/old.pem expired on "},
+        {"a.pem", NULL, "HTTPS needs both a certificate (--http-cert) and its key (--http-key)%s"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        int n = snprintf(cmd, sizeof cmd, "timeout 60 %s --listen 127.0.0.1:%d --data-dir %s/data --http 127.0.0.1:%d "
+                         "--http-cert %s/%s", util_bin("tessera-coordinator"), util_free_port(), dir,
+                         util_free_port(), dir, cases[i].cert);
+        if (cases[i].key) snprintf(cmd + n, sizeof cmd - (size_t)n, " --http-key %s/%s", dir, cases[i].key);
+        int st = util_run(cmd, out, sizeof out);
+        char want[600];
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wformat-nonliteral"
+        snprintf(want, sizeof want, cases[i].want, cases[i].key ? dir : "");
+#pragma GCC diagnostic pop
+        CHECK(st != 0 && st != 124 && strstr(out, want), "%s with %s: exit %d, want \"%s\", got: %s", cases[i].cert,
+              cases[i].key ? cases[i].key : "no key", st, want, out);
+    }
+    /* and tessera render: the flags need --http */
+    snprintf(cmd, sizeof cmd, "timeout 60 %s render scenes/cornell-box.json --http-cert %s/a.pem --http-key %s/a.key",
+             harness_tessera(), dir, dir);
+    int st = util_run(cmd, out, sizeof out);
+    CHECK(st != 0 && st != 124 && strstr(out, "give --http ADDR:PORT"), "render --http-cert without --http (%d): %s",
+          st, out);
+}
+
+/* The dashboard over HTTPS in headless Chromium (tests/browser_https.py),
+ * which trusts only the served certificate's key: signing in keeps the
+ * Secure cookie, the list and a finished job's image load. */
+TEST(http_dashboard_browser_https) {
+    if (system("chromium --version >/dev/null 2>&1") != 0) {
+        printf("    SKIP: chromium cannot start here (install Debian's chromium to run this test)\n");
+        return;
+    }
+    char dir[300], cmd[4096], cert[400], key[400], spki[128] = "";
+    static char out[1 << 16];
+    snprintf(dir, sizeof dir, "%s", util_temp_path("https-browser"));
+    snprintf(cmd, sizeof cmd, "rm -rf %s && mkdir -p %s", dir, dir);
+    util_run(cmd, out, sizeof out);
+    if (make_cert(dir, "a", "tessera-a", 2, out, sizeof out)) {
+        CHECK(0, "openssl could not make the test certificate: %s", out);
+        return;
+    }
+    snprintf(cert, sizeof cert, "%s/a.pem", dir);
+    snprintf(key, sizeof key, "%s/a.key", dir);
+    snprintf(cmd, sizeof cmd,
+             "openssl x509 -in %s -pubkey -noout | openssl pkey -pubin -outform der | openssl dgst -sha256 -binary | "
+             "base64",
+             cert);
+    CHECK(util_run(cmd, out, sizeof out) == 0 && sscanf(out, "%127s", spki) == 1, "no key hash: %s", out);
+    char token[300];
+    snprintf(token, sizeof token, "%s", util_write_temp("https-browser-token", "sesame-tls-browser\n"));
+    const char *extra[] = {"--token-file", token, "--http-cert", cert, "--http-key", key, NULL};
+    web w;
+    if (web_start(&w, "http-browser-https", 0, extra)) {
+        CHECK(0, "coordinator did not start; log %s", w.log);
+        return;
+    }
+    char path[4096], wlog[300], sub[4096];
+    snprintf(path, sizeof path, "%s", util_bin("tessera-worker"));
+    snprintf(wlog, sizeof wlog, "%s.worker", w.log);
+    const char *wargv[] = {path, "--connect", w.addr, "--threads", "1", "--name", "tlsworker", "--token-file", token,
+                           "--retry-max", "1", NULL};
+    w.worker = util_spawn(wargv, wlog);
+    snprintf(cmd, sizeof cmd, "TESSERA_TOKEN_FILE=%s TESSERA_COORDINATOR=%s %s submit %s --tile-size 16 --spp 4 --wait",
+             token, w.addr, harness_tessera(), SCENE);
+    int st = util_run(cmd, sub, sizeof sub);
+    CHECK(st == 0, "submit --wait failed (%d): %s", st, sub);
+    char profile[300];
+    snprintf(profile, sizeof profile, "%s", util_temp_path("chromium-profile-https"));
+    snprintf(cmd, sizeof cmd, "timeout 300 python3 tests/browser_https.py %d sesame-tls-browser %s %s 2>&1", w.http,
+             spki, profile);
+    st = util_run(cmd, out, sizeof out);
+    printf("%s", out);
+    CHECK(st == 0, "the HTTPS browser checks failed (%d); coordinator log %s", st, w.log);
+    web_stop(&w);
+}
