@@ -10,8 +10,10 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/queue.h>
 
 #include "http.h"
+#include "image/image.h"
 #include "image/image_codecs.h"
 #include "limit.h"
 #include "net/address.h"
@@ -20,6 +22,8 @@
 #define DASH_MAX_REQUEST (64 << 10)
 #define DASH_MAX_HEADERS 64
 #define DASH_FLUSH_MS 250 /* events are batched: one write per stream per tick, not per tile */
+#define DASH_ENCODES 2       /* images read and encoded at once, on libuv's pool */
+#define DASH_ENCODE_QUEUE 16 /* image requests waiting for one; beyond, 503 */
 
 /* Tile latency histogram bounds, seconds (Prometheus le=). */
 static const double latency_bounds[] = {0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 10, 30, 60};
@@ -53,6 +57,8 @@ static void __attribute__((format(printf, 2, 3))) sb_printf(strbuf *b, const cha
     }
 }
 
+typedef struct dash_encode dash_encode;
+
 struct dashboard {
     uv_loop_t *loop;
     farm *f;
@@ -75,7 +81,11 @@ struct dashboard {
     uint64_t requests;
     strbuf pending;    /* event lines not yet sent to the streams */
     uv_timer_t flush;  /* sends them every DASH_FLUSH_MS */
-    int open_parts;    /* the http server and the timer, until closed */
+    int open_parts;    /* the http server, the timer and each encode in flight, until closed */
+    int closing;
+    TAILQ_HEAD(, dash_encode) waiting; /* image requests not yet started */
+    int waiting_n, encoding;           /* queued, and on the pool now */
+    uint64_t images_busy;              /* image requests refused with 503 (queue full) */
     void (*closed_cb)(void *);
     void *closed_ctx;
 };
@@ -93,10 +103,6 @@ int dashboard_parse_address(const char *s, dashboard_options *o, char *host_buf,
     if (address_parse(s, host_buf, host_len, &o->port, err, err_len)) return -1;
     o->host = host_buf;
     return 0;
-}
-
-static int host_is_loopback(const char *h) {
-    return strncmp(h, "127.", 4) == 0 || strcmp(h, "::1") == 0 || strcmp(h, "localhost") == 0;
 }
 
 /* ---- events ------------------------------------------------------------------ */
@@ -246,7 +252,7 @@ static int origin_ok(const http_request *rq) {
 /* A Host that is not a loopback name while we listen on loopback is a DNS
  * rebinding attempt: refused. */
 static int host_ok(const dashboard *d, const http_request *rq) {
-    if (!host_is_loopback(d->o.host)) return 1;
+    if (!address_is_loopback(d->o.host)) return 1;
     char h[HTTP_VALUE_MAX];
     snprintf(h, sizeof h, "%s", rq->host);
     if (h[0] == '[') {
@@ -257,7 +263,7 @@ static int host_ok(const dashboard *d, const http_request *rq) {
         char *c = strrchr(h, ':');
         if (c) *c = '\0';
     }
-    return h[0] == '\0' || host_is_loopback(h);
+    return h[0] == '\0' || address_is_loopback(h);
 }
 
 /* ---- answers ----------------------------------------------------------------- */
@@ -331,6 +337,8 @@ static void route_metrics(dashboard *d, http_conn *c) {
          http_server_dropped(d->http)},
         {"tessera_http_refused_total", "HTTP connections refused (503) over the per-address or total cap.",
          http_server_refused(d->http)},
+        {"tessera_http_images_busy_total", "Preview and download requests refused (503) with the encoding queue full.",
+         d->images_busy},
         {"tessera_http_tls_failures_total", "HTTPS connections that ended before a request (handshake failed, "
          "plain HTTP, peer gone).", http_server_tls_failed(d->http)},
     };
@@ -378,53 +386,155 @@ static float query_exposure(const char *query) {
     return x >= -20 && x <= 20 ? (float)x : 0;
 }
 
-/* Tone map w * h pixels (the job's way: Reinhard, with exposure) and send
- * them as a PNG with extra headers; or a 503. */
-static void send_png(http_conn *c, const float *rgb, int w, int h, float exposure, const char *extra) {
-    tonemap_options t = {TONEMAP_REINHARD, exposure, 0};
-    size_t n = (size_t)w * (size_t)h, len = 0;
-    uint8_t *px = malloc(n * 3), *png = NULL;
-    char err[200];
-    if (px) {
-        tonemap_to_8bit(rgb, n, &t, px);
-        png = codec_png_encode(px, w, h, &len, err, sizeof err);
-    }
-    free(px);
-    if (!png) return send_text(c, 503, "cannot encode the image\n");
-    http_respond(c, 200, "image/png", png, len, extra);
-    free(png);
-}
+/* ---- images: previews and downloads, read and encoded on libuv's pool ---- */
 
-static void route_preview(dashboard *d, http_conn *c, uint32_t id, const char *query) {
-    float *rgb;
-    int w, h, owned = 0;
-    if (!d->src.frame || d->src.frame(d->src.ctx, id, &rgb, &w, &h, &owned))
-        return send_text(c, 404, "no image for this job\n");
-    send_png(c, rgb, w, h, query_exposure(query), NULL);
-    if (owned) free(rgb);
-}
+typedef enum { ENC_PREVIEW, ENC_PNG, ENC_EXR } enc_kind;
 
-/* A finished job's image as a download: exr (linear float, ZIP) or png
- * (tone mapped as the preview, with the query's exposure). */
-static void route_download(dashboard *d, http_conn *c, uint32_t id, const char *query, int exr) {
-    float *rgb;
+/* One image request. The pixels are a copy of the job's live frame (taken
+ * on the loop when the request starts) or read from the job's saved file on
+ * the pool; the encoding runs there too, so a 4096x4096 EXR does not hold
+ * up the farm's loop. Answered on the loop, if the browser is still there. */
+struct dash_encode {
+    uv_work_t req;
+    dashboard *d;
+    http_conn *c; /* held until answered */
+    uint32_t id;
+    enc_kind kind;
+    float exposure;
+    float *rgb; /* the copy, or what the pool read */
     int w, h;
-    if (!d->src.image || d->src.image(d->src.ctx, id, &rgb, &w, &h))
-        return send_text(c, 404, "no finished image for this job\n");
-    char hdr[200];
-    snprintf(hdr, sizeof hdr, "Content-Disposition: attachment; filename=\"job-%u.%s\"\r\n", id, exr ? "exr" : "png");
-    if (!exr) {
-        send_png(c, rgb, w, h, query_exposure(query), hdr);
-    } else {
-        codec_exr_options eo = {.compression = CODEC_EXR_ZIP};
-        size_t len = 0;
-        char err[300];
-        uint8_t *f = codec_exr_encode(rgb, w, h, &eo, &len, err, sizeof err);
-        if (f) http_respond(c, 200, "image/x-exr", f, len, hdr);
-        else send_text(c, 503, "cannot encode the image\n");
-        free(f);
+    char path[4096]; /* "" when rgb holds a copy */
+    uint8_t *out;
+    size_t len;
+    int status;    /* 200, or the error's, with err */
+    char err[400];
+    TAILQ_ENTRY(dash_encode) link;
+};
+
+static void encode_free(dash_encode *e) {
+    http_conn_release(e->c);
+    free(e->rgb);
+    free(e->out);
+    free(e);
+}
+
+/* On the pool: read (when a path) and encode; touches only e. */
+static void encode_work(uv_work_t *req) {
+    dash_encode *e = req->data;
+    e->status = 503;
+    if (e->path[0]) {
+        image img;
+        if (image_read(e->path, &img, e->err, sizeof e->err)) return;
+        e->rgb = img.rgb;
+        e->w = img.width;
+        e->h = img.height;
     }
-    free(rgb);
+    if (e->kind == ENC_EXR) {
+        codec_exr_options eo = {.compression = CODEC_EXR_ZIP};
+        e->out = codec_exr_encode(e->rgb, e->w, e->h, &eo, &e->len, e->err, sizeof e->err);
+    } else { /* tone mapped the job's way: Reinhard, with the query's exposure */
+        tonemap_options t = {TONEMAP_REINHARD, e->exposure, 0};
+        size_t n = (size_t)e->w * (size_t)e->h;
+        uint8_t *px = malloc(n * 3);
+        if (!px) {
+            snprintf(e->err, sizeof e->err, "out of memory");
+            return;
+        }
+        tonemap_to_8bit(e->rgb, n, &t, px);
+        e->out = codec_png_encode(px, e->w, e->h, &e->len, e->err, sizeof e->err);
+        free(px);
+    }
+    if (e->out) e->status = 200;
+}
+
+static void encode_pump(dashboard *d);
+static void on_part_closed(dashboard *d);
+
+/* Back on the loop: answer, then start the next. */
+static void encode_done(uv_work_t *req, int status) {
+    (void)status;
+    dash_encode *e = req->data;
+    dashboard *d = e->d;
+    d->encoding--;
+    if (!d->closing && http_conn_open(e->c)) {
+        if (e->status == 200) {
+            char hdr[200] = "";
+            if (e->kind != ENC_PREVIEW)
+                snprintf(hdr, sizeof hdr, "Content-Disposition: attachment; filename=\"job-%u.%s\"\r\n", e->id,
+                         e->kind == ENC_EXR ? "exr" : "png");
+            http_respond(e->c, 200, e->kind == ENC_EXR ? "image/x-exr" : "image/png", e->out, e->len,
+                         hdr[0] ? hdr : NULL);
+        } else {
+            char text[500];
+            snprintf(text, sizeof text, "cannot encode the image: %s\n", e->err);
+            send_text(e->c, e->status, text);
+        }
+    }
+    encode_free(e);
+    if (!d->closing) encode_pump(d);
+    on_part_closed(d);
+}
+
+/* Where e's pixels come from: a copy of the live frame (previews), else the
+ * saved file. 0, or -1 after answering 404 (or 503 without memory). */
+static int encode_source(dashboard *d, dash_encode *e) {
+    float *live;
+    if (e->kind == ENC_PREVIEW && d->src.frame && d->src.frame(d->src.ctx, e->id, &live, &e->w, &e->h) == 0) {
+        size_t n = (size_t)e->w * (size_t)e->h * 3;
+        if (!(e->rgb = malloc(n * sizeof *live))) return send_text(e->c, 503, "out of memory\n"), -1;
+        memcpy(e->rgb, live, n * sizeof *live);
+        return 0;
+    }
+    if (d->src.image_file &&
+        d->src.image_file(d->src.ctx, e->id, e->kind != ENC_PREVIEW, e->path, sizeof e->path) == 0)
+        return 0;
+    send_text(e->c, 404, e->kind == ENC_PREVIEW ? "no image for this job\n" : "no finished image for this job\n");
+    return -1;
+}
+
+/* Start waiting requests while fewer than DASH_ENCODES run. */
+static void encode_pump(dashboard *d) {
+    dash_encode *e;
+    while (d->encoding < DASH_ENCODES && (e = TAILQ_FIRST(&d->waiting))) {
+        TAILQ_REMOVE(&d->waiting, e, link);
+        d->waiting_n--;
+        if (!http_conn_open(e->c) || encode_source(d, e)) {
+            encode_free(e);
+            continue;
+        }
+        e->req.data = e;
+        if (uv_queue_work(d->loop, &e->req, encode_work, encode_done)) {
+            send_text(e->c, 503, "cannot start the image's encoding\n");
+            encode_free(e);
+            continue;
+        }
+        d->encoding++;
+        d->open_parts++;
+    }
+}
+
+/* Queue an image request on c (answered later), or refuse it with 503 when
+ * DASH_ENCODE_QUEUE already wait. */
+static void encode_request(dashboard *d, http_conn *c, uint32_t id, enc_kind kind, const char *query) {
+    if (d->waiting_n >= DASH_ENCODE_QUEUE) {
+        d->images_busy++;
+        char text[200];
+        snprintf(text, sizeof text, "busy: %d images are being encoded and %d wait; retry\n", d->encoding,
+                 d->waiting_n);
+        http_respond(c, 503, "text/plain; charset=utf-8", text, strlen(text), "Retry-After: 1\r\n");
+        return;
+    }
+    dash_encode *e = calloc(1, sizeof *e);
+    if (!e) return send_text(c, 503, "out of memory\n");
+    e->d = d;
+    e->c = c;
+    http_conn_hold(c);
+    e->id = id;
+    e->kind = kind;
+    e->exposure = query_exposure(query);
+    TAILQ_INSERT_TAIL(&d->waiting, e, link);
+    d->waiting_n++;
+    encode_pump(d);
 }
 
 /* GET /api/jobs/N/log[?last=N]: the source's log of the job (the newest N
@@ -563,8 +673,7 @@ static int route_job_get(dashboard *d, http_conn *c, const http_request *rq, con
                  owner);
         return send_text(c, 403, err), 0;
     }
-    if (preview) route_preview(d, c, id, rq->query);
-    else route_download(d, c, id, rq->query, exr);
+    encode_request(d, c, id, preview ? ENC_PREVIEW : exr ? ENC_EXR : ENC_PNG, rq->query);
     return 0;
 }
 
@@ -607,7 +716,7 @@ dashboard *dashboard_new(uv_loop_t *loop, farm *f, const dashboard_options *o, c
                          char *err, size_t err_len) {
     const char *host = o->host ? o->host : "127.0.0.1";
     int secured = o->auth && auth_keyring_enabled(o->auth);
-    if (!host_is_loopback(host) && !secured && !o->insecure) {
+    if (!address_is_loopback(host) && !secured && !o->insecure) {
         snprintf(err, err_len,
                  "--http %s:%d is not a loopback address and there is no --token-file: anyone who can reach it "
                  "could watch and cancel jobs; give a token, or --insecure to serve it anyway",
@@ -648,11 +757,12 @@ dashboard *dashboard_new(uv_loop_t *loop, farm *f, const dashboard_options *o, c
         return NULL;
     }
     d->o.host = NULL; /* the caller's string may go; only loopback-ness is kept */
-    d->o.host = host_is_loopback(host) ? "127.0.0.1" : "0.0.0.0";
+    d->o.host = address_is_loopback(host) ? "127.0.0.1" : "0.0.0.0";
     uv_timer_init(loop, &d->flush);
     d->flush.data = d;
     uv_timer_start(&d->flush, on_flush, DASH_FLUSH_MS, DASH_FLUSH_MS);
     d->open_parts = 2;
+    TAILQ_INIT(&d->waiting);
     if (!src->forwards_events) farm_set_event_cb(f, on_farm_event, d);
     return d;
 }
@@ -696,6 +806,13 @@ void dashboard_close(dashboard *d, void (*cb)(void *ctx), void *ctx) {
     if (!d->src.forwards_events) farm_set_event_cb(d->f, NULL, NULL);
     d->closed_cb = cb;
     d->closed_ctx = ctx;
+    d->closing = 1; /* image requests waiting are dropped; those on the pool end unanswered */
+    dash_encode *e;
+    while ((e = TAILQ_FIRST(&d->waiting))) {
+        TAILQ_REMOVE(&d->waiting, e, link);
+        encode_free(e);
+    }
+    d->waiting_n = 0;
     uv_close((uv_handle_t *)&d->flush, on_timer_closed);
     http_server_close(d->http, on_http_closed, d);
 }

@@ -36,15 +36,18 @@ typedef struct {
      * started, finished (epoch seconds, 0 when not yet), submitter, and
      * owner when it has one. */
     void (*jobs)(void *ctx, cJSON *arr);
-    /* The job's frame, width * height * 3 floats (valid until the next
-     * callback), or -1 when there is none. *owned: the caller frees it. */
-    int (*frame)(void *ctx, uint32_t id, float **rgb, int *w, int *h, int *owned);
+    /* The job's frame while it is held in memory, width * height * 3
+     * floats (valid until the next callback; the dashboard copies what it
+     * keeps), or -1 when there is none. */
+    int (*frame)(void *ctx, uint32_t id, float **rgb, int *w, int *h);
     /* Cancel a job. 0, or -1 with the reason in err. NULL: not offered. */
     int (*cancel)(void *ctx, uint32_t id, char *err, size_t err_len);
     void *ctx;
-    /* A finished job's image (the caller frees *rgb), or -1 when the job
-     * is not done. NULL: downloads are not offered. */
-    int (*image)(void *ctx, uint32_t id, float **rgb, int *w, int *h);
+    /* The file of the job's saved image (a PFM, read with image_read off
+     * the loop) into path: with done_only, only once the job is done; else
+     * the last saved (an adaptive job's previous round). 0, or -1 when there
+     * is none. NULL: downloads are not offered. */
+    int (*image_file)(void *ctx, uint32_t id, int done_only, char *path, size_t len);
     /* Change a job's priority. 0, or -1 with the reason in err. NULL: not
      * offered. */
     int (*priority)(void *ctx, uint32_t id, int priority, char *err, size_t err_len);

@@ -218,6 +218,8 @@ struct http_conn {
     int counted;   /* in s->limits under ip */
     tls_conn *tls; /* HTTPS: the session (freed with c) */
     int sniffed;   /* HTTPS: the first byte has been looked at */
+    int holds;     /* http_conn_hold: the memory outlives the handles */
+    int gone;      /* the handles are closed (freed at the last release) */
     char ip[64];
     LIST_ENTRY(http_conn) link;
 };
@@ -269,9 +271,19 @@ static void conn_on_handle_closed(uv_handle_t *h) {
     s->conns--;
     if (c->counted) connlimit_release(s->limits, c->ip, CONNLIMIT_OPEN);
     tls_conn_free(c->tls);
-    free(c);
+    c->tls = NULL;
+    c->gone = 1;
+    if (!c->holds) free(c);
     server_maybe_done(s);
 }
+
+void http_conn_hold(http_conn *c) { c->holds++; }
+
+void http_conn_release(http_conn *c) {
+    if (--c->holds == 0 && c->gone) free(c);
+}
+
+int http_conn_open(const http_conn *c) { return !c->closing; }
 
 static void conn_close(http_conn *c) {
     if (c->closing) return;

@@ -104,6 +104,14 @@ http_server *http_server_new(uv_loop_t *loop, const http_options *o, http_handle
 
 int http_server_port(const http_server *s);
 
+/* Keep c's memory after it closes, for an answer given later (work on
+ * libuv's pool): every hold needs one release, the last of which frees a
+ * closed connection. http_conn_open says whether it may still be answered.
+ * Can't fail. */
+void http_conn_hold(http_conn *c);
+void http_conn_release(http_conn *c);
+int http_conn_open(const http_conn *c);
+
 /* Answer and close. extra_headers: more "Name: value\r\n" lines, or NULL. */
 void http_respond(http_conn *c, int status, const char *content_type, const void *body, size_t len,
                   const char *extra_headers);

@@ -390,13 +390,12 @@ static void web_jobs(void *ctx, cJSON *arr) {
     cJSON_AddItemToArray(arr, o);
 }
 
-static int web_frame(void *ctx, uint32_t id, float **rgb, int *w, int *h, int *owned) {
+static int web_frame(void *ctx, uint32_t id, float **rgb, int *w, int *h) {
     local_run *r = ctx;
     if (id != r->job->id || r->ad) return -1; /* adaptive rounds fill rgb only at the end */
     *rgb = r->rgb;
     *w = r->job->width;
     *h = r->job->height;
-    *owned = 0;
     return 0;
 }
 

@@ -4,6 +4,8 @@
  * or a finished job's image, its log, cancel and priority. The service
  * calls service_web_start once its farm listens. */
 #include "service_internal.h"
+
+#include <unistd.h>
 #include "dashboard.h"
 #include "net/address.h"
 
@@ -36,33 +38,22 @@ static void web_jobs(void *ctx, cJSON *arr) {
 }
 
 /* A finished job's image, read from jobs/ID.pfm (the caller frees *rgb). */
-static int web_image(void *ctx, uint32_t id, float **rgb, int *w, int *h) {
+static int web_image_file(void *ctx, uint32_t id, int done_only, char *path, size_t len) {
     service *s = ctx;
     sjob *j = store_find_job(s, id);
-    if (!j || j->state != SJOB_DONE) return -1;
-    char path[4096], err[300];
-    store_job_path(s, id, "pfm", path, sizeof path);
-    image img;
-    if (image_read(path, &img, err, sizeof err)) return -1;
-    *rgb = img.rgb;
-    *w = img.width;
-    *h = img.height;
-    return 0;
+    if (!j || (done_only && j->state != SJOB_DONE)) return -1;
+    store_job_path(s, id, "pfm", path, len);
+    return access(path, R_OK) == 0 ? 0 : -1;
 }
 
-static int web_frame(void *ctx, uint32_t id, float **rgb, int *w, int *h, int *owned) {
+static int web_frame(void *ctx, uint32_t id, float **rgb, int *w, int *h) {
     service *s = ctx;
     sjob *j = store_find_job(s, id);
-    if (!j) return -1;
-    if (j->rgb && !j->desc.adaptive) {
-        *w = j->desc.width;
-        *h = j->desc.height;
-        *rgb = j->rgb;
-        *owned = 0;
-        return 0;
-    }
-    *owned = 1;
-    return web_image(ctx, id, rgb, w, h);
+    if (!j || !j->rgb || j->desc.adaptive) return -1; /* then the saved image, if any */
+    *w = j->desc.width;
+    *h = j->desc.height;
+    *rgb = j->rgb;
+    return 0;
 }
 
 static int web_cancel(void *ctx, uint32_t id, char *err, size_t err_len) {
@@ -122,7 +113,7 @@ int service_web_start(service *s, char *err, size_t err_len) {
     if (!s->o.http) return 0;
     dashboard_options o = *s->o.http;
     o.auth = &s->o.farm.auth;
-    dashboard_source src = {.jobs = web_jobs, .frame = web_frame, .image = web_image, .cancel = web_cancel,
+    dashboard_source src = {.jobs = web_jobs, .frame = web_frame, .image_file = web_image_file, .cancel = web_cancel,
                             .priority = web_priority, .log = web_log, .owner = web_owner, .forwards_events = 1,
                             .ctx = s};
     s->web = dashboard_new(&s->loop, s->f, &o, &src, err, err_len);

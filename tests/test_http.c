@@ -20,6 +20,8 @@
 #include <string.h>
 #include <sys/stat.h>
 #include <sys/socket.h>
+#include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "harness.h"
@@ -1134,4 +1136,94 @@ TEST(http_dashboard_browser_https) {
     printf("%s", out);
     CHECK(st == 0, "the HTTPS browser checks failed (%d); coordinator log %s", st, w.log);
     web_stop(&w);
+}
+
+static double mono_now(void) {
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + t.tv_nsec / 1e9;
+}
+
+/* Previews and downloads are read and encoded on libuv's pool: while a
+ * 1024x1024 job's EXR is encoded the loop still answers /healthz at once
+ * (with the encoding on the loop, /healthz waited for all of it); a burst
+ * of downloads beyond the queue is refused with 503 "busy", and every one
+ * taken is answered whole. */
+TEST(http_dashboard_images_off_the_loop) {
+    web w;
+    if (web_start(&w, "http-images", 0, NULL)) {
+        CHECK(0, "coordinator did not start; log %s", w.log);
+        return;
+    }
+    char path[4096], wlog[300], sub[4096];
+    snprintf(path, sizeof path, "%s", util_bin("tessera-worker"));
+    snprintf(wlog, sizeof wlog, "%s.worker", w.log);
+    const char *wargv[] = {path, "--connect", w.addr, "--threads", "2", "--name", "imgworker", "--retry-max", "1",
+                           NULL};
+    w.worker = util_spawn(wargv, wlog);
+    int st = submit(&w, SCENE " --width 1024 --height 1024 --spp 1 --tile-size 64 --wait", sub, sizeof sub);
+    CHECK(st == 0, "submit --wait failed (%d): %s", st, sub);
+    /* the EXR in a child process; /healthz from here meanwhile */
+    char exr[300], url[128];
+    snprintf(exr, sizeof exr, "%s", util_temp_path("images-job.exr"));
+    snprintf(url, sizeof url, "http://127.0.0.1:%d/api/jobs/1/image.exr", w.http);
+    const char *cargv[] = {"/usr/bin/curl", "-sS", "-f", "--max-time", "120", "-o", exr, url, NULL};
+    static char out[1 << 16];
+    double t0 = mono_now(), worst = 0;
+    int polls = 0, status = -1;
+    pid_t cp = util_spawn(cargv, util_temp_path("images-curl.log"));
+    for (;;) {
+        int ws;
+        pid_t r = waitpid(cp, &ws, WNOHANG);
+        if (r == cp) {
+            status = WIFEXITED(ws) ? WEXITSTATUS(ws) : -1;
+            break;
+        }
+        if (r < 0 || mono_now() - t0 > 120) break;
+        double a = mono_now();
+        CHECK(web_get(w.http, "/healthz", "", out, sizeof out) == 200, "/healthz during the download: %.200s", out);
+        double b = mono_now() - a;
+        if (b > worst) worst = b;
+        polls++;
+    }
+    double took = mono_now() - t0;
+    printf("    EXR download %.2f s; %d /healthz meanwhile, the slowest %.1f ms\n", took, polls, worst * 1e3);
+    CHECK(status == 0, "curl for the EXR exited %d", status);
+    CHECK(polls >= 3 && worst < took / 2, "the loop waited for the encoding: /healthz took %.1f ms of a %.2f s download",
+          worst * 1e3, took);
+    /* a burst of 30 downloads: 2 encode, 16 wait, the rest are told to retry */
+    enum { BURST = 30 };
+    int fds[BURST], ok = 0, busy = 0, other = 0;
+    char req[256];
+    int rn = snprintf(req, sizeof req, "GET /api/jobs/1/image.exr HTTP/1.1\r\nHost: 127.0.0.1:%d\r\n\r\n", w.http);
+    for (int i = 0; i < BURST; i++) {
+        fds[i] = web_connect(w.http);
+        if (fds[i] >= 0 && send(fds[i], req, (size_t)rn, MSG_NOSIGNAL) != rn) {
+            close(fds[i]);
+            fds[i] = -1;
+        }
+    }
+    static char big[16 << 20];
+    for (int i = 0; i < BURST; i++) {
+        int s = web_exchange(fds[i], "", 0, big, sizeof big, 120);
+        const char *body = web_body(big);
+        if (s == 200 && memcmp(body, "\x76\x2f\x31\x01", 4) == 0) ok++;
+        else if (s == 503 && strstr(big, "busy: ")) busy++;
+        else other++;
+    }
+    printf("    burst of %d downloads: %d answered, %d busy, %d other\n", BURST, ok, busy, other);
+    CHECK(other == 0 && busy > 0 && ok >= 18 && ok + busy == BURST, "burst: %d answered, %d busy, %d other", ok, busy,
+          other);
+    CHECK(web_get(w.http, "/metrics", "", out, sizeof out) == 200 &&
+              metric(web_body(out), "tessera_http_images_busy_total") == busy,
+          "busy refusals not counted: %.200s", out);
+    /* stopped with downloads on the pool and waiting: a clean exit (web_stop checks) */
+    for (int i = 0; i < 5; i++) {
+        fds[i] = web_connect(w.http);
+        if (fds[i] >= 0) CHECK(send(fds[i], req, (size_t)rn, MSG_NOSIGNAL) == rn, "cannot ask for the EXR");
+    }
+    util_sleep(0.1);
+    web_stop(&w);
+    for (int i = 0; i < 5; i++)
+        if (fds[i] >= 0) close(fds[i]);
 }
