@@ -7,11 +7,14 @@ a 2-thread worker, then downloads its EXR from the dashboard while asking
 /healthz over and over on another connection. Prints the download's time
 and size, how many /healthz were answered meanwhile and the slowest, and
 the coordinator's own "longest iteration" log line (which also counts the
-job's end). Usage: bench/dashboard_stall.py BUILD/bin [WIDTH]"""
+job's end). With "nodownload" the job only renders and ends, so the
+longest iteration is the job's end (its image written). Usage:
+bench/dashboard_stall.py BUILD/bin [WIDTH] [nodownload]"""
 import http.client, os, socket, subprocess, sys, tempfile, threading, time
 
 bindir = sys.argv[1]
 width = int(sys.argv[2]) if len(sys.argv) > 2 else 2048
+download = not (len(sys.argv) > 3 and sys.argv[3] == "nodownload")
 
 
 def free_port():
@@ -54,17 +57,18 @@ def fetch():
     done.append((time.monotonic() - t0, status, len(body)))
 
 
-th = threading.Thread(target=fetch)
-th.start()
-lat = []
-while th.is_alive():
-    t0 = time.monotonic()
-    get("/healthz")
-    lat.append(time.monotonic() - t0)
-th.join()
-took, status, size = done[0]
-print(f"EXR: status {status}, {size / 1e6:.1f} MB in {took:.2f} s; /healthz meanwhile: {len(lat)} answered, "
-      f"the slowest {max(lat or [0]) * 1e3:.1f} ms")
+if download:
+    th = threading.Thread(target=fetch)
+    th.start()
+    lat = []
+    while th.is_alive():
+        t0 = time.monotonic()
+        get("/healthz")
+        lat.append(time.monotonic() - t0)
+    th.join()
+    took, status, size = done[0]
+    print(f"EXR: status {status}, {size / 1e6:.1f} MB in {took:.2f} s; /healthz meanwhile: {len(lat)} answered, "
+          f"the slowest {max(lat or [0]) * 1e3:.1f} ms")
 worker.terminate()
 coord.terminate()
 coord.wait(60)

@@ -404,9 +404,8 @@ struct dash_encode {
     float *rgb; /* the copy, or what the pool read */
     int w, h;
     char path[4096]; /* "" when rgb holds a copy */
-    uint8_t *out;
-    size_t len;
-    int status;    /* 200, or the error's, with err */
+    conn_blob *answer; /* the whole 200 answer, built on the pool */
+    int status;        /* 200, or the error's, with err */
     char err[400];
     TAILQ_ENTRY(dash_encode) link;
 };
@@ -414,7 +413,7 @@ struct dash_encode {
 static void encode_free(dash_encode *e) {
     http_conn_release(e->c);
     free(e->rgb);
-    free(e->out);
+    conn_blob_unref(e->answer);
     free(e);
 }
 
@@ -422,6 +421,8 @@ static void encode_free(dash_encode *e) {
 static void encode_work(uv_work_t *req) {
     dash_encode *e = req->data;
     e->status = 503;
+    uint8_t *out = NULL;
+    size_t len = 0;
     if (e->path[0]) {
         image img;
         if (image_read(e->path, &img, e->err, sizeof e->err)) return;
@@ -431,7 +432,7 @@ static void encode_work(uv_work_t *req) {
     }
     if (e->kind == ENC_EXR) {
         codec_exr_options eo = {.compression = CODEC_EXR_ZIP};
-        e->out = codec_exr_encode(e->rgb, e->w, e->h, &eo, &e->len, e->err, sizeof e->err);
+        out = codec_exr_encode(e->rgb, e->w, e->h, &eo, &len, e->err, sizeof e->err);
     } else { /* tone mapped the job's way: Reinhard, with the query's exposure */
         tonemap_options t = {TONEMAP_REINHARD, e->exposure, 0};
         size_t n = (size_t)e->w * (size_t)e->h;
@@ -441,10 +442,19 @@ static void encode_work(uv_work_t *req) {
             return;
         }
         tonemap_to_8bit(e->rgb, n, &t, px);
-        e->out = codec_png_encode(px, e->w, e->h, &e->len, e->err, sizeof e->err);
+        out = codec_png_encode(px, e->w, e->h, &len, e->err, sizeof e->err);
         free(px);
     }
-    if (e->out) e->status = 200;
+    if (!out) return;
+    char hdr[200] = ""; /* the answer whole, so the loop only queues it (a 40 MB EXR: no copy there) */
+    if (e->kind != ENC_PREVIEW)
+        snprintf(hdr, sizeof hdr, "Content-Disposition: attachment; filename=\"job-%u.%s\"\r\n", e->id,
+                 e->kind == ENC_EXR ? "exr" : "png");
+    e->answer = http_response_build(200, e->kind == ENC_EXR ? "image/x-exr" : "image/png", out, len,
+                                    hdr[0] ? hdr : NULL);
+    free(out);
+    if (e->answer) e->status = 200;
+    else snprintf(e->err, sizeof e->err, "out of memory");
 }
 
 static void encode_pump(dashboard *d);
@@ -458,12 +468,7 @@ static void encode_done(uv_work_t *req, int status) {
     d->encoding--;
     if (!d->closing && http_conn_open(e->c)) {
         if (e->status == 200) {
-            char hdr[200] = "";
-            if (e->kind != ENC_PREVIEW)
-                snprintf(hdr, sizeof hdr, "Content-Disposition: attachment; filename=\"job-%u.%s\"\r\n", e->id,
-                         e->kind == ENC_EXR ? "exr" : "png");
-            http_respond(e->c, 200, e->kind == ENC_EXR ? "image/x-exr" : "image/png", e->out, e->len,
-                         hdr[0] ? hdr : NULL);
+            http_respond_blob(e->c, e->answer);
         } else {
             char text[500];
             snprintf(text, sizeof text, "cannot encode the image: %s\n", e->err);

@@ -396,11 +396,8 @@ const char *http_status_text(int status) {
     }
 }
 
-void http_respond(http_conn *c, int status, const char *content_type, const void *body, size_t len,
-                  const char *extra_headers) {
-    if (c->closing || c->answered & 1) return;
-    c->answered |= 1;
-    uv_read_stop((uv_stream_t *)&c->tcp);
+conn_blob *http_response_build(int status, const char *content_type, const void *body, size_t len,
+                               const char *extra_headers) {
     char head[2048];
     /* Referrer-Policy same-origin, not no-referrer: under no-referrer a
      * browser sends "Origin: null" on the page's own POSTs, which the
@@ -412,16 +409,31 @@ void http_respond(http_conn *c, int status, const char *content_type, const void
                      status, http_status_text(status), content_type, len, extra_headers ? extra_headers : "");
     if (n < 0 || (size_t)n >= sizeof head) n = 0;
     conn_blob *b = conn_blob_new((size_t)n + len); /* head and body, copied once */
+    if (!b) return NULL;
+    memcpy(b->data, head, (size_t)n);
+    if (len) memcpy(b->data + n, body, len);
+    return b;
+}
+
+void http_respond_blob(http_conn *c, conn_blob *b) {
+    if (c->closing || c->answered & 1) return;
+    c->answered |= 1;
+    uv_read_stop((uv_stream_t *)&c->tcp);
     if (!b) {
         conn_close(c);
         return;
     }
-    memcpy(b->data, head, (size_t)n);
-    if (len) memcpy(b->data + n, body, len);
     if (conn_write_blob(c, b) == 0 && c->tls) {
         tls_conn_shutdown(c->tls);
         conn_flush_tls(c);
     }
+}
+
+void http_respond(http_conn *c, int status, const char *content_type, const void *body, size_t len,
+                  const char *extra_headers) {
+    if (c->closing || c->answered & 1) return;
+    conn_blob *b = http_response_build(status, content_type, body, len, extra_headers);
+    http_respond_blob(c, b);
     conn_blob_unref(b);
 }
 

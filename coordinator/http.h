@@ -19,6 +19,7 @@
 
 #include <http_parser.h>
 
+#include "net/blob.h"
 #include "tls.h"
 
 #define HTTP_PATH_MAX 512
@@ -111,6 +112,17 @@ int http_server_port(const http_server *s);
 void http_conn_hold(http_conn *c);
 void http_conn_release(http_conn *c);
 int http_conn_open(const http_conn *c);
+
+/* The bytes of a whole answer: status line, headers (those of every
+ * answer, then extra_headers) and body, with one reference; NULL when out
+ * of memory. Touches no server state: callable on any thread, so a big
+ * body is copied off the loop. */
+conn_blob *http_response_build(int status, const char *content_type, const void *body, size_t len,
+                               const char *extra_headers);
+
+/* Send an answer from http_response_build (a reference is taken) and
+ * close. */
+void http_respond_blob(http_conn *c, conn_blob *b);
 
 /* Answer and close. extra_headers: more "Name: value\r\n" lines, or NULL. */
 void http_respond(http_conn *c, int status, const char *content_type, const void *body, size_t len,

@@ -6,6 +6,8 @@
 #include "service_internal.h"
 #include "render/adaptive.h"
 #include <math.h>
+#include <time.h>
+#include <unistd.h>
 
 void store_job_path(const service *s, uint32_t id, const char *ext, char *out, size_t n) {
     snprintf(out, n, "%s/jobs/%u.%s", s->o.data_dir, id, ext);
@@ -165,30 +167,108 @@ static void store_job_conclude(sjob *j) {
 
 static void on_save_timer_closed(uv_handle_t *h) { free(h); }
 
-/* Write the finished image. Returns 0; 1 when the disk is full (the job
- * stays running with its frame and journal, and a timer tries again); -1
- * on another error (in j->error). */
-static int store_save_image(sjob *j) {
-    char err[600], path[4096];
-    image img = {j->desc.width, j->desc.height, j->rgb};
+/* The finished image's write, on libuv's pool: a 4096x4096 frame is 200
+ * MB of PFM, which on the loop held up every worker and client while it
+ * went to disk. The frame is only read there; the job's state changes on
+ * the loop (store_image_saved). */
+typedef struct {
+    uv_work_t work;
+    sjob *j;   /* touched on the loop only */
+    uint32_t id;
+    image img; /* the job's frame, borrowed */
+    char path[4096], err[600];
+    int rc; /* 0; 1 the disk is full; -1 another error, in err */
+} save_work;
+
+/* Test hook, inert unless $TESSERA_TEST_SAVE_HOLD_FILE is set: the write
+ * waits while that file exists (at most 120 s; logged once), so a test can
+ * hold a job between its last tile and its saved image. On the pool. */
+static void save_test_hold(const save_work *sw) {
+    const char *hold = getenv("TESSERA_TEST_SAVE_HOLD_FILE");
+    for (int waited = 0; hold && access(hold, F_OK) == 0 && waited < 12000; waited++) {
+        if (!waited) fprintf(stderr, "tessera-coordinator: test hold: saving job %u waits while %s exists\n",
+                             sw->id, hold);
+        struct timespec ts = {0, 10 * 1000000L};
+        nanosleep(&ts, NULL);
+    }
+}
+
+static void save_image_work(uv_work_t *w) {
+    save_work *sw = w->data;
+    save_test_hold(sw);
     image_write_options wo = {0};
-    store_job_path(j->svc, j->desc.id, "pfm", path, sizeof path);
     errno = 0;
-    if (image_write(path, &img, &wo, err, sizeof err) == 0) return 0;
-    if (out_of_space(errno, err)) return 1;
-    snprintf(j->error, sizeof j->error, "%.500s", err);
-    return -1;
+    if (image_write(sw->path, &sw->img, &wo, sw->err, sizeof sw->err) == 0) sw->rc = 0;
+    else sw->rc = out_of_space(errno, sw->err) ? 1 : -1;
+}
+
+static void store_image_saved(sjob *j, int rc);
+
+static void save_image_done(uv_work_t *w, int status) {
+    save_work *sw = w->data;
+    sjob *j = sw->j;
+    int rc = status ? -1 : sw->rc;
+    j->saving = 0;
+    if (rc == -1) snprintf(j->error, sizeof j->error, "%.500s", status ? uv_strerror(status) : sw->err);
+    free(sw);
+    store_image_saved(j, rc);
+}
+
+/* Start writing the finished image (j->saving until store_image_saved).
+ * Can't fail: without memory or a pool, the job fails with the reason. */
+static void store_save_image(sjob *j) {
+    save_work *sw = calloc(1, sizeof *sw);
+    if (!sw) {
+        snprintf(j->error, sizeof j->error, "out of memory to save the image");
+        store_image_saved(j, -1);
+        return;
+    }
+    sw->j = j;
+    sw->id = j->desc.id;
+    sw->img = (image){j->desc.width, j->desc.height, j->rgb};
+    store_job_path(j->svc, j->desc.id, "pfm", sw->path, sizeof sw->path);
+    sw->work.data = sw;
+    j->saving = 1;
+    int rc = uv_queue_work(&j->svc->loop, &sw->work, save_image_work, save_image_done);
+    if (rc) {
+        j->saving = 0;
+        snprintf(j->error, sizeof j->error, "cannot start saving the image: %s", uv_strerror(rc));
+        free(sw);
+        store_image_saved(j, -1);
+    }
 }
 
 static void on_save_retry(uv_timer_t *t) {
     sjob *j = t->data;
-    int rc = store_save_image(j);
-    if (rc == 1) return; /* still full: the timer goes on */
-    uv_close((uv_handle_t *)t, on_save_timer_closed);
-    j->save_timer = NULL;
-    j->error[0] = rc == 0 ? 0 : j->error[0];
+    if (!j->saving) store_save_image(j); /* store_image_saved stops the timer, or leaves it on */
+}
+
+/* After the finished image's write (rc: 0 saved; 1 the disk is full; -1
+ * another error, in j->error): the job is done or failed; or, on a full
+ * disk, it stays running with its frame and journal while a timer tries
+ * again every TJOURNAL_RETRY_MS. */
+static void store_image_saved(sjob *j, int rc) {
+    service *s = j->svc;
+    if (rc == 1 && j->save_timer) return; /* still full: the timer goes on */
+    if (rc == 1 && (j->save_timer = malloc(sizeof *j->save_timer)) != NULL) {
+        snprintf(j->error, sizeof j->error, "paused: no space left to save the image; retrying every %d s",
+                 TJOURNAL_RETRY_MS / 1000);
+        svc_log("job %u: %s (its tiles stay in the journal)", j->desc.id, j->error);
+        uv_timer_init(&s->loop, j->save_timer);
+        uv_unref((uv_handle_t *)j->save_timer); /* a stopping service does not wait for space */
+        j->save_timer->data = j;
+        uv_timer_start(j->save_timer, on_save_retry, TJOURNAL_RETRY_MS, TJOURNAL_RETRY_MS);
+        return; /* still "running": a restart replays the journal */
+    }
+    if (j->save_timer) {
+        uv_close((uv_handle_t *)j->save_timer, on_save_timer_closed);
+        j->save_timer = NULL;
+        if (rc == 0) j->error[0] = 0;
+        svc_log("job %u: %s", j->desc.id, rc == 0 ? "space is back; the image is saved" : "the image cannot be saved");
+    } else if (rc == 1) {
+        snprintf(j->error, sizeof j->error, "no space left to save the image");
+    }
     j->state = rc == 0 ? SJOB_DONE : SJOB_FAILED;
-    svc_log("job %u: %s", j->desc.id, rc == 0 ? "space is back; the image is saved" : "the image cannot be saved");
     store_job_conclude(j);
 }
 
@@ -209,21 +289,10 @@ void store_on_job_event(void *ctx, const farm_report *r, int done) {
     } else if (r->failed) {
         j->state = SJOB_FAILED;
         snprintf(j->error, sizeof j->error, "%s", r->error);
-    } else {
-        int rc = store_save_image(j);
-        if (rc == 1 && (j->save_timer = malloc(sizeof *j->save_timer)) != NULL) {
-            snprintf(j->error, sizeof j->error, "paused: no space left to save the image; retrying every %d s",
-                     TJOURNAL_RETRY_MS / 1000);
-            svc_log("job %u: %s (its tiles stay in the journal)", j->desc.id, j->error);
-            uv_timer_init(&s->loop, j->save_timer);
-            uv_unref((uv_handle_t *)j->save_timer); /* a stopping service does not wait for space */
-            j->save_timer->data = j;
-            uv_timer_start(j->save_timer, on_save_retry, TJOURNAL_RETRY_MS, TJOURNAL_RETRY_MS);
-            farm_forget(s->f, j->farm_id);
-            return; /* still "running": a restart replays the journal */
-        }
-        if (rc == 1) snprintf(j->error, sizeof j->error, "no space left to save the image");
-        j->state = rc == 0 ? SJOB_DONE : SJOB_FAILED;
+    } else { /* the farm is done with it; the image is written off the loop, then the job concludes */
+        farm_forget(s->f, j->farm_id);
+        store_save_image(j);
+        return;
     }
     store_job_conclude(j);
     farm_forget(s->f, j->farm_id);
@@ -330,6 +399,7 @@ static int store_adaptive_start(service *s, sjob *j, const uint8_t *bundle, size
 }
 
 int store_job_cancel(service *s, sjob *j) {
+    if (j->saving || j->save_timer) return -1; /* rendered: its image is being saved */
     if (farm_cancel(s->f, j->farm_id) == 0) return 0;
     if (!j->ad || j->state != SJOB_RUNNING) return -1;
     /* Between two adaptive rounds: no farm job to cancel, end it here. */

@@ -95,6 +95,7 @@ typedef struct sjob {
     uint64_t need;            /* bytes it holds once admitted (membudget_job_bytes) */
     int waiting;              /* running but not admitted: waits for --max-memory (admission.c) */
     int admitting;            /* admitted, its scene being read off the loop (admission.c) */
+    int saving;               /* rendered, its image being written off the loop (jobstore.c) */
     TAILQ_ENTRY(sjob) link; /* on the service's jobs, oldest first */
 } sjob;
 

@@ -67,6 +67,10 @@ static int web_cancel(void *ctx, uint32_t id, char *err, size_t err_len) {
         snprintf(err, err_len, "job %u is already %s\n", id, state_names[j->state]);
         return -1;
     }
+    if (j->saving || j->save_timer) {
+        snprintf(err, err_len, "job %u is rendered: its image is being saved\n", id);
+        return -1;
+    }
     svc_log("job %u cancelled from the dashboard", id);
     joblog_add(j->log, svc_wall_now(), "cancel asked from the dashboard");
     svc_cancel_job(s, j);

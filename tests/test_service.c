@@ -13,6 +13,7 @@
 #include <string.h>
 #include <sys/stat.h>
 #include <sys/socket.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "fileio.h"
@@ -900,6 +901,50 @@ TEST(service_worker_client_admin_tokens_and_sighup_rotation) {
           s.log);
     st = cli(&s, out, sizeof out, "status --token-file %s", ct);
     CHECK(st == 0, "the current client token stopped working after a failed reload (%d): %s", st, out);
+    worker_stop(w);
+    service_stop(&s);
+}
+
+/* The finished image is written off the loop (jobstore.c): held there by
+ * the test hook, the coordinator still answers status at once, refuses a
+ * cancel of the rendered job with the reason, and the job is done, its
+ * image the same bytes as a render in one process, once the write goes. */
+TEST(service_finished_image_is_saved_off_the_loop) {
+    service s = {0};
+    char hold[256], env[320];
+    snprintf(hold, sizeof hold, "%s", util_temp_path("svc-save.hold"));
+    util_touch(hold);
+    snprintf(env, sizeof env, "%s", hold);
+    setenv("TESSERA_TEST_SAVE_HOLD_FILE", env, 1);
+    service_start(&s, "svc-save");
+    unsetenv("TESSERA_TEST_SAVE_HOLD_FILE");
+    pid_t w = worker_start(&s, "saver", "0");
+    char out[8192];
+    int st = cli(&s, out, sizeof out, "submit " SCENE " --tile-size 16");
+    CHECK(st == 0 && job_id(out) == 1, "submit (%d): %s", st, out);
+    CHECK(util_wait_for_text(s.log, "test hold: saving job 1 waits", LONG) == 0, "the save was not held; log %s",
+          s.log);
+    struct timespec a, b;
+    clock_gettime(CLOCK_MONOTONIC, &a);
+    st = cli(&s, out, sizeof out, "status 1");
+    clock_gettime(CLOCK_MONOTONIC, &b);
+    double took = (double)(b.tv_sec - a.tv_sec) + (b.tv_nsec - a.tv_nsec) / 1e9;
+    CHECK(st == 0 && strstr(out, "running"), "status while the image is saved (%d): %s", st, out);
+    CHECK(took < 10, "status took %.1f s while the image was saved", took);
+    st = cli(&s, out, sizeof out, "cancel 1");
+    CHECK(st != 0 && strstr(out, "job 1 is rendered: its image is being saved"), "cancel while saving (%d): %s", st,
+          out);
+    unlink(hold);
+    CHECK(util_wait_for_text(s.log, "job 1 done", LONG) == 0, "job 1 did not finish; log %s", s.log);
+    char got[300], want[300], cmd[4096], rout[4096];
+    snprintf(got, sizeof got, "%s", util_temp_path("svc-save.pfm"));
+    snprintf(want, sizeof want, "%s", util_temp_path("svc-save-render.pfm"));
+    st = cli(&s, out, sizeof out, "fetch 1 -o %s", got);
+    CHECK(st == 0, "fetch (%d): %s", st, out);
+    snprintf(cmd, sizeof cmd, "%s render %s --workers 0 --threads 1 --no-progress -o %s", harness_tessera(), SCENE,
+             want);
+    CHECK(util_run(cmd, rout, sizeof rout) == 0, "render: %s", rout);
+    CHECK(util_same_file(got, want), "the saved image differs from a render in one process (%s, %s)", got, want);
     worker_stop(w);
     service_stop(&s);
 }
