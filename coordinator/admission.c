@@ -102,7 +102,15 @@ void svc_admit_waiting(service *s) {
     sjob *j;
     char why[300];
     TAILQ_FOREACH(j, &s->jobs, link) {
-        if (!j->waiting || j->state != SJOB_RUNNING || svc_admit_check(s, j, why, sizeof why) != 0) continue;
+        if (!j->waiting || j->state != SJOB_RUNNING) continue;
+        if (svc_admit_check(s, j, why, sizeof why) != 0) {
+            if (j->restarting) { /* fitted alone at load time, not beside the jobs resumed before it */
+                j->restarting = 0;
+                snprintf(j->error, sizeof j->error, "%.500s", why);
+                svc_log("job %u: %s", j->desc.id, j->error);
+            }
+            continue;
+        }
         admit_read *a = calloc(1, sizeof *a);
         if (!a) return; /* out of memory: the job keeps waiting, tried again when memory is next released */
         char need[32];
@@ -110,7 +118,9 @@ void svc_admit_waiting(service *s) {
         j->waiting = 0;
         j->admitting = 1; /* its need counts from now on */
         j->error[0] = 0;
-        svc_log("job %u admitted: its %s fit within --max-memory now", j->desc.id, need);
+        if (j->restarting) svc_log("job %u resuming: its scene and journal are read off the loop", j->desc.id);
+        else svc_log("job %u admitted: its %s fit within --max-memory now", j->desc.id, need);
+        j->restarting = 0;
         a->s = s;
         a->j = j;
         a->max_len = s->o.max_upload;

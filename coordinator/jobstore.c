@@ -572,8 +572,9 @@ static void load_job(service *s, const char *file) {
     store_scene_path(s, j, path, sizeof path);
     j->need = membudget_job_bytes(d.width, d.height, j->tile_count, stat(path, &sb) == 0 ? (uint64_t)sb.st_size : 0);
     int adm = svc_admit_check(s, j, err, sizeof err);
-    if (adm == 0) {
-        store_job_resume(s, j);
+    if (adm == 0) { /* svc_admit_waiting reads its scene and journal on the pool once every job is loaded */
+        j->waiting = 1;
+        j->restarting = 1;
         return;
     }
     j->state = adm < 0 ? SJOB_FAILED : SJOB_RUNNING;

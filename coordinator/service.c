@@ -719,6 +719,7 @@ int service_run(const service_options *o) {
     uv_timer_init(&s->loop, &s->admit); /* before the jobs: a failed resume releases memory */
     s->admit.data = s;
     store_load_jobs(s);
+    svc_admit_waiting(s); /* the jobs that fit resume, their journals replayed on the pool while the loop serves */
     upload_queue_init(&s->uploads, &s->loop);
     uv_signal_init(&s->loop, &s->sigint);
     uv_signal_init(&s->loop, &s->sigterm);

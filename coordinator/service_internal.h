@@ -96,6 +96,8 @@ typedef struct sjob {
     int waiting;              /* running but not admitted: waits for --max-memory (admission.c) */
     int admitting;            /* admitted, its scene being read off the loop (admission.c) */
     int saving;               /* rendered, its image being written off the loop (jobstore.c) */
+    int restarting;           /* running when the coordinator stopped; resumed through admission (its
+                               * scene read and journal replayed off the loop) at start-up */
     TAILQ_ENTRY(sjob) link; /* on the service's jobs, oldest first */
 } sjob;
 
