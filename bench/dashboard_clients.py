@@ -15,8 +15,7 @@ bindir = sys.argv[1]
 nclients = int(sys.argv[2]) if len(sys.argv) > 2 else 200
 runs = int(sys.argv[3]) if len(sys.argv) > 3 else 3
 
-def free_port():
-    s = socket.socket(); s.bind(("127.0.0.1", 0)); p = s.getsockname()[1]; s.close(); return p
+from farmkit import free_port
 
 port, http = free_port(), free_port()
 d = tempfile.mkdtemp(prefix="tessera-dash-bench-")

@@ -14,19 +14,13 @@ Prints each round and the medians. Usage: bench/dashboard_https.py
 BUILD/bin [N] [ROUNDS] [WIDTH]"""
 import http.client, os, socket, ssl, statistics, subprocess, sys, tempfile, time
 
+from farmkit import free_port, render_job
+
 bindir = sys.argv[1]
 n = int(sys.argv[2]) if len(sys.argv) > 2 else 300
 rounds = int(sys.argv[3]) if len(sys.argv) > 3 else 3
 width = int(sys.argv[4]) if len(sys.argv) > 4 else 2048
 tick = os.sysconf("SC_CLK_TCK")
-
-
-def free_port():
-    s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    p = s.getsockname()[1]
-    s.close()
-    return p
 
 
 def cpu(pid):
@@ -79,13 +73,7 @@ def get(https, web, path):
 
 # the job whose image is downloaded
 p, _ = start(False)
-w = subprocess.Popen([f"{bindir}/tessera-worker", "--connect", f"127.0.0.1:{port}", "--threads", "2"],
-                     stderr=subprocess.DEVNULL)
-subprocess.run([f"{bindir}/tessera", "submit", "scenes/cornell-box.json", "--width", str(width), "--height",
-                str(width), "--spp", "1", "--tile-size", "64", "--wait"], check=True, capture_output=True,
-               env=dict(os.environ, TESSERA_COORDINATOR=f"127.0.0.1:{port}"))
-w.terminate()
-w.wait(60)
+render_job(bindir, port, "scenes/cornell-box.json", width)
 stop(p)
 
 res = {False: [], True: []}

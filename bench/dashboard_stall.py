@@ -10,19 +10,13 @@ the coordinator's own "longest iteration" log line (which also counts the
 job's end). With "nodownload" the job only renders and ends, so the
 longest iteration is the job's end (its image written). Usage:
 bench/dashboard_stall.py BUILD/bin [WIDTH] [nodownload]"""
-import http.client, os, socket, subprocess, sys, tempfile, threading, time
+import http.client, subprocess, sys, tempfile, threading, time
+
+from farmkit import free_port, render_job
 
 bindir = sys.argv[1]
 width = int(sys.argv[2]) if len(sys.argv) > 2 else 2048
 download = not (len(sys.argv) > 3 and sys.argv[3] == "nodownload")
-
-
-def free_port():
-    s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    p = s.getsockname()[1]
-    s.close()
-    return p
 
 
 d = tempfile.mkdtemp(prefix="tessera-stall-")
@@ -30,12 +24,8 @@ port, web = free_port(), free_port()
 coord = subprocess.Popen([f"{bindir}/tessera-coordinator", "--listen", f"127.0.0.1:{port}", "--data-dir", d,
                           "--http", f"127.0.0.1:{web}"], stderr=open(f"{d}/coord.log", "w"))
 time.sleep(0.5)
-worker = subprocess.Popen([f"{bindir}/tessera-worker", "--connect", f"127.0.0.1:{port}", "--threads", "2"],
-                          stderr=subprocess.DEVNULL)
 t = time.monotonic()
-subprocess.run([f"{bindir}/tessera", "submit", "tests/scenes/cornell-small.json", "--width", str(width),
-                "--height", str(width), "--spp", "1", "--tile-size", "64", "--wait"], check=True,
-               capture_output=True, env=dict(os.environ, TESSERA_COORDINATOR=f"127.0.0.1:{port}"))
+render_job(bindir, port, "tests/scenes/cornell-small.json", width)
 print(f"rendered {width}x{width} in {time.monotonic() - t:.1f} s")
 
 
@@ -69,7 +59,6 @@ if download:
     took, status, size = done[0]
     print(f"EXR: status {status}, {size / 1e6:.1f} MB in {took:.2f} s; /healthz meanwhile: {len(lat)} answered, "
           f"the slowest {max(lat or [0]) * 1e3:.1f} ms")
-worker.terminate()
 coord.terminate()
 coord.wait(60)
 for line in open(f"{d}/coord.log"):

@@ -36,6 +36,18 @@ typedef struct {
     pid_t pid, worker;
 } web;
 
+/* Start a worker named name with threads threads (and the token file
+ * token, or NULL) for w's coordinator, as w->worker; its log is w's log
+ * with ".worker". */
+static void web_add_worker(web *w, const char *name, const char *threads, const char *token) {
+    char path[4096], wlog[300];
+    snprintf(path, sizeof path, "%s", util_bin("tessera-worker"));
+    snprintf(wlog, sizeof wlog, "%s.worker", w->log);
+    const char *wargv[] = {path, "--connect", w->addr, "--threads", threads, "--name", name, "--retry-max", "1",
+                           token ? "--token-file" : NULL, token, NULL};
+    w->worker = util_spawn(wargv, wlog);
+}
+
 /* Start a coordinator with --http (extra: more arguments, NULL-ended) and,
  * when worker, one worker. */
 static int web_start(web *w, const char *name, int worker, const char *const *extra) {
@@ -56,14 +68,7 @@ static int web_start(web *w, const char *name, int worker, const char *const *ex
     argv[n] = NULL;
     w->pid = util_spawn(argv, w->log);
     if (util_wait_for_text(w->log, "dashboard on http", LONG)) return -1;
-    if (worker) {
-        char path[4096], wlog[300];
-        snprintf(path, sizeof path, "%s", util_bin("tessera-worker"));
-        snprintf(wlog, sizeof wlog, "%s.worker", w->log);
-        const char *wargv[] = {path, "--connect", w->addr, "--threads", "1", "--name", "webworker",
-                               "--retry-max", "1", NULL};
-        w->worker = util_spawn(wargv, wlog);
-    }
+    if (worker) web_add_worker(w, "webworker", "1", NULL);
     return 0;
 }
 
@@ -607,11 +612,6 @@ TEST(http_dashboard_browser) {
         CHECK(0, "coordinator did not start; log %s", w.log);
         return;
     }
-    char path[4096], wlog[300];
-    snprintf(path, sizeof path, "%s", util_bin("tessera-worker"));
-    snprintf(wlog, sizeof wlog, "%s.worker", w.log);
-    const char *wargv[] = {path, "--connect", w.addr, "--threads", "1", "--name", "webworker", "--token-file", token,
-                           "--retry-max", "1", NULL};
     /* The worker keeps its 17th tile while the script's hold file exists:
      * job 1 stays running, tiles outlined, however fast this machine is. */
     char hold[300];
@@ -619,7 +619,7 @@ TEST(http_dashboard_browser) {
     unlink(hold);
     setenv("TESSERA_TEST_HOLD_FILE", hold, 1);
     setenv("TESSERA_TEST_HOLD_AFTER", "16", 1);
-    w.worker = util_spawn(wargv, wlog);
+    web_add_worker(&w, "webworker", "1", token);
     unsetenv("TESSERA_TEST_HOLD_FILE");
     unsetenv("TESSERA_TEST_HOLD_AFTER");
     char shot[300], profile[300], cmd[4096];
@@ -985,7 +985,7 @@ TEST(http_dashboard_https) {
     int stall = web_connect(w.http);
     CHECK(stall >= 0 && send(stall, "\x16\x03\x01\x00\xff\x01", 6, MSG_NOSIGNAL) == 6, "cannot start a stalled handshake");
     /* the event stream, opened before a job that a worker renders */
-    char events[300], path[4096], wlog[300], url[128], curl_ca[420];
+    char events[300], url[128], curl_ca[420];
     snprintf(events, sizeof events, "%s", util_temp_path("https-events.txt"));
     snprintf(url, sizeof url, "https://127.0.0.1:%d/api/events", w.http);
     snprintf(curl_ca, sizeof curl_ca, "%s", ca_a);
@@ -993,11 +993,7 @@ TEST(http_dashboard_https) {
                            "Authorization: Bearer sesame-tls-5", url, NULL};
     pid_t ev = util_spawn(cargv, events);
     CHECK(util_wait_for_text(events, ": tessera", 20) == 0, "no event stream over HTTPS: %s", events);
-    snprintf(path, sizeof path, "%s", util_bin("tessera-worker"));
-    snprintf(wlog, sizeof wlog, "%s.worker", w.log);
-    const char *wargv[] = {path, "--connect", w.addr, "--threads", "1", "--name", "tlsworker", "--token-file", token,
-                           "--retry-max", "1", NULL};
-    w.worker = util_spawn(wargv, wlog);
+    web_add_worker(&w, "tlsworker", "1", token);
     char sub[4096], subcmd[4096];
     snprintf(subcmd, sizeof subcmd, "TESSERA_TOKEN_FILE=%s TESSERA_COORDINATOR=%s %s submit %s --tile-size 16 --spp 16 --wait",
              token, w.addr, harness_tessera(), SCENE);
@@ -1118,12 +1114,8 @@ TEST(http_dashboard_browser_https) {
         CHECK(0, "coordinator did not start; log %s", w.log);
         return;
     }
-    char path[4096], wlog[300], sub[4096];
-    snprintf(path, sizeof path, "%s", util_bin("tessera-worker"));
-    snprintf(wlog, sizeof wlog, "%s.worker", w.log);
-    const char *wargv[] = {path, "--connect", w.addr, "--threads", "1", "--name", "tlsworker", "--token-file", token,
-                           "--retry-max", "1", NULL};
-    w.worker = util_spawn(wargv, wlog);
+    char sub[4096];
+    web_add_worker(&w, "tlsworker", "1", token);
     snprintf(cmd, sizeof cmd, "TESSERA_TOKEN_FILE=%s TESSERA_COORDINATOR=%s %s submit %s --tile-size 16 --spp 4 --wait",
              token, w.addr, harness_tessera(), SCENE);
     int st = util_run(cmd, sub, sizeof sub);
@@ -1155,12 +1147,8 @@ TEST(http_dashboard_images_off_the_loop) {
         CHECK(0, "coordinator did not start; log %s", w.log);
         return;
     }
-    char path[4096], wlog[300], sub[4096];
-    snprintf(path, sizeof path, "%s", util_bin("tessera-worker"));
-    snprintf(wlog, sizeof wlog, "%s.worker", w.log);
-    const char *wargv[] = {path, "--connect", w.addr, "--threads", "2", "--name", "imgworker", "--retry-max", "1",
-                           NULL};
-    w.worker = util_spawn(wargv, wlog);
+    char sub[4096];
+    web_add_worker(&w, "imgworker", "2", NULL);
     int st = submit(&w, SCENE " --width 1024 --height 1024 --spp 1 --tile-size 64 --wait", sub, sizeof sub);
     CHECK(st == 0, "submit --wait failed (%d): %s", st, sub);
     /* the EXR in a child process; /healthz from here meanwhile */
