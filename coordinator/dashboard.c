@@ -24,6 +24,7 @@
 #define DASH_FLUSH_MS 250 /* events are batched: one write per stream per tick, not per tile */
 #define DASH_ENCODES 2       /* images read and encoded at once, on libuv's pool */
 #define DASH_ENCODE_QUEUE 16 /* image requests waiting for one; beyond, 503 */
+#define DASH_FOLLOWERS 64    /* the same image asked again while it is made: answered with it */
 
 /* Tile latency histogram bounds, seconds (Prometheus le=). */
 static const double latency_bounds[] = {0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 10, 30, 60};
@@ -84,8 +85,10 @@ struct dashboard {
     int open_parts;    /* the http server, the timer and each encode in flight, until closed */
     int closing;
     TAILQ_HEAD(, dash_encode) waiting; /* image requests not yet started */
+    TAILQ_HEAD(, dash_encode) running; /* ... and on the pool */
     int waiting_n, encoding;           /* queued, and on the pool now */
     uint64_t images_busy;              /* image requests refused with 503 (queue full) */
+    uint64_t images_encoded, images_shared; /* encodings made, and requests answered with another's */
     void (*closed_cb)(void *);
     void *closed_ctx;
 };
@@ -339,6 +342,9 @@ static void route_metrics(dashboard *d, http_conn *c) {
          http_server_refused(d->http)},
         {"tessera_http_images_busy_total", "Preview and download requests refused (503) with the encoding queue full.",
          d->images_busy},
+        {"tessera_http_images_encoded_total", "Previews and downloads encoded.", d->images_encoded},
+        {"tessera_http_images_shared_total", "Preview and download requests answered with the bytes another was "
+         "already making.", d->images_shared},
         {"tessera_http_tls_failures_total", "HTTPS connections that ended before a request (handshake failed, "
          "plain HTTP, peer gone).", http_server_tls_failed(d->http)},
     };
@@ -398,6 +404,8 @@ struct dash_encode {
     uv_work_t req;
     dashboard *d;
     http_conn *c; /* held until answered */
+    http_conn *followers[DASH_FOLLOWERS]; /* asked for the same image meanwhile; held too */
+    int nfollow;
     uint32_t id;
     enc_kind kind;
     float exposure;
@@ -412,6 +420,7 @@ struct dash_encode {
 
 static void encode_free(dash_encode *e) {
     http_conn_release(e->c);
+    for (int i = 0; i < e->nfollow; i++) http_conn_release(e->followers[i]);
     free(e->rgb);
     conn_blob_unref(e->answer);
     free(e);
@@ -466,13 +475,17 @@ static void encode_done(uv_work_t *req, int status) {
     dash_encode *e = req->data;
     dashboard *d = e->d;
     d->encoding--;
-    if (!d->closing && http_conn_open(e->c)) {
+    TAILQ_REMOVE(&d->running, e, link);
+    d->images_encoded += e->status == 200;
+    for (int i = -1; i < e->nfollow && !d->closing; i++) {
+        http_conn *c = i < 0 ? e->c : e->followers[i];
+        if (!http_conn_open(c)) continue;
         if (e->status == 200) {
-            http_respond_blob(e->c, e->answer);
+            http_respond_blob(c, e->answer); /* one copy of the bytes for all who asked */
         } else {
             char text[500];
             snprintf(text, sizeof text, "cannot encode the image: %s\n", e->err);
-            send_text(e->c, e->status, text);
+            send_text(c, e->status, text);
         }
     }
     encode_free(e);
@@ -515,12 +528,32 @@ static void encode_pump(dashboard *d) {
         }
         d->encoding++;
         d->open_parts++;
+        TAILQ_INSERT_TAIL(&d->running, e, link);
     }
+}
+
+/* A request already made or waiting for the same bytes (the same job, kind
+ * and exposure) with room for one more, or NULL. */
+static dash_encode *encode_same(dashboard *d, uint32_t id, enc_kind kind, float exposure) {
+    dash_encode *e;
+    TAILQ_FOREACH(e, &d->waiting, link)
+        if (e->id == id && e->kind == kind && e->exposure == exposure && e->nfollow < DASH_FOLLOWERS) return e;
+    TAILQ_FOREACH(e, &d->running, link)
+        if (e->id == id && e->kind == kind && e->exposure == exposure && e->nfollow < DASH_FOLLOWERS) return e;
+    return NULL;
 }
 
 /* Queue an image request on c (answered later), or refuse it with 503 when
  * DASH_ENCODE_QUEUE already wait. */
 static void encode_request(dashboard *d, http_conn *c, uint32_t id, enc_kind kind, const char *query) {
+    float exposure = kind == ENC_EXR ? 0 : query_exposure(query); /* an EXR is linear: the same for any */
+    dash_encode *same = encode_same(d, id, kind, exposure);
+    if (same) { /* answered with its bytes: no second encoding (a preview may be one encoding older) */
+        http_conn_hold(c);
+        same->followers[same->nfollow++] = c;
+        d->images_shared++;
+        return;
+    }
     if (d->waiting_n >= DASH_ENCODE_QUEUE) {
         d->images_busy++;
         char text[200];
@@ -536,7 +569,7 @@ static void encode_request(dashboard *d, http_conn *c, uint32_t id, enc_kind kin
     http_conn_hold(c);
     e->id = id;
     e->kind = kind;
-    e->exposure = query_exposure(query);
+    e->exposure = exposure;
     TAILQ_INSERT_TAIL(&d->waiting, e, link);
     d->waiting_n++;
     encode_pump(d);
@@ -768,6 +801,7 @@ dashboard *dashboard_new(uv_loop_t *loop, farm *f, const dashboard_options *o, c
     uv_timer_start(&d->flush, on_flush, DASH_FLUSH_MS, DASH_FLUSH_MS);
     d->open_parts = 2;
     TAILQ_INIT(&d->waiting);
+    TAILQ_INIT(&d->running);
     if (!src->forwards_events) farm_set_event_cb(f, on_farm_event, d);
     return d;
 }

@@ -1139,8 +1139,9 @@ static double mono_now(void) {
 /* Previews and downloads are read and encoded on libuv's pool: while a
  * 1024x1024 job's EXR is encoded the loop still answers /healthz at once
  * (with the encoding on the loop, /healthz waited for all of it); a burst
- * of downloads beyond the queue is refused with 503 "busy", and every one
- * taken is answered whole. */
+ * of different downloads beyond the queue is refused with 503 "busy", and
+ * every one taken is answered whole; the same image asked for by many at
+ * once is encoded once and they all get its bytes. */
 TEST(http_dashboard_images_off_the_loop) {
     web w;
     if (web_start(&w, "http-images", 0, NULL)) {
@@ -1179,12 +1180,15 @@ TEST(http_dashboard_images_off_the_loop) {
     CHECK(status == 0, "curl for the EXR exited %d", status);
     CHECK(polls >= 3 && worst < took / 2, "the loop waited for the encoding: /healthz took %.1f ms of a %.2f s download",
           worst * 1e3, took);
-    /* a burst of 30 downloads: 2 encode, 16 wait, the rest are told to retry */
+    /* a burst of 30 different downloads (PNGs at 30 exposures): 2 encode, 16
+     * wait, the rest are told to retry */
     enum { BURST = 30 };
     int fds[BURST], ok = 0, busy = 0, other = 0;
     char req[256];
-    int rn = snprintf(req, sizeof req, "GET /api/jobs/1/image.exr HTTP/1.1\r\nHost: 127.0.0.1:%d\r\n\r\n", w.http);
+    int rn = 0;
     for (int i = 0; i < BURST; i++) {
+        rn = snprintf(req, sizeof req, "GET /api/jobs/1/image.png?exposure=%.1f HTTP/1.1\r\nHost: 127.0.0.1:%d\r\n\r\n",
+                      0.1 * i, w.http);
         fds[i] = web_connect(w.http);
         if (fds[i] >= 0 && send(fds[i], req, (size_t)rn, MSG_NOSIGNAL) != rn) {
             close(fds[i]);
@@ -1194,17 +1198,46 @@ TEST(http_dashboard_images_off_the_loop) {
     static char big[16 << 20];
     for (int i = 0; i < BURST; i++) {
         int s = web_exchange(fds[i], "", 0, big, sizeof big, 120);
-        const char *body = web_body(big);
-        if (s == 200 && memcmp(body, "\x76\x2f\x31\x01", 4) == 0) ok++;
+        if (s == 200 && memcmp(web_body(big), "\x89PNG", 4) == 0) ok++;
         else if (s == 503 && strstr(big, "busy: ")) busy++;
         else other++;
     }
-    printf("    burst of %d downloads: %d answered, %d busy, %d other\n", BURST, ok, busy, other);
+    printf("    burst of %d different downloads: %d answered, %d busy, %d other\n", BURST, ok, busy, other);
     CHECK(other == 0 && busy > 0 && ok >= 18 && ok + busy == BURST, "burst: %d answered, %d busy, %d other", ok, busy,
           other);
     CHECK(web_get(w.http, "/metrics", "", out, sizeof out) == 200 &&
               metric(web_body(out), "tessera_http_images_busy_total") == busy,
           "busy refusals not counted: %.200s", out);
+    double encoded0 = metric(web_body(out), "tessera_http_images_encoded_total");
+    /* 12 asking for the same EXR at once: one encoding (two if the first
+     * ended before the last asked), the same bytes for all */
+    enum { SAME = 12 };
+    rn = snprintf(req, sizeof req, "GET /api/jobs/1/image.exr HTTP/1.1\r\nHost: 127.0.0.1:%d\r\n\r\n", w.http);
+    for (int i = 0; i < SAME; i++) {
+        fds[i] = web_connect(w.http);
+        if (fds[i] >= 0 && send(fds[i], req, (size_t)rn, MSG_NOSIGNAL) != rn) {
+            close(fds[i]);
+            fds[i] = -1;
+        }
+    }
+    static char first[16 << 20];
+    size_t first_len = 0;
+    int same = 0;
+    for (int i = 0; i < SAME; i++) {
+        int s = web_exchange(fds[i], "", 0, big, sizeof big, 120);
+        size_t len = 0; /* the body holds NULs: its length from Content-Length */
+        const char *cl = strstr(big, "Content-Length: ");
+        if (cl) len = strtoul(cl + 16, NULL, 10);
+        if (s == 200 && i == 0) memcpy(first, web_body(big), first_len = len < sizeof first ? len : 0);
+        same += s == 200 && len == first_len && len > 4 && memcmp(web_body(big), first, len) == 0;
+    }
+    CHECK(web_get(w.http, "/metrics", "", out, sizeof out) == 200, "metrics: %.200s", out);
+    double encoded = metric(web_body(out), "tessera_http_images_encoded_total") - encoded0,
+           shared = metric(web_body(out), "tessera_http_images_shared_total");
+    printf("    %d asking for the same EXR: %d got the same bytes; %.0f encodings, %.0f answered with another's\n", SAME,
+           same, encoded, shared);
+    CHECK(same == SAME && encoded <= 2 && shared >= SAME - 2 && encoded + shared == SAME,
+          "the same EXR %d times: %d the same, %.0f encodings, %.0f shared", SAME, same, encoded, shared);
     /* stopped with downloads on the pool and waiting: a clean exit (web_stop checks) */
     for (int i = 0; i < 5; i++) {
         fds[i] = web_connect(w.http);
