@@ -25,6 +25,7 @@
 #define DASH_ENCODES 2       /* images read and encoded at once, on libuv's pool */
 #define DASH_ENCODE_QUEUE 16 /* image requests waiting for one; beyond, 503 */
 #define DASH_FOLLOWERS 64    /* the same image asked again while it is made: answered with it */
+#define DASH_COPY_FLOATS (2u << 20) /* a live frame is copied 8 MB a loop turn (4096x4096: 25 turns) */
 
 /* Tile latency histogram bounds, seconds (Prometheus le=). */
 static const double latency_bounds[] = {0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 10, 30, 60};
@@ -411,6 +412,7 @@ struct dash_encode {
     float exposure;
     float *rgb; /* the copy, or what the pool read */
     int w, h;
+    size_t copied; /* floats of the live frame copied so far */
     char path[4096]; /* "" when rgb holds a copy */
     conn_blob *answer; /* the whole 200 answer, built on the pool */
     int status;        /* 200, or the error's, with err */
@@ -454,7 +456,12 @@ static void encode_work(uv_work_t *req) {
         out = codec_png_encode(px, e->w, e->h, &len, e->err, sizeof e->err);
         free(px);
     }
-    if (!out) return;
+    if (!out) {
+        char why[400];
+        snprintf(why, sizeof why, "%s", e->err);
+        snprintf(e->err, sizeof e->err, "cannot encode the image: %.350s\n", why);
+        return;
+    }
     char hdr[200] = ""; /* the answer whole, so the loop only queues it (a 40 MB EXR: no copy there) */
     if (e->kind != ENC_PREVIEW)
         snprintf(hdr, sizeof hdr, "Content-Disposition: attachment; filename=\"job-%u.%s\"\r\n", e->id,
@@ -469,10 +476,17 @@ static void encode_work(uv_work_t *req) {
 static void encode_pump(dashboard *d);
 static void on_part_closed(dashboard *d);
 
-/* Back on the loop: answer, then start the next. */
-static void encode_done(uv_work_t *req, int status) {
-    (void)status;
-    dash_encode *e = req->data;
+/* Whether anyone e holds (the asker, its followers) still waits. */
+static int encode_wanted(const dash_encode *e) {
+    if (http_conn_open(e->c)) return 1;
+    for (int i = 0; i < e->nfollow; i++)
+        if (http_conn_open(e->followers[i])) return 1;
+    return 0;
+}
+
+/* e is over: answer everyone it holds (with the answer built on the pool,
+ * or e->status and the text in e->err), free it, start the next. */
+static void encode_end(dash_encode *e) {
     dashboard *d = e->d;
     d->encoding--;
     TAILQ_REMOVE(&d->running, e, link);
@@ -480,34 +494,81 @@ static void encode_done(uv_work_t *req, int status) {
     for (int i = -1; i < e->nfollow && !d->closing; i++) {
         http_conn *c = i < 0 ? e->c : e->followers[i];
         if (!http_conn_open(c)) continue;
-        if (e->status == 200) {
-            http_respond_blob(c, e->answer); /* one copy of the bytes for all who asked */
-        } else {
-            char text[500];
-            snprintf(text, sizeof text, "cannot encode the image: %s\n", e->err);
-            send_text(c, e->status, text);
-        }
+        if (e->status == 200) http_respond_blob(c, e->answer); /* one copy of the bytes for all who asked */
+        else send_text(c, e->status, e->err);
     }
     encode_free(e);
     if (!d->closing) encode_pump(d);
     on_part_closed(d);
 }
 
-/* Where e's pixels come from: a copy of the live frame (previews), else the
- * saved file. 0, or -1 after answering 404 (or 503 without memory). */
-static int encode_source(dashboard *d, dash_encode *e) {
+static void encode_fail(dash_encode *e, int status, const char *text) {
+    e->status = status;
+    snprintf(e->err, sizeof e->err, "%s", text);
+    encode_end(e);
+}
+
+/* Back on the loop: answer, then start the next. */
+static void encode_done(uv_work_t *req, int status) {
+    (void)status;
+    encode_end(req->data);
+}
+
+/* Read (a path) and encode e on the pool. */
+static void encode_queue(dash_encode *e) {
+    if (uv_queue_work(e->d->loop, &e->req, encode_work, encode_done))
+        encode_fail(e, 503, "cannot start the image's encoding\n");
+}
+
+static void copy_step(dash_encode *e);
+
+/* Nothing on the pool: a way back to the loop for the next band. */
+static void copy_bounce(uv_work_t *req) { (void)req; }
+
+static void copy_next(uv_work_t *req, int status) {
+    (void)status;
+    copy_step(req->data);
+}
+
+/* Copy the next DASH_COPY_FLOATS of the job's live frame (copying 200 MB
+ * at once held the loop 171 ms: mostly the copy's page faults), then, on a
+ * later turn, the next, then the encoding. A band is copied between tiles,
+ * so a preview may mix tiles of two moments: they all landed. A frame that
+ * left memory meanwhile (the job ended) is read from its saved file. */
+static void copy_step(dash_encode *e) {
+    dashboard *d = e->d;
     float *live;
+    int w, h;
+    if (d->closing || !encode_wanted(e)) return encode_fail(e, 503, "nobody is waiting\n");
+    if (!d->src.frame || d->src.frame(d->src.ctx, e->id, &live, &w, &h) || w != e->w || h != e->h) {
+        free(e->rgb);
+        e->rgb = NULL;
+        if (d->src.image_file && d->src.image_file(d->src.ctx, e->id, 0, e->path, sizeof e->path) == 0)
+            return encode_queue(e);
+        return encode_fail(e, 404, "no image for this job\n");
+    }
+    size_t total = (size_t)w * (size_t)h * 3, n = total - e->copied;
+    if (n > DASH_COPY_FLOATS) n = DASH_COPY_FLOATS;
+    memcpy(e->rgb + e->copied, live + e->copied, n * sizeof *live);
+    e->copied += n;
+    if (e->copied == total) return encode_queue(e);
+    if (uv_queue_work(d->loop, &e->req, copy_bounce, copy_next)) encode_fail(e, 503, "cannot copy the frame\n");
+}
+
+/* Start e (counted, in the running list): a preview of a job in memory is
+ * copied a band a turn first; otherwise the pool reads the saved file. */
+static void encode_start(dashboard *d, dash_encode *e) {
+    float *live;
+    e->req.data = e;
     if (e->kind == ENC_PREVIEW && d->src.frame && d->src.frame(d->src.ctx, e->id, &live, &e->w, &e->h) == 0) {
-        size_t n = (size_t)e->w * (size_t)e->h * 3;
-        if (!(e->rgb = malloc(n * sizeof *live))) return send_text(e->c, 503, "out of memory\n"), -1;
-        memcpy(e->rgb, live, n * sizeof *live);
-        return 0;
+        if (!(e->rgb = malloc((size_t)e->w * (size_t)e->h * 3 * sizeof *live)))
+            return encode_fail(e, 503, "out of memory\n");
+        return copy_step(e);
     }
     if (d->src.image_file &&
         d->src.image_file(d->src.ctx, e->id, e->kind != ENC_PREVIEW, e->path, sizeof e->path) == 0)
-        return 0;
-    send_text(e->c, 404, e->kind == ENC_PREVIEW ? "no image for this job\n" : "no finished image for this job\n");
-    return -1;
+        return encode_queue(e);
+    encode_fail(e, 404, e->kind == ENC_PREVIEW ? "no image for this job\n" : "no finished image for this job\n");
 }
 
 /* Start waiting requests while fewer than DASH_ENCODES run. */
@@ -516,19 +577,14 @@ static void encode_pump(dashboard *d) {
     while (d->encoding < DASH_ENCODES && (e = TAILQ_FIRST(&d->waiting))) {
         TAILQ_REMOVE(&d->waiting, e, link);
         d->waiting_n--;
-        if (!http_conn_open(e->c) || encode_source(d, e)) {
-            encode_free(e);
-            continue;
-        }
-        e->req.data = e;
-        if (uv_queue_work(d->loop, &e->req, encode_work, encode_done)) {
-            send_text(e->c, 503, "cannot start the image's encoding\n");
+        if (!encode_wanted(e)) {
             encode_free(e);
             continue;
         }
         d->encoding++;
         d->open_parts++;
         TAILQ_INSERT_TAIL(&d->running, e, link);
+        encode_start(d, e); /* may end it at once (and pump again) */
     }
 }
 

@@ -1248,3 +1248,52 @@ TEST(http_dashboard_images_off_the_loop) {
     for (int i = 0; i < 5; i++)
         if (fds[i] >= 0) close(fds[i]);
 }
+
+/* The loop thread's CPU in its longest iteration so far, from `tessera
+ * status --json` (-1 when absent). */
+static double longest_stall_cpu_ms(const web *w) {
+    static char out[1 << 20];
+    if (cli(w, "status --json", out, sizeof out)) return -1;
+    const char *p = strstr(out, "\"longest_stall_cpu_ms\":");
+    return p ? strtod(p + strlen("\"longest_stall_cpu_ms\":"), NULL) : -1;
+}
+
+/* A preview of a 4096x4096 job while it renders: its 200 MB frame is copied
+ * a band per loop turn (copied at once, one iteration took 171 ms of the
+ * loop's CPU), and the previews are whole PNGs. */
+TEST(http_dashboard_preview_of_a_big_frame_in_bands) {
+    web w;
+    if (web_start(&w, "http-bigpreview", 0, NULL)) {
+        CHECK(0, "coordinator did not start; log %s", w.log);
+        return;
+    }
+    char hold[300], wlog[320];
+    snprintf(hold, sizeof hold, "%s", util_temp_path("bigpreview-hold"));
+    snprintf(wlog, sizeof wlog, "%s.worker", w.log);
+    util_touch(hold); /* the worker keeps its 21st tile: the job stays running */
+    setenv("TESSERA_TEST_HOLD_FILE", hold, 1);
+    setenv("TESSERA_TEST_HOLD_AFTER", "20", 1);
+    web_add_worker(&w, "bigworker", "1", NULL);
+    unsetenv("TESSERA_TEST_HOLD_FILE");
+    unsetenv("TESSERA_TEST_HOLD_AFTER");
+    char sub[4096];
+    int st = submit(&w, SCENE " --width 4096 --height 4096 --spp 1 --tile-size 256 -q", sub, sizeof sub);
+    CHECK(st == 0, "submit failed (%d): %s", st, sub);
+    CHECK(util_wait_for_text(wlog, "test hold: keeping tile", LONG) == 0, "the worker was not held; log %s", wlog);
+    double before = longest_stall_cpu_ms(&w);
+    static char big[8 << 20];
+    int pngs = 0;
+    for (int i = 0; i < 3; i++) {
+        char path[64];
+        snprintf(path, sizeof path, "/api/jobs/1/preview.png?exposure=%d", i);
+        pngs += web_get(w.http, path, "", big, sizeof big) == 200 && memcmp(web_body(big), "\x89PNG", 4) == 0;
+    }
+    double after = longest_stall_cpu_ms(&w);
+    printf("    3 previews of a 4096x4096 frame: the loop's longest iteration %.1f ms of CPU (%.1f before them)\n", after,
+           before);
+    CHECK(pngs == 3, "%d of 3 previews were PNGs", pngs);
+    CHECK(before >= 0 && before < 80 && after < 80, "the loop's longest iteration: %.1f ms of CPU before the previews, "
+          "%.1f after (at most 80 wanted)", before, after);
+    unlink(hold);
+    web_stop(&w);
+}
