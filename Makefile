@@ -160,9 +160,16 @@ stress: $(TESSERA) $(WORKER) $(TEST_BIN)
 # ThreadSanitizer on the tests that run several render threads. Embree builds
 # on the calling thread here: its TBB workers synchronise in uninstrumented
 # code, which TSan would report as races with our callbacks.
+# The render threads (tests named *thread*), then the coordinator's work on
+# libuv's thread pool: the dashboard's images and the finished image's
+# write (tests/tsan.supp: a false positive of libuv's uninstrumented close).
 test-tsan:
 	$(MAKE) VARIANT=tsan build/tsan/bin/run-tests build/tsan/bin/tessera build/tsan/bin/tessera-worker
 	TESSERA_EMBREE_CONFIG=threads=1 TESSERA_BIN=build/tsan/bin/tessera build/tsan/bin/run-tests --filter thread
+	TSAN_OPTIONS=suppressions=$(CURDIR)/tests/tsan.supp TESSERA_BIN=build/tsan/bin/tessera \
+	  build/tsan/bin/run-tests --filter http_dashboard_images_off_the_loop
+	TSAN_OPTIONS=suppressions=$(CURDIR)/tests/tsan.supp TESSERA_BIN=build/tsan/bin/tessera \
+	  build/tsan/bin/run-tests --filter service_finished_image_is_saved_off_the_loop
 
 # References: 256x256, cached under bench/ref/ by scene contents.
 BENCH_REF_BOX := 8192
