@@ -17,7 +17,10 @@
  *   POST /login                   token=... -> HttpOnly SameSite=Strict cookie
  *
  * With a token every route but /healthz and /login needs the session
- * cookie or "Authorization: Bearer TOKEN". Nothing is served by path. */
+ * cookie or "Authorization: Bearer TOKEN". Nothing is served by path.
+ * With tls_cert and tls_key everything is served over HTTPS (tls.h) and the
+ * cookie is Secure. Previews and downloads are read and encoded on libuv's
+ * thread pool (a live frame copied a band per loop turn), two at a time. */
 #ifndef TESSERA_DASHBOARD_H
 #define TESSERA_DASHBOARD_H
 
