@@ -145,7 +145,17 @@ void svc_memory_released(service *s) {
     uv_timer_start(&s->admit, on_admit_timer, 0, 0);
 }
 
+int svc_cancel_refused(const sjob *j, char *why, size_t len) {
+    if (j->state != SJOB_RUNNING) return snprintf(why, len, "job %u is already %s", j->desc.id, state_names[j->state]), -1;
+    if (j->saving || j->save_timer)
+        return snprintf(why, len, "job %u is rendered: its image is being saved%s", j->desc.id,
+                        j->save_timer ? " (waiting for disk space)" : ""),
+               -1;
+    return 0;
+}
+
 void svc_cancel_job(service *s, sjob *j) {
+    if (svc_cancel_refused(j, NULL, 0)) return;
     if (!j->waiting && !j->admitting) {
         store_job_cancel(s, j); /* store_on_job_event records the state */
         return;

@@ -397,10 +397,11 @@ static float query_exposure(const char *query) {
 
 typedef enum { ENC_PREVIEW, ENC_PNG, ENC_EXR } enc_kind;
 
-/* One image request. The pixels are a copy of the job's live frame (taken
- * on the loop when the request starts) or read from the job's saved file on
+/* One image request. The pixels are a copy of the job's live frame (made on
+ * the loop a band per turn, copy_step) or read from the job's saved file on
  * the pool; the encoding runs there too, so a 4096x4096 EXR does not hold
- * up the farm's loop. Answered on the loop, if the browser is still there. */
+ * up the farm's loop. Answered on the loop, with everyone who asked for the
+ * same bytes meanwhile, if they are still there. */
 struct dash_encode {
     uv_work_t req;
     dashboard *d;
@@ -428,49 +429,52 @@ static void encode_free(dash_encode *e) {
     free(e);
 }
 
-/* On the pool: read (when a path) and encode; touches only e. */
-static void encode_work(uv_work_t *req) {
-    dash_encode *e = req->data;
-    e->status = 503;
-    uint8_t *out = NULL;
-    size_t len = 0;
+/* The encoded image of e (read first when a path), or NULL with the reason
+ * in e->err. On the pool. */
+static uint8_t *encode_bytes(dash_encode *e, size_t *len) {
     if (e->path[0]) {
         image img;
-        if (image_read(e->path, &img, e->err, sizeof e->err)) return;
+        if (image_read(e->path, &img, e->err, sizeof e->err)) return NULL;
         e->rgb = img.rgb;
         e->w = img.width;
         e->h = img.height;
     }
     if (e->kind == ENC_EXR) {
         codec_exr_options eo = {.compression = CODEC_EXR_ZIP};
-        out = codec_exr_encode(e->rgb, e->w, e->h, &eo, &len, e->err, sizeof e->err);
-    } else { /* tone mapped the job's way: Reinhard, with the query's exposure */
-        tonemap_options t = {TONEMAP_REINHARD, e->exposure, 0};
-        size_t n = (size_t)e->w * (size_t)e->h;
-        uint8_t *px = malloc(n * 3);
-        if (!px) {
-            snprintf(e->err, sizeof e->err, "out of memory");
-            return;
-        }
-        tonemap_to_8bit(e->rgb, n, &t, px);
-        out = codec_png_encode(px, e->w, e->h, &len, e->err, sizeof e->err);
-        free(px);
+        return codec_exr_encode(e->rgb, e->w, e->h, &eo, len, e->err, sizeof e->err);
     }
-    if (!out) {
+    tonemap_options t = {TONEMAP_REINHARD, e->exposure, 0}; /* the job's way, with the query's exposure */
+    size_t n = (size_t)e->w * (size_t)e->h;
+    uint8_t *px = malloc(n * 3);
+    if (!px) return snprintf(e->err, sizeof e->err, "out of memory"), NULL;
+    tonemap_to_8bit(e->rgb, n, &t, px);
+    uint8_t *out = codec_png_encode(px, e->w, e->h, len, e->err, sizeof e->err);
+    free(px);
+    return out;
+}
+
+/* On the pool: the whole answer (so the loop only queues it: a 40 MB EXR
+ * is not copied there), or status 503 with the reason; touches only e. */
+static void encode_work(uv_work_t *req) {
+    dash_encode *e = req->data;
+    size_t len = 0;
+    uint8_t *out = encode_bytes(e, &len);
+    if (out) {
+        char hdr[200] = "";
+        if (e->kind != ENC_PREVIEW)
+            snprintf(hdr, sizeof hdr, "Content-Disposition: attachment; filename=\"job-%u.%s\"\r\n", e->id,
+                     e->kind == ENC_EXR ? "exr" : "png");
+        e->answer = http_response_build(200, e->kind == ENC_EXR ? "image/x-exr" : "image/png", out, len,
+                                        hdr[0] ? hdr : NULL);
+        if (!e->answer) snprintf(e->err, sizeof e->err, "out of memory");
+        free(out);
+    }
+    e->status = e->answer ? 200 : 503;
+    if (!e->answer) {
         char why[400];
         snprintf(why, sizeof why, "%s", e->err);
         snprintf(e->err, sizeof e->err, "cannot encode the image: %.350s\n", why);
-        return;
     }
-    char hdr[200] = ""; /* the answer whole, so the loop only queues it (a 40 MB EXR: no copy there) */
-    if (e->kind != ENC_PREVIEW)
-        snprintf(hdr, sizeof hdr, "Content-Disposition: attachment; filename=\"job-%u.%s\"\r\n", e->id,
-                 e->kind == ENC_EXR ? "exr" : "png");
-    e->answer = http_response_build(200, e->kind == ENC_EXR ? "image/x-exr" : "image/png", out, len,
-                                    hdr[0] ? hdr : NULL);
-    free(out);
-    if (e->answer) e->status = 200;
-    else snprintf(e->err, sizeof e->err, "out of memory");
 }
 
 static void encode_pump(dashboard *d);
@@ -588,14 +592,14 @@ static void encode_pump(dashboard *d) {
     }
 }
 
-/* A request already made or waiting for the same bytes (the same job, kind
- * and exposure) with room for one more, or NULL. */
+/* A request waiting or being made for the same bytes (the same job, kind
+ * and exposure) with room for one more asker, or NULL. */
 static dash_encode *encode_same(dashboard *d, uint32_t id, enc_kind kind, float exposure) {
-    dash_encode *e;
-    TAILQ_FOREACH(e, &d->waiting, link)
-        if (e->id == id && e->kind == kind && e->exposure == exposure && e->nfollow < DASH_FOLLOWERS) return e;
-    TAILQ_FOREACH(e, &d->running, link)
-        if (e->id == id && e->kind == kind && e->exposure == exposure && e->nfollow < DASH_FOLLOWERS) return e;
+    for (int running = 0; running < 2; running++) {
+        dash_encode *e = running ? TAILQ_FIRST(&d->running) : TAILQ_FIRST(&d->waiting);
+        for (; e; e = TAILQ_NEXT(e, link))
+            if (e->id == id && e->kind == kind && e->exposure == exposure && e->nfollow < DASH_FOLLOWERS) return e;
+    }
     return NULL;
 }
 
@@ -850,7 +854,7 @@ dashboard *dashboard_new(uv_loop_t *loop, farm *f, const dashboard_options *o, c
         free(d);
         return NULL;
     }
-    d->o.host = NULL; /* the caller's string may go; only loopback-ness is kept */
+    /* the caller's string may go; only loopback-ness is kept */
     d->o.host = address_is_loopback(host) ? "127.0.0.1" : "0.0.0.0";
     uv_timer_init(loop, &d->flush);
     d->flush.data = d;

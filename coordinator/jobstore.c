@@ -399,7 +399,6 @@ static int store_adaptive_start(service *s, sjob *j, const uint8_t *bundle, size
 }
 
 int store_job_cancel(service *s, sjob *j) {
-    if (j->saving || j->save_timer) return -1; /* rendered: its image is being saved */
     if (farm_cancel(s->f, j->farm_id) == 0) return 0;
     if (!j->ad || j->state != SJOB_RUNNING) return -1;
     /* Between two adaptive rounds: no farm job to cancel, end it here. */

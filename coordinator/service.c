@@ -333,10 +333,8 @@ static int owner_ok(client *cl, const sjob *j, const char *type) {
 static void on_cancel(client *cl, const cJSON *m) {
     sjob *j = request_job(cl, m, "cancel");
     if (!j || !owner_ok(cl, j, "cancel")) return;
-    if (j->state != SJOB_RUNNING) return client_error(cl, "job %u is already %s", j->desc.id, state_names[j->state]);
-    if (j->saving || j->save_timer)
-        return client_error(cl, "job %u is rendered: its image is being saved%s", j->desc.id,
-                            j->save_timer ? " (waiting for disk space)" : "");
+    char why[200];
+    if (svc_cancel_refused(j, why, sizeof why)) return client_error(cl, "%s", why);
     joblog_add(j->log, svc_wall_now(), "cancel asked by the client at %s", cl->addr);
     svc_cancel_job(cl->svc, j);
     cJSON *r = cJSON_CreateObject();

@@ -267,7 +267,13 @@ void svc_admit_waiting(service *s);
  * Nothing once the service stops. Can't fail. */
 void svc_memory_released(service *s);
 
-/* Cancel a running job: a waiting one at once, else through the farm. */
+/* Whether j may be cancelled now: 0, or -1 with the reason (no newline)
+ * into why: it is over already, or rendered and its image being written
+ * (or waiting for disk space to be). why may be NULL with len 0. */
+int svc_cancel_refused(const sjob *j, char *why, size_t len);
+
+/* Cancel a running job: a waiting one at once, else through the farm.
+ * Nothing when svc_cancel_refused refuses it. */
 void svc_cancel_job(service *s, sjob *j);
 
 /* Resume every job in the data dir, oldest first. */

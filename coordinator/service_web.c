@@ -37,7 +37,8 @@ static void web_jobs(void *ctx, cJSON *arr) {
     }
 }
 
-/* A finished job's image, read from jobs/ID.pfm (the caller frees *rgb). */
+/* The path of the job's saved image, jobs/ID.pfm, when it is there (and,
+ * with done_only, the job done): the dashboard reads it off the loop. */
 static int web_image_file(void *ctx, uint32_t id, int done_only, char *path, size_t len) {
     service *s = ctx;
     sjob *j = store_find_job(s, id);
@@ -63,12 +64,9 @@ static int web_cancel(void *ctx, uint32_t id, char *err, size_t err_len) {
         snprintf(err, err_len, "no job %u\n", id);
         return -1;
     }
-    if (j->state != SJOB_RUNNING) {
-        snprintf(err, err_len, "job %u is already %s\n", id, state_names[j->state]);
-        return -1;
-    }
-    if (j->saving || j->save_timer) {
-        snprintf(err, err_len, "job %u is rendered: its image is being saved\n", id);
+    char why[200];
+    if (svc_cancel_refused(j, why, sizeof why)) {
+        snprintf(err, err_len, "%s\n", why);
         return -1;
     }
     svc_log("job %u cancelled from the dashboard", id);

@@ -53,16 +53,19 @@ static int readable(const char *what, const char *path, char *err, size_t err_le
 /* The certificate and key into ctx, checked. 0, or -1 with the reason. */
 static int config_fill(SSL_CTX *ctx, const char *cert_path, const char *key_path, char *err, size_t err_len) {
     char why[160];
-    if (readable("certificate", cert_path, err, err_len) || readable("private key", key_path, err, err_len))
-        return -1;
+    if (readable("certificate", cert_path, err, err_len)) return -1;
     if (SSL_CTX_use_certificate_chain_file(ctx, cert_path) != 1) {
         ssl_reason(why, sizeof why);
         snprintf(err, err_len, "certificate %s: not a PEM certificate chain (%s)", cert_path, why);
         return -1;
     }
     FILE *f = fopen(key_path, "rb");
-    EVP_PKEY *key = f ? PEM_read_PrivateKey(f, NULL, NULL, NULL) : NULL;
-    if (f) fclose(f);
+    if (!f) {
+        snprintf(err, err_len, "private key %s: %s", key_path, strerror(errno));
+        return -1;
+    }
+    EVP_PKEY *key = PEM_read_PrivateKey(f, NULL, NULL, NULL);
+    fclose(f);
     if (!key) {
         ssl_reason(why, sizeof why);
         snprintf(err, err_len, "private key %s: not a PEM private key (%s)", key_path, why);
