@@ -32,6 +32,9 @@ static void usage(FILE *f) {
             "      --idle-exit S        leave (status 0) after S seconds with no tile in hand:\n"
             "                           no coordinator reachable, or none that gives work\n"
             "                           (batch schedulers: frees the allocation; default: never)\n"
+            "      --keep-scene S       keep a loaded scene S seconds after its last job, for the\n"
+            "                           next job of the same scene and settings (an adaptive\n"
+            "                           render's next round; default 30; 0: free it at once)\n"
             "      --throttle-ms MS     sleep after each tile: simulates a slow machine (tests)\n"
             "      --token-file F       prove this worker token to the coordinator; links are then\n"
             "                           encrypted (default: $TESSERA_WORKER_TOKEN_FILE, else\n"
@@ -68,18 +71,19 @@ static long parse_long(const char *opt, const char *s, long lo, long hi) {
     return args_long("tessera-worker", opt, s, lo, hi);
 }
 
-enum { OPT_PREFETCH = 256, OPT_ONCE, OPT_THROTTLE, OPT_RETRY, OPT_VERSION, OPT_TOKEN, OPT_IDLE_EXIT, OPT_INSECURE };
+enum { OPT_PREFETCH = 256, OPT_ONCE, OPT_THROTTLE, OPT_RETRY, OPT_VERSION, OPT_TOKEN, OPT_IDLE_EXIT, OPT_INSECURE, OPT_KEEP_SCENE };
 
 int main(int argc, char **argv) {
     static const struct option opts[] = {
         {"connect", required_argument, 0, 'c'}, {"threads", required_argument, 0, 't'},
         {"name", required_argument, 0, 'n'}, {"prefetch", required_argument, 0, OPT_PREFETCH},
         {"retry-max", required_argument, 0, OPT_RETRY}, {"once", no_argument, 0, OPT_ONCE},
-        {"idle-exit", required_argument, 0, OPT_IDLE_EXIT},
+        {"idle-exit", required_argument, 0, OPT_IDLE_EXIT}, {"keep-scene", required_argument, 0, OPT_KEEP_SCENE},
         {"throttle-ms", required_argument, 0, OPT_THROTTLE}, {"verbose", no_argument, 0, 'v'},
         {"quiet", no_argument, 0, 'q'}, {"token-file", required_argument, 0, OPT_TOKEN}, {"insecure", no_argument, 0, OPT_INSECURE}, {"version", no_argument, 0, OPT_VERSION}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
     signal(SIGPIPE, SIG_IGN); /* a vanished coordinator is an error to handle, not a reason to die */
-    worker_config cfg = {.threads = (int)sysconf(_SC_NPROCESSORS_ONLN), .prefetch = 1, .retry_max_s = 5};
+    worker_config cfg = {.threads = (int)sysconf(_SC_NPROCESSORS_ONLN), .prefetch = 1, .retry_max_s = 5,
+                         .keep_scene_s = 30};
     const char *connect = NULL, *token = getenv("TESSERA_WORKER_TOKEN_FILE");
     if (!token || !*token) token = getenv("TESSERA_TOKEN_FILE");
     char host[256], name[128], err[256] = "";
@@ -94,6 +98,7 @@ int main(int argc, char **argv) {
         case OPT_RETRY: cfg.retry_max_s = (double)parse_long("--retry-max", optarg, 1, 3600); break;
         case OPT_ONCE: cfg.once = 1; break;
         case OPT_IDLE_EXIT: cfg.idle_exit_s = args_double("tessera-worker", "--idle-exit", optarg, 0.1, 1e7); break;
+        case OPT_KEEP_SCENE: cfg.keep_scene_s = args_double("tessera-worker", "--keep-scene", optarg, 0, 1e7); break;
         case OPT_THROTTLE: cfg.throttle_ms = (int)parse_long("--throttle-ms", optarg, 0, 600000); break;
         case 'v': cfg.verbose = 1; break;
         case 'q': cfg.quiet = 1; break;

@@ -1,29 +1,49 @@
 /* pool.c - render threads fed from a queue of tile tasks (see pool.h).
  *
- * One mutex guards the queue, the finished list, the running slots and the
- * job reference counts; render threads hold it only to pop and push tasks.
- * A job's scene is built by the first thread that needs it, under the
- * job's own lock, so a big mesh never stalls the event loop. */
+ * One mutex guards the queue, the finished list, the running slots, the
+ * job and scene reference counts; render threads hold it only to pop and
+ * push tasks. A scene is built by the first thread that needs it, under the
+ * scene's own lock, so a big mesh never stalls the event loop; jobs that
+ * would load the same scene share it (pool_scene). */
 #include "pool.h"
 
 #include <math.h>
 #include <pthread.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
 #include <unistd.h>
 
+#include "render/accel.h"
 #include "render/scene.h"
 #include "render/scene_memory.h"
 
-struct pool_job {
-    proto_job desc;
-    scene_bundle bundle;
+/* A loaded scene and the jobs that share it: those of one bundle (by hash)
+ * with the settings the loader bakes into the scene (scene_overrides: size,
+ * spp, depth, seed). An adaptive render's rounds are jobs of their own with
+ * one key, as are a service's jobs of one scene and settings: they load it
+ * once. Once its last job is gone it is kept for cfg.keep_s (pool_trim), or
+ * until a job needs a scene it is not; a failed load is never shared. */
+typedef struct pool_scene {
+    char hash[SCENE_BUNDLE_HASH_HEX];
+    int width, height, spp, max_depth;
+    uint64_t seed;
+    scene_bundle bundle; /* until the scene is loaded */
     scene *s;
-    int load_state; /* 0 not tried, 1 loaded, -1 failed (load_error says why) */
+    int load_state;      /* under load_lock: 0 not tried, 1 loaded, -1 failed (load_error says why) */
+    atomic_int failed;   /* load_state == -1, read without load_lock */
     char load_error[512];
     pthread_mutex_t load_lock;
+    int refs;            /* jobs holding it; under pool.lock */
+    double idle_since;   /* pool_clock() when refs fell to 0 */
+    LIST_ENTRY(pool_scene) link; /* on the pool's scene list */
+} pool_scene;
+
+struct pool_job {
+    proto_job desc;
+    pool_scene *sc;
     int refs;  /* the pool's table (until ended) + one per task; under pool.lock */
     int ended;
     LIST_ENTRY(pool_job) link; /* on the pool's table */
@@ -35,17 +55,16 @@ struct pool {
     STAILQ_HEAD(task_queue, pool_task) queue, done; /* waiting; finished, for the loop */
     pool_task **running; /* per thread, or NULL */
     LIST_HEAD(job_table, pool_job) jobs;
+    LIST_HEAD(scene_list, pool_scene) scenes;
+    pool_config cfg;
     pthread_t *threads;
     int thread_count;
     int stopping;
-    int throttle_ms;
     const char *hold_path; /* test hook, see test_hold(); NULL unless set */
     long hold_after, hold_seen;
     int fault_kind;       /* test hook, see test_fault(): 0 none, 1 scale, 2 flipbit, 3 crash, 4 fail */
     double fault_scale;   /* scale: multiply every value by this */
     long fault_every, fault_seen; /* flipbit: one tile in fault_every, counting from the first */
-    void (*wake)(void *);
-    void *ctx;
 };
 
 typedef struct {
@@ -53,42 +72,93 @@ typedef struct {
     int index;
 } thread_arg;
 
+/* Seconds on a clock that only goes forward. */
+static double pool_clock(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
+}
+
+static void scene_entry_free(pool_scene *sc) {
+    scene_free(sc->s);
+    scene_bundle_free(&sc->bundle);
+    pthread_mutex_destroy(&sc->load_lock);
+    free(sc);
+}
+
+/* Free the scenes no job holds (all of them, or those idle for longer than
+ * max_idle_s); under the lock. */
+static void scenes_drop_idle(pool *p, double max_idle_s) {
+    double now = pool_clock();
+    pool_scene *sc = LIST_FIRST(&p->scenes), *next;
+    for (; sc; sc = next) {
+        next = LIST_NEXT(sc, link);
+        if (sc->refs > 0 || (max_idle_s > 0 && now - sc->idle_since < max_idle_s)) continue;
+        LIST_REMOVE(sc, link);
+        scene_entry_free(sc);
+    }
+}
+
+/* A job lets go of its scene; under the lock. A failed one goes at once,
+ * and so does any when nothing is kept (keep_s 0). */
+static void scene_unref(pool *p, pool_scene *sc) {
+    if (--sc->refs > 0) return;
+    sc->idle_since = pool_clock();
+    if (p->cfg.keep_s > 0 && !atomic_load(&sc->failed)) return;
+    LIST_REMOVE(sc, link);
+    scene_entry_free(sc);
+}
+
 /* Unlink j from the table; under the lock. */
 static void job_unlink(pool *p, pool_job *j) {
     (void)p;
     LIST_REMOVE(j, link);
 }
 
-static void job_free(pool_job *j) {
-    scene_free(j->s);
-    scene_bundle_free(&j->bundle);
-    pthread_mutex_destroy(&j->load_lock);
+/* Drop one reference; under the lock. Frees the job at zero. */
+static void job_unref(pool *p, pool_job *j) {
+    if (--j->refs > 0) return;
+    scene_unref(p, j->sc);
     free(j);
 }
 
-/* Drop one reference; under the lock. Frees the job at zero. */
-static void job_unref(pool_job *j) {
-    if (--j->refs == 0) job_free(j);
+/* One line through cfg.log, if set; from a render thread. */
+static void pool_log(pool *p, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void pool_log(pool *p, const char *fmt, ...) {
+    if (!p->cfg.log) return;
+    char line[700];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(line, sizeof line, fmt, ap);
+    va_end(ap);
+    p->cfg.log(p->cfg.log_ctx, line);
 }
 
-/* Build the job's scene if no thread has yet. Returns 0 when it is ready. */
-static int job_ensure_scene(pool_job *j) {
-    pthread_mutex_lock(&j->load_lock);
-    if (j->load_state == 0) {
-        const proto_job *d = &j->desc;
-        scene_overrides ov = {d->width, d->height, d->spp, d->max_depth, 1, d->seed, 0};
+/* Build job j's scene if no thread has yet. Returns 0 when it is ready. */
+static int job_ensure_scene(pool *p, pool_job *j) {
+    pool_scene *sc = j->sc;
+    pthread_mutex_lock(&sc->load_lock);
+    if (sc->load_state == 0) {
+        double t0 = pool_clock();
+        scene_overrides ov = {sc->width, sc->height, sc->spp, sc->max_depth, 1, sc->seed, 0};
         ov.no_accel = 1; /* built below, once the bundle is gone */
-        j->s = scene_memory_check(&j->bundle, j->load_error, sizeof j->load_error) ? NULL
-               : scene_load_bundle(&j->bundle, &ov, j->load_error, sizeof j->load_error);
-        scene_bundle_free(&j->bundle); /* the scene holds what it needs: the meshes' text goes before the build */
-        if (j->s && scene_build_accel(j->s, j->load_error, sizeof j->load_error)) {
-            scene_free(j->s);
-            j->s = NULL;
+        sc->s = scene_memory_check(&sc->bundle, sc->load_error, sizeof sc->load_error) ? NULL
+                : scene_load_bundle(&sc->bundle, &ov, sc->load_error, sizeof sc->load_error);
+        scene_bundle_free(&sc->bundle); /* the scene holds what it needs: the meshes' text goes before the build */
+        if (sc->s && scene_build_accel(sc->s, sc->load_error, sizeof sc->load_error)) {
+            scene_free(sc->s);
+            sc->s = NULL;
         }
-        j->load_state = j->s ? 1 : -1;
+        sc->load_state = sc->s ? 1 : -1;
+        atomic_store(&sc->failed, sc->load_state == -1);
+        if (sc->s)
+            pool_log(p, "job %u: scene %.12s loaded, %u triangles, intersector %s, in %.2f s", j->desc.id, sc->hash,
+                     sc->s->triangle_count, accel_kind_name(accel_get_kind(sc->s->accel)), pool_clock() - t0);
+        else
+            pool_log(p, "job %u: scene %.12s: %s", j->desc.id, sc->hash, sc->load_error);
     }
-    int rc = j->load_state == 1 ? 0 : -1;
-    pthread_mutex_unlock(&j->load_lock);
+    int rc = sc->load_state == 1 ? 0 : -1;
+    pthread_mutex_unlock(&sc->load_lock);
     return rc;
 }
 
@@ -194,9 +264,9 @@ static void task_render(pool *p, pool_task *t) {
     pool_job *j = t->job;
     const proto_assign *a = &t->assign;
     if (p->fault_kind >= 3 && test_fault_early(p, t)) return;
-    if (job_ensure_scene(j)) {
+    if (job_ensure_scene(p, j)) {
         t->status = TASK_FAILED;
-        snprintf(t->error, sizeof t->error, "%s", j->load_error);
+        snprintf(t->error, sizeof t->error, "%s", j->sc->load_error);
         return;
     }
     /* A plain job renders all its samples; an adaptive round, the range and
@@ -218,16 +288,16 @@ static void task_render(pool *p, pool_task *t) {
     t->status = TASK_FAILED;
     snprintf(t->error, sizeof t->error, "out of memory for tile %u", a->tile);
     if (accum && rgb) {
-        int rc = adaptive ? render_tile_sums(j->s, &j->desc.integrator, &a->rect, a->first, a->count, a->mask, rgb,
+        int rc = adaptive ? render_tile_sums(j->sc->s, &j->desc.integrator, &a->rect, a->first, a->count, a->mask, rgb,
                                              &hdr.stats, &t->cancel)
-                          : render_tile_means(j->s, &j->desc.integrator, &a->rect, j->desc.spp, 1, accum, rgb,
+                          : render_tile_means(j->sc->s, &j->desc.integrator, &a->rect, j->desc.spp, 1, accum, rgb,
                                               &hdr.stats, &t->cancel);
         if (rc == 0 && (p->fault_kind == 1 || p->fault_kind == 2)) test_fault(p, t, rgb, (size_t)channels * (size_t)w * (size_t)h);
         if (rc != 0) {
             t->status = TASK_CANCELLED;
         } else if ((t->frame = proto_tile_frame(&hdr, rgb, &t->frame_len)) != NULL) {
             t->status = TASK_DONE;
-            if (p->throttle_ms > 0) sleep_ms(p->throttle_ms);
+            if (p->cfg.throttle_ms > 0) sleep_ms(p->cfg.throttle_ms);
             if (p->hold_path) test_hold(p, t);
         }
     }
@@ -259,7 +329,7 @@ static void *pool_thread(void *arg) {
         p->running[ta->index] = NULL;
         done_append(p, t);
         pthread_mutex_unlock(&p->lock);
-        p->wake(p->ctx);
+        p->cfg.wake(p->cfg.wake_ctx);
         pthread_mutex_lock(&p->lock);
     }
     pthread_mutex_unlock(&p->lock);
@@ -267,21 +337,21 @@ static void *pool_thread(void *arg) {
     return NULL;
 }
 
-pool *pool_new(int threads, int throttle_ms, void (*wake)(void *), void *ctx) {
+pool *pool_new(const pool_config *cfg) {
     pool *p = calloc(1, sizeof *p);
     if (!p) return NULL;
+    int threads = cfg->threads;
+    p->cfg = *cfg;
     p->running = calloc((size_t)threads, sizeof *p->running);
     p->threads = calloc((size_t)threads, sizeof *p->threads);
-    p->throttle_ms = throttle_ms;
     p->hold_path = getenv("TESSERA_TEST_HOLD_FILE");
     if (p->hold_path && !*p->hold_path) p->hold_path = NULL;
     test_fault_init(p);
     if (p->hold_path && getenv("TESSERA_TEST_HOLD_AFTER")) p->hold_after = atol(getenv("TESSERA_TEST_HOLD_AFTER"));
-    p->wake = wake;
-    p->ctx = ctx;
     STAILQ_INIT(&p->queue);
     STAILQ_INIT(&p->done);
     LIST_INIT(&p->jobs);
+    LIST_INIT(&p->scenes);
     pthread_mutex_init(&p->lock, NULL);
     pthread_cond_init(&p->cond, NULL);
     if (!p->running || !p->threads) {
@@ -318,8 +388,9 @@ void pool_free(pool *p) {
     while (!LIST_EMPTY(&p->jobs)) {
         pool_job *j = LIST_FIRST(&p->jobs);
         LIST_REMOVE(j, link);
-        job_unref(j);
+        job_unref(p, j);
     }
+    scenes_drop_idle(p, 0); /* every job is gone: so is every hold on a scene */
     pthread_mutex_destroy(&p->lock);
     pthread_cond_destroy(&p->cond);
     free(p->running);
@@ -327,21 +398,66 @@ void pool_free(pool *p) {
     free(p);
 }
 
-pool_job *pool_job_new(pool *p, const proto_job *desc, scene_bundle *b) {
-    pool_job *j = calloc(1, sizeof *j);
-    if (!j) {
-        scene_bundle_free(b);
+/* The scene a job of desc would load, if the pool holds it and its load
+ * has not failed; under the lock. */
+static pool_scene *scene_find(pool *p, const proto_job *d) {
+    pool_scene *sc;
+    LIST_FOREACH(sc, &p->scenes, link)
+        if (strcmp(sc->hash, d->scene_hash) == 0 && sc->width == d->width && sc->height == d->height &&
+            sc->spp == d->spp && sc->max_depth == d->max_depth && sc->seed == d->seed && !atomic_load(&sc->failed))
+            return sc;
+    return NULL;
+}
+
+/* A new scene entry for desc from the bundle's bytes (copied). Returns
+ * NULL with the reason in err. */
+static pool_scene *scene_entry_new(const proto_job *d, const uint8_t *bundle, size_t len, char *err, size_t err_len) {
+    pool_scene *sc = calloc(1, sizeof *sc);
+    if (!sc) return snprintf(err, err_len, "out of memory for a job"), NULL;
+    if (scene_bundle_parse(bundle, len, &sc->bundle, err, err_len)) {
+        free(sc);
         return NULL;
     }
+    memcpy(sc->hash, d->scene_hash, sizeof sc->hash);
+    sc->width = d->width, sc->height = d->height, sc->spp = d->spp, sc->max_depth = d->max_depth;
+    sc->seed = d->seed;
+    atomic_init(&sc->failed, 0);
+    pthread_mutex_init(&sc->load_lock, NULL);
+    return sc;
+}
+
+pool_job *pool_job_new(pool *p, const proto_job *desc, const uint8_t *bundle, size_t len, int *shared, char *err,
+                       size_t err_len) {
+    pool_job *j = calloc(1, sizeof *j);
+    if (!j) return snprintf(err, err_len, "out of memory for a job"), NULL;
     j->desc = *desc;
-    j->bundle = *b;
-    memset(b, 0, sizeof *b);
-    pthread_mutex_init(&j->load_lock, NULL);
     j->refs = 1;
     pthread_mutex_lock(&p->lock);
+    pool_scene *sc = scene_find(p, desc);
+    *shared = sc != NULL;
+    if (!sc) {
+        scenes_drop_idle(p, 0); /* before this scene's load: memory for one, not two */
+        pthread_mutex_unlock(&p->lock);
+        sc = scene_entry_new(desc, bundle, len, err, err_len); /* the copy, outside the lock */
+        pthread_mutex_lock(&p->lock);
+        if (sc) LIST_INSERT_HEAD(&p->scenes, sc, link);
+    }
+    if (!sc) {
+        pthread_mutex_unlock(&p->lock);
+        free(j);
+        return NULL;
+    }
+    sc->refs++;
+    j->sc = sc;
     LIST_INSERT_HEAD(&p->jobs, j, link);
     pthread_mutex_unlock(&p->lock);
     return j;
+}
+
+void pool_trim(pool *p) {
+    pthread_mutex_lock(&p->lock);
+    scenes_drop_idle(p, p->cfg.keep_s);
+    pthread_mutex_unlock(&p->lock);
 }
 
 pool_job *pool_job_find(pool *p, uint32_t id) {
@@ -393,10 +509,10 @@ void pool_job_end(pool *p, pool_job *j) {
         j->ended = 1;
         job_unlink(p, j);
         n = cancel_matching(p, j, 0, 0);
-        job_unref(j);
+        job_unref(p, j);
     }
     pthread_mutex_unlock(&p->lock);
-    if (n) p->wake(p->ctx);
+    if (n) p->cfg.wake(p->cfg.wake_ctx);
 }
 
 void pool_job_end_all(pool *p) {
@@ -426,7 +542,7 @@ int pool_cancel(pool *p, uint32_t job, uint32_t tile) {
         if (j->desc.id == job) break;
     int n = j ? cancel_matching(p, j, 1, tile) : 0;
     pthread_mutex_unlock(&p->lock);
-    if (n) p->wake(p->ctx);
+    if (n) p->cfg.wake(p->cfg.wake_ctx);
     return n > 0;
 }
 
@@ -434,7 +550,7 @@ void pool_cancel_all(pool *p) {
     pthread_mutex_lock(&p->lock);
     int n = cancel_matching(p, NULL, 0, 0);
     pthread_mutex_unlock(&p->lock);
-    if (n) p->wake(p->ctx);
+    if (n) p->cfg.wake(p->cfg.wake_ctx);
 }
 
 pool_task *pool_take_done(pool *p) {
@@ -448,7 +564,7 @@ pool_task *pool_take_done(pool *p) {
 void pool_task_free(pool *p, pool_task *t) {
     if (!t) return;
     pthread_mutex_lock(&p->lock);
-    job_unref(t->job);
+    job_unref(p, t->job);
     pthread_mutex_unlock(&p->lock);
     free(t->frame);
     free(t->assign.mask);

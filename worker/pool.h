@@ -37,20 +37,40 @@ typedef struct pool_task {
     STAILQ_ENTRY(pool_task) link; /* on the pool's queue or finished list */
 } pool_task;
 
-/* Start `threads` render threads. wake(ctx) is called from a render thread
- * whenever a task finishes. throttle_ms > 0 sleeps that long after each
- * tile (tests use it to simulate a slow machine). Returns NULL when the
- * threads or memory can't be had. */
-pool *pool_new(int threads, int throttle_ms, void (*wake)(void *), void *ctx);
+typedef struct {
+    int threads;      /* render threads, >= 1 */
+    int throttle_ms;  /* > 0: sleep that long after each tile (tests: a slow machine) */
+    double keep_s;    /* keep a loaded scene this long after its last job (pool_trim); 0: free it with that job */
+    void (*wake)(void *ctx); /* from a render thread, whenever a task finishes */
+    void *wake_ctx;
+    /* From a render thread: a line saying a scene loaded (with its size,
+     * intersector and time) or why it failed. May be NULL. */
+    void (*log)(void *ctx, const char *line);
+    void *log_ctx;
+} pool_config;
 
-/* Cancel everything, join the threads and free the pool, its jobs and any
- * finished tasks not taken. */
+/* Start cfg->threads render threads. Returns NULL when the threads or
+ * memory can't be had. */
+pool *pool_new(const pool_config *cfg);
+
+/* Cancel everything, join the threads and free the pool, its jobs, its
+ * scenes and any finished tasks not taken. */
 void pool_free(pool *p);
 
-/* A job rendering bundle b (the pool copies nothing: b must be a parsed
- * bundle the job may own; the job frees it). Returns NULL when out of
- * memory (b is then freed too). */
-pool_job *pool_job_new(pool *p, const proto_job *desc, scene_bundle *b);
+/* A job of desc over the scene bundle's bytes (bundle, len: the worker's,
+ * not taken). Jobs that would load the same scene (the same bundle hash,
+ * width, height, spp, max_depth and seed: an adaptive render's rounds, a
+ * service's jobs of one scene) share one: *shared is set to 1 when this job
+ * joins a scene the pool holds, and the bytes are then not even read; else
+ * they are copied for a render thread to load from, and the scenes no job
+ * holds are freed first. Returns NULL with the reason in err (out of
+ * memory, a malformed bundle). */
+pool_job *pool_job_new(pool *p, const proto_job *desc, const uint8_t *bundle, size_t len, int *shared, char *err,
+                       size_t err_len);
+
+/* Free the scenes no job has held for keep_s seconds. Called on the loop's
+ * timer. Can't fail. */
+void pool_trim(pool *p);
 
 /* Look up a live job by id, or NULL. */
 pool_job *pool_job_find(pool *p, uint32_t id);

@@ -74,6 +74,10 @@ static void worker_log(worker *w, const char *fmt, ...) {
     va_end(ap);
 }
 
+/* The pool's lines (scenes loaded, or why not), from a render thread:
+ * log_vline writes each whole. */
+static void pool_log_line(void *ctx, const char *line) { worker_log(ctx, "%s", line); }
+
 static int capacity(const worker *w) { return w->cfg.threads + w->cfg.prefetch; }
 
 /* Send a frame if connected; frees it otherwise. */
@@ -193,10 +197,11 @@ static int on_job(worker *w, conn *c, const cJSON *m) {
     for (int i = 0; i < WORKER_MAX_BUNDLES; i++) {
         cached_bundle *cb = &w->bundles[i];
         if (!cb->bytes || strcmp(cb->hash, d.scene_hash) != 0) continue;
-        scene_bundle b;
-        if (scene_bundle_parse(cb->bytes, cb->len, &b, err, sizeof err)) return protocol_error(w, c, err);
-        if (!pool_job_new(w->pool, &d, &b)) return protocol_error(w, c, "out of memory for a job");
-        if (w->cfg.verbose) worker_log(w, "job %u: scene %.12s, %dx%d, %d spp", d.id, d.scene_hash, d.width, d.height, d.spp);
+        int shared;
+        if (!pool_job_new(w->pool, &d, cb->bytes, cb->len, &shared, err, sizeof err)) return protocol_error(w, c, err);
+        if (w->cfg.verbose)
+            worker_log(w, "job %u: scene %.12s, %dx%d, %d spp%s", d.id, d.scene_hash, d.width, d.height, d.spp,
+                       shared ? " (its scene is already loaded or loading here: shared, not loaded again)" : "");
         return 0;
     }
     snprintf(err, sizeof err, "job %u: scene %s was never sent", d.id, d.scene_hash);
@@ -429,6 +434,7 @@ static void on_tick(uv_timer_t *t) {
     }
     check_idle(w, now);
     if (w->stopping) return;
+    pool_trim(w->pool);
     if (w->welcomed && now - w->last_sent >= w->heartbeat_s) {
         size_t len;
         uint8_t *frame = proto_frame_simple("heartbeat", &len);
@@ -507,7 +513,9 @@ int worker_run(const worker_config *cfg) {
     w->last_work = w->last_welcomed = now_s(w);
     uv_async_init(&w->loop, &w->wake, on_wake);
     w->wake.data = w;
-    w->pool = pool_new(cfg->threads, cfg->throttle_ms, wake_loop, &w->wake);
+    pool_config pc = {.threads = cfg->threads, .throttle_ms = cfg->throttle_ms, .keep_s = cfg->keep_scene_s,
+                      .wake = wake_loop, .wake_ctx = &w->wake, .log = cfg->verbose ? pool_log_line : NULL, .log_ctx = w};
+    w->pool = pool_new(&pc);
     if (!w->pool) {
         worker_log(w, "cannot start %d render threads", cfg->threads);
         uv_close((uv_handle_t *)&w->wake, NULL);

@@ -19,6 +19,7 @@ typedef struct {
     int throttle_ms;    /* sleep after each tile (tests: a slow machine) */
     double retry_max_s; /* longest wait between connection attempts */
     double idle_exit_s; /* > 0: leave (status 0) after this long with no tile in hand */
+    double keep_scene_s; /* keep a loaded scene this long after its last job (pool.h); 0: free it at once */
     int verbose;
     int quiet;          /* errors only (local farms) */
     auth_key auth;      /* enabled: prove the token, and make the coordinator prove it */

@@ -105,6 +105,11 @@ void accel_free(accel *a) {
 
 accel_kind accel_get_kind(const accel *a) { return a->kind; }
 
+const char *accel_kind_name(accel_kind k) {
+    static const char *const names[] = {"auto", "bvh", "flat", "embree", "wide"}; /* in accel_kind order */
+    return (unsigned)k < sizeof names / sizeof names[0] ? names[k] : "?";
+}
+
 
 int accel_get_embree_stats(const accel *a, accel_embree_stats *out) {
     if (!a->embree) return -1;

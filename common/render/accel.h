@@ -58,6 +58,10 @@ void accel_free(accel *a);
 /* The kind that was built: ACCEL_BVH, ACCEL_FLAT, ACCEL_EMBREE or ACCEL_WIDE, never ACCEL_AUTO. */
 accel_kind accel_get_kind(const accel *a);
 
+/* The kind's name as a scene file writes it ("auto", "bvh", "flat",
+ * "embree", "wide"); "?" for a value out of range. Can't fail. */
+const char *accel_kind_name(accel_kind k);
+
 /* How many triangles the flat kernel this CPU runs tests at once: 16 with
  * AVX-512F, 8 with AVX2, else 4. Can't fail. */
 int accel_flat_lanes(const accel *a);

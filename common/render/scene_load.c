@@ -138,7 +138,6 @@ static double dlen(const double a[3]) { return sqrt(ddot(a, a)); }
 
 static int load_render(loader *L, const cJSON *root, const scene_overrides *ov) {
     static const char *const keys[] = {"width", "height", "spp", "max_depth", "seed", "accel", NULL};
-    static const char *const accels[] = {"auto", "bvh", "flat", "embree", "wide"}; /* in accel_kind order */
     const cJSON *r = cJSON_GetObjectItemCaseSensitive(root, "render");
     cJSON empty = {0};
     empty.type = cJSON_Object;
@@ -149,9 +148,9 @@ static int load_render(loader *L, const cJSON *root, const scene_overrides *ov) 
     if (jf_string(&L->j, r, "render", "accel", 0, &accel)) return -1;
     if (!accel) accel = "auto";
     L->s->settings.accel = ACCEL_AUTO;
-    for (int k = 0; k < 5; k++)
-        if (strcmp(accel, accels[k]) == 0) L->s->settings.accel = (accel_kind)k;
-    if (strcmp(accel, accels[L->s->settings.accel]) != 0)
+    for (accel_kind k = ACCEL_AUTO; k <= ACCEL_WIDE; k++)
+        if (strcmp(accel, accel_kind_name(k)) == 0) L->s->settings.accel = k;
+    if (strcmp(accel, accel_kind_name(L->s->settings.accel)) != 0)
         return jf_fail(&L->j, "render", "accel", "expected \"auto\", \"bvh\", \"flat\", \"embree\" or \"wide\", got \"%s\"", accel);
     if (jf_int(&L->j, r, "render", "width", 0, 512, 1, MAX_RESOLUTION, &w) ||
         jf_int(&L->j, r, "render", "height", 0, 512, 1, MAX_RESOLUTION, &h) ||
