@@ -111,6 +111,22 @@ TEST(gltf_bad_files_are_refused_naming_the_fault) {
         CHECK(err[0] && strstr(err, cases[i].want), "case %zu: want an error with \"%s\", got \"%s\"", i,
               cases[i].want, err);
     }
+    /* A data: URI whose header (before the comma) Assimp 5.2 would misread,
+     * leaking inside it (found by fuzz_gltf; import.c check_data_uris):
+     * read up to 126 characters, refused from 127 naming the field. */
+    for (int n = 126; n <= 127; n++) {
+        char uri[512], pad[200];
+        const char *tail = strchr(TRI_DATA, ';'); /* ";base64,..." */
+        int np = n - (int)strlen("data:application/") - (int)strlen(";base64");
+        memset(pad, 'x', (size_t)np);
+        snprintf(uri, sizeof uri, "data:application/%.*s%s", np, pad, tail);
+        const char *err = load_error(tri_gltf("long-uri.gltf", "", 4, "", "", uri, 5123, 5126));
+        if (n == 126)
+            CHECK(!err[0], "a data: URI with a %d-character header was refused: %s", n, err);
+        else
+            CHECK(strstr(err, "buffers[0].uri") && strstr(err, "127 characters"),
+                  "a data: URI with a %d-character header: want an error naming buffers[0].uri, got \"%s\"", n, err);
+    }
     /* Not glTF 2. */
     util_write_temp("v1.gltf", "{\"asset\": {\"version\": \"1.0\"}}");
     CHECK(strstr(load_error(util_temp_path("v1.gltf")), "only glTF 2"), "glTF 1 accepted");

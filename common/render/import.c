@@ -247,6 +247,38 @@ static uint8_t *data_uri(const char *uri, size_t *len) {
     return out;
 }
 
+/* The longest data: URI header (the characters before its comma) Assimp
+ * reads right: 5.2 keeps the payload's offset in a signed char, so a
+ * payload starting past offset 127 is read from the wrong place ("Invalid
+ * base64 char value: 18446744073709551488", and 260 bytes leaked inside
+ * Assimp; found by fuzz_gltf). Measured with a media type padded to each
+ * length: 126 imports, 127 fails. */
+#define DATA_URI_MAX_HEADER 126
+
+/* Refuse, naming the field, any data: URI of buffers[] and images[] that
+ * Assimp would misread: no comma, or a header longer than
+ * DATA_URI_MAX_HEADER. Returns 0 or -1 (im's error set). */
+static int check_data_uris(importer *im) {
+    static const char *const arrays[] = {"buffers", "images"};
+    for (int a = 0; a < 2; a++) {
+        int i = 0;
+        const cJSON *e;
+        cJSON_ArrayForEach(e, cJSON_GetObjectItemCaseSensitive(im->gltf, arrays[a])) {
+            const cJSON *uri = cJSON_GetObjectItemCaseSensitive(e, "uri");
+            if (cJSON_IsString(uri) && strncmp(uri->valuestring, "data:", 5) == 0) {
+                const char *comma = strchr(uri->valuestring, ',');
+                if (!comma) return fail(im, "%s[%d].uri: a data: URI without a comma before its data", arrays[a], i);
+                if (comma - uri->valuestring > DATA_URI_MAX_HEADER)
+                    return fail(im, "%s[%d].uri: the data: URI's header (media type and encoding, before the comma) "
+                                    "is %td characters; at most %d are read",
+                                arrays[a], i, comma - uri->valuestring, DATA_URI_MAX_HEADER);
+            }
+            i++;
+        }
+    }
+    return 0;
+}
+
 /* Bytes of buffer i (GLB BIN chunk, data: URI or bundle file). */
 static const uint8_t *gltf_buffer(importer *im, int i, size_t *len) {
     const cJSON *bufs = cJSON_GetObjectItemCaseSensitive(im->gltf, "buffers");
@@ -1063,7 +1095,8 @@ static int import_run(importer *im) {
         const cJSON *ver = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(im->gltf, "asset"), "version");
         if (!cJSON_IsString(ver) || strncmp(ver->valuestring, "2.", 2) != 0)
             return fail(im, "asset.version: expected \"2.0\" (only glTF 2 is supported)");
-        if (check_extensions(im) || check_buffers_and_accessors(im) || check_primitives(im)) return -1;
+        if (check_extensions(im) || check_data_uris(im) || check_buffers_and_accessors(im) || check_primitives(im))
+            return -1;
     }
     struct aiFileIO io = {io_open, io_close, (aiUserData)im};
     pthread_mutex_lock(&assimp_lock);
