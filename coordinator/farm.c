@@ -76,6 +76,8 @@ static void on_handle_closed(uv_handle_t *h) {
     if (--f->open_handles == 0 && f->closed_cb) f->closed_cb(f->closed_ctx);
 }
 
+void farm_wind_down(farm *f) { f->closing = 1; }
+
 void farm_close(farm *f, void (*cb)(void *ctx), void *ctx) {
     f->closing = 1;
     f->closed_cb = cb;

@@ -213,6 +213,12 @@ void farm_set_auth(farm *f, const auth_keyring *r);
  * threads, tiles, bytes. Can't fail. */
 void farm_print_workers(const farm *f, FILE *out);
 
+/* The farm's work is over but it stays open a moment (the local farm, for
+ * its workers to leave): from now on a peer's departure is neither logged
+ * (unless verbose) nor a reason to reschedule, as after farm_close. Can't
+ * fail. */
+void farm_wind_down(farm *f);
+
 /* Stop listening and disconnect every worker; cb runs once everything is
  * closed, after which farm_free may be called. */
 void farm_close(farm *f, void (*cb)(void *ctx), void *ctx);

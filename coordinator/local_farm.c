@@ -46,6 +46,7 @@ struct local_run {
     char connect[300];
     uv_signal_t sigint, sigterm;
     uv_timer_t grace;
+    int farm_closing; /* farm_close called (close_farm_when_alone) */
     int finished, failed, interrupted;
     char err[600];
     farm_report last;
@@ -95,6 +96,7 @@ static int find_worker_exe(char *out, size_t n, char *err, size_t err_len) {
 }
 
 static void render_stop(local_run *r);
+static void close_farm_when_alone(local_run *r);
 
 static void on_proc_closed(uv_handle_t *h) { free(h->data); }
 
@@ -109,7 +111,7 @@ static void on_worker_exit(uv_process_t *p, int64_t status, int signal) {
     r->slots[slot].alive = 0;
     r->alive--;
     if (r->finished) {
-        if (r->alive == 0 && !uv_is_closing((uv_handle_t *)&r->grace)) uv_close((uv_handle_t *)&r->grace, NULL);
+        close_farm_when_alone(r);
         return;
     }
     if (signal)
@@ -185,27 +187,40 @@ static void on_grace_timer(uv_timer_t *t) {
 
 static void on_farm_closed(void *ctx) { (void)ctx; }
 
+
+/* SIGTERM every local worker still running. */
 static void term_walk(uv_handle_t *h, void *arg) {
     (void)arg;
     if (h->type == UV_PROCESS && !uv_is_closing(h)) uv_process_kill((uv_process_t *)h, SIGTERM);
 }
 
-/* The render is over (done, failed or interrupted): close the farm, let the
- * workers exit, close our own handles. */
+/* Close the farm once the render is over and no local worker is left;
+ * once. */
+static void close_farm_when_alone(local_run *r) {
+    if (!r->finished || r->alive > 0 || r->farm_closing) return;
+    r->farm_closing = 1;
+    if (!uv_is_closing((uv_handle_t *)&r->grace)) uv_close((uv_handle_t *)&r->grace, NULL);
+    farm_close(r->f, on_farm_closed, r);
+}
+
+/* The render is over (done, failed or interrupted): tell the local workers
+ * to go, close our own handles, and the farm once they are gone. The port
+ * stays open until then: a worker that had not joined yet (a render of a
+ * few tiles can end first) then leaves on SIGTERM without a word, instead
+ * of finding the port closed and saying it cannot reach the coordinator
+ * (3 of 6 renders of 8x8 pixels did). */
 static void render_stop(local_run *r) {
     if (r->finished) return;
     r->finished = 1;
     if (r->web) dashboard_close(r->web, NULL, NULL);
     r->web = NULL;
-    farm_close(r->f, on_farm_closed, r);
+    farm_wind_down(r->f); /* their leaving is not news */
+    uv_walk(&r->loop, term_walk, NULL);
     uv_close((uv_handle_t *)&r->sigint, NULL);
     uv_close((uv_handle_t *)&r->sigterm, NULL);
     uv_close((uv_handle_t *)&r->round_timer, NULL);
-    if (r->failed) uv_walk(&r->loop, term_walk, NULL);
-    if (r->alive > 0)
-        uv_timer_start(&r->grace, on_grace_timer, EXIT_GRACE_MS, 0);
-    else
-        uv_close((uv_handle_t *)&r->grace, NULL);
+    if (r->alive > 0) uv_timer_start(&r->grace, on_grace_timer, EXIT_GRACE_MS, 0);
+    close_farm_when_alone(r);
 }
 
 static void on_job(void *ctx, const farm_report *rep, int done);

@@ -528,3 +528,25 @@ TEST(farm_local_workers_that_fail_end_the_render_with_an_error) {
     CHECK(st == 1 && strstr(out, "cannot run the worker program /nonexistent/worker"), "status %d: %s", st, out);
     CHECK(access(temp("never.pfm").path, F_OK) != 0, "an image was written by a failed render");
 }
+
+/* A render of fewer tiles than local workers can end before the last has
+ * joined. That worker is told to leave (SIGTERM) while the port is still
+ * open, and leaves without a word: before, it found the port closed and
+ * printed "cannot reach the coordinator ... connection refused" in about
+ * half of such renders (3 of 6 at 8x8 pixels), and telling it to leave
+ * while it connected could hang it (test_idle_exit.c). 8 renders; each
+ * prints its "rendered" line and nothing else, and no worker is left. */
+TEST(farm_tiny_render_ends_quietly_with_every_worker_gone) {
+    for (int i = 0; i < 8; i++) {
+        char cmd[1024], out[8192];
+        snprintf(cmd, sizeof cmd, "%s render " SCENE " --width 8 --height 8 --spp 1 --workers 2 --no-progress -o %s",
+                 harness_tessera(), temp("tiny.pfm").path);
+        int st = util_run(cmd, out, sizeof out);
+        const char *nl = strchr(out, '\n');
+        CHECK(st == 0 && strncmp(out, "rendered ", 9) == 0 && nl && nl[1] == '\0',
+              "render %d: status %d, want only the rendered line: %s", i, st, out);
+    }
+    char out[256] = "";
+    util_run("pgrep -f 'tessera-worker --connect 127.0.0.1:[0-9]* --threads 1 --name local-' | wc -l", out, sizeof out);
+    CHECK(atoi(out) == 0, "%d local workers are still running", atoi(out));
+}

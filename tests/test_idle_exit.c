@@ -3,12 +3,16 @@
  * when no coordinator answers, when a render's coordinator has finished and
  * gone, and when a job service has no job for it. It must not leave while
  * it renders tiles slower than S. (Batch schedulers rely on this to release
- * an allocation: docs/slurm.md.) */
+ * an allocation: docs/slurm.md.) And told to leave (SIGTERM) while its
+ * connection is still being made, it leaves at once. */
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -121,4 +125,41 @@ TEST(idle_exit_service_without_jobs) {
     CHECK(util_wait(svc, LONG, NULL) == 0, "service did not stop cleanly; log %s", slog);
     check_no_sanitizer(slog);
     check_no_sanitizer(wlog);
+}
+
+/* SIGTERM while the worker's connection is still being made (the
+ * coordinator's accept queue is full, so its SYN goes unanswered): the
+ * worker leaves at once with status 0. libuv accepted a shutdown of the
+ * connecting socket and never completed it, and the worker hung until
+ * killed (conn_close now shuts down only an established connection), as a
+ * `docker stop` or `scancel` during a coordinator's overload would have. */
+TEST(worker_told_to_leave_while_connecting_exits) {
+    int ls = socket(AF_INET, SOCK_STREAM, 0);
+    struct sockaddr_in a = {.sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
+    socklen_t alen = sizeof a;
+    CHECK(ls >= 0 && bind(ls, (struct sockaddr *)&a, sizeof a) == 0 && listen(ls, 0) == 0 &&
+              getsockname(ls, (struct sockaddr *)&a, &alen) == 0,
+          "no listening socket");
+    int fill[3];
+    for (int i = 0; i < 3; i++) { /* fill the accept queue: later SYNs are dropped, connects stay in progress */
+        fill[i] = socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK, 0);
+        (void)connect(fill[i], (struct sockaddr *)&a, sizeof a);
+    }
+    util_sleep(0.2);
+    char addr[64], log[256];
+    snprintf(addr, sizeof addr, "127.0.0.1:%d", ntohs(a.sin_port));
+    temp_into(log, sizeof log, "leave-connecting.log");
+    const char *argv[] = {util_bin("tessera-worker"), "--connect", addr, "--threads", "1", "--once", NULL};
+    pid_t w = util_spawn(argv, log);
+    util_sleep(0.5); /* resolved, connect() issued and waiting */
+    kill(w, SIGTERM);
+    double t0 = mono_s();
+    int st = util_wait(w, 10, NULL);
+    double took = mono_s() - t0;
+    CHECK(st == 0, "the worker did not leave cleanly on SIGTERM while connecting (status %d after %.1f s); log %s", st,
+          took, log);
+    CHECK(took < 5, "the worker took %.1f s to leave", took);
+    CHECK(util_file_count(log, "SIGTERM: abandoning 0 tiles and leaving"), "no leaving line; log %s", log);
+    for (int i = 0; i < 3; i++) close(fill[i]);
+    close(ls);
 }

@@ -464,7 +464,8 @@ static void worker_leave(worker *w) {
 static void on_signal(uv_signal_t *s, int signum) {
     worker *w = s->data;
     if (w->stopping) return;
-    worker_log(w, "%s: abandoning %d tiles and leaving", signum == SIGTERM ? "SIGTERM" : "SIGINT", w->held);
+    if (!w->cfg.quiet)
+        worker_log(w, "%s: abandoning %d tiles and leaving", signum == SIGTERM ? "SIGTERM" : "SIGINT", w->held);
     worker_leave(w);
 }
 

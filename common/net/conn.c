@@ -17,6 +17,7 @@ struct conn {
     wire_decoder dec;
     char readbuf[CONN_READ_BYTES];
     int closing;
+    int started;   /* conn_start succeeded: the connection is established */
     int malformed; /* closed because the peer's byte stream was not frames */
     uint64_t bytes_in, bytes_out;
     uv_shutdown_t shutdown;
@@ -128,7 +129,11 @@ static void on_read(uv_stream_t *s, ssize_t n, const uv_buf_t *buf) {
     }
 }
 
-int conn_start(conn *c) { return uv_read_start((uv_stream_t *)&c->tcp, on_alloc, on_read); }
+int conn_start(conn *c) {
+    int rc = uv_read_start((uv_stream_t *)&c->tcp, on_alloc, on_read);
+    c->started = rc == 0;
+    return rc;
+}
 
 static void on_written(uv_write_t *req, int status) {
     (void)status; /* a failed write shows up as a read error or EOF too */
@@ -214,7 +219,11 @@ void conn_close(conn *c, const char *reason, int flush) {
     if (c->cb.on_close) c->cb.on_close(c, reason);
     uv_read_stop((uv_stream_t *)&c->tcp);
     c->shutdown.data = c;
-    if (flush && uv_is_writable((uv_stream_t *)&c->tcp) &&
+    /* Only an established connection is shut down: libuv takes a shutdown
+     * of a socket still connecting, then never completes it (the handle
+     * stays open and the loop with it: a worker told to leave while it
+     * connected hung until killed). */
+    if (flush && c->started && uv_is_writable((uv_stream_t *)&c->tcp) &&
         uv_shutdown(&c->shutdown, (uv_stream_t *)&c->tcp, on_shutdown) == 0)
         return;
     uv_close((uv_handle_t *)&c->tcp, on_closed);

@@ -52,7 +52,8 @@ int conn_send(conn *c, uint8_t *frame, size_t len);
 int conn_send_blob(conn *c, conn_blob *b);
 
 /* Close: calls on_close(reason) now. With flush, queued frames are written
- * first (a last message before the close); without, they are dropped.
+ * first (a last message before the close); without, or before conn_start
+ * (a connection still being made), they are dropped.
  * Safe to call more than once; only the first call counts. */
 void conn_close(conn *c, const char *reason, int flush);
 
