@@ -195,9 +195,9 @@ TEST(adaptive_farm_survives_a_killed_worker) {
 
 /* Each round of an adaptive render is a job of its own; a worker loads the
  * scene for the first and shares it with the others (worker/pool.c,
- * pool_scene), instead of loading it once per round: with a 2.6M-triangle
- * mesh a 128x128 render took 28.9 s on the local farm against 13.9 s once
- * shared. With --keep-scene 0 the scene goes with each round's job and is
+ * pool_scene), instead of loading it once per round: with 2.6M triangles
+ * a 128x128 render took 14.9 s on the local farm against 7.7-8.1 s once
+ * shared (docs/protocol.md). With --keep-scene 0 the scene goes with each round's job and is
  * loaded again: the count of loads is what the sharing changes. The image is
  * the same bytes either way. Two render threads, so that rounds overlap on
  * the worker; `make test-tsan` runs it under ThreadSanitizer (a report
