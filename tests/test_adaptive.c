@@ -230,3 +230,46 @@ TEST(adaptive_rounds_share_one_loaded_scene_on_a_worker) {
                   jobs, wlog);
     }
 }
+
+/* A kept scene outlives its connection (it is named by its bundle's hash)
+ * and goes after --keep-scene seconds without a job (pool_trim): one
+ * worker, three renders of one scene and settings, each from a coordinator
+ * of its own; the second, right after the first, shares its scene; the
+ * third, after the keep time, loads it again. */
+TEST(worker_keeps_a_scene_across_renders_until_the_keep_time) {
+    char wlog[256];
+    snprintf(wlog, sizeof wlog, "%s", util_temp_path("keep-w.log"));
+    int port = -1;
+    pid_t worker = -1;
+    for (int run = 0; run < 3; run++) {
+        char img[256], log[256], connect[64];
+        snprintf(img, sizeof img, "%s", util_temp_path(run ? "keep-b.pfm" : "keep-a.pfm"));
+        snprintf(log, sizeof log, "%s", util_temp_path(run == 0 ? "keep-0.log" : run == 1 ? "keep-1.log" : "keep-2.log"));
+        const char *argv[] = {harness_tessera(), "render", "scenes/cornell-box.json", "--width", "24", "--height", "20",
+                              "--spp", "4", "--no-progress", "--workers", "0", "--listen",
+                              port > 0 ? connect : "127.0.0.1:0", "-o", img, NULL};
+        if (port > 0) snprintf(connect, sizeof connect, "127.0.0.1:%d", port);
+        pid_t coord = util_spawn(argv, log);
+        CHECK(util_wait_for_text(log, "coordinator listening on 127.0.0.1:", 120) == 0, "no coordinator; log %s", log);
+        if (port < 0) {
+            FILE *f = fopen(log, "r");
+            char line[512];
+            while (f && fgets(line, sizeof line, f))
+                if (sscanf(line, "tessera: coordinator listening on 127.0.0.1:%d", &port) == 1) break;
+            if (f) fclose(f);
+            CHECK(port > 0, "no port; log %s", log);
+            snprintf(connect, sizeof connect, "127.0.0.1:%d", port);
+            const char *wargv[] = {util_bin("tessera-worker"), "--connect", connect, "--threads", "1", "-v",
+                                   "--retry-max", "1", "--keep-scene", "1.5", NULL};
+            worker = util_spawn(wargv, wlog);
+        }
+        CHECK(util_wait(coord, 120, NULL) == 0, "render %d failed; log %s", run, log);
+        if (run == 1) util_sleep(3.0); /* past the keep time */
+    }
+    int loads = util_file_count(wlog, " loaded, "), shared = util_file_count(wlog, "shared, not loaded again");
+    kill(worker, SIGTERM);
+    CHECK(util_wait(worker, 30, NULL) == 0, "the worker did not leave cleanly; log %s", wlog);
+    CHECK(loads == 2 && shared == 1, "want 2 loads (first render, after the keep time) and 1 shared (second render), "
+          "got %d and %d; log %s", loads, shared, wlog);
+    CHECK(util_same_file(util_temp_path("keep-a.pfm"), util_temp_path("keep-b.pfm")), "renders differ");
+}
