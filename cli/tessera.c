@@ -332,7 +332,7 @@ static void print_scene_info(const scene *s) {
             s->degenerate_triangles);
     fprintf(stderr, "features: %s\n", features);
     if (!s->accel)
-        fprintf(stderr, "intersector: built by each worker (workers print theirs with -v)\n");
+        fprintf(stderr, "intersector: built by each worker (their \"scene ... loaded\" lines below name it)\n");
     else if (accel_get_wide_stats(s->accel, &ws) == 0)
         fprintf(stderr, "intersector: wide (%d-wide BVH, Tessera's %s walk and tests; %s build, builder device \"%s\"), "
                 "%zu nodes, %zu leaves, %.1f KiB, peak %.1f KiB while building, built in %.3f ms\n", ws.node_width,

@@ -141,8 +141,10 @@ static int spawn_worker(local_run *r, int slot) {
     char threads[16], name[32];
     snprintf(threads, sizeof threads, "%d", r->o->threads_per_worker);
     snprintf(name, sizeof name, "local-%d", slot);
-    char *args[] = {r->exe, "--connect", r->connect, "--threads", threads, "--name", name, "--once", "--quiet",
-                    NULL, NULL, NULL};
+    /* Quiet but for errors; with -v, verbose: each worker then says which
+     * intersector it built for the scene, with its load time. */
+    char *args[] = {r->exe, "--connect", r->connect, "--threads", threads, "--name", name, "--once",
+                    r->o->verbose ? "--verbose" : "--quiet", NULL, NULL, NULL};
     if (r->o->token_file) {
         args[9] = "--token-file";
         args[10] = (char *)r->o->token_file;
