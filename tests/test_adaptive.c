@@ -233,22 +233,28 @@ TEST(adaptive_rounds_share_one_loaded_scene_on_a_worker) {
 
 /* A kept scene outlives its connection (it is named by its bundle's hash)
  * and goes after --keep-scene seconds without a job (pool_trim): one
- * worker, three renders of one scene and settings, each from a coordinator
- * of its own; the second, right after the first, shares its scene; the
- * third, after the keep time, loads it again. */
+ * worker, three renders of one scene, each from a coordinator of its own;
+ * the second, right after the first and at another spp (a preview, then the
+ * final), shares its scene and gives the bytes of an in-process render at
+ * its spp; the third, after the keep time, loads it again. */
 TEST(worker_keeps_a_scene_across_renders_until_the_keep_time) {
-    char wlog[256];
+    static const char *const spp[3] = {"4", "8", "4"};
+    char wlog[256], ref[256], cmd[1024], out[4096];
     snprintf(wlog, sizeof wlog, "%s", util_temp_path("keep-w.log"));
+    snprintf(ref, sizeof ref, "%s", util_temp_path("keep-ref8.pfm"));
+    snprintf(cmd, sizeof cmd, "%s render scenes/cornell-box.json --width 24 --height 20 --spp 8 --no-progress "
+             "--workers 0 -o %s", harness_tessera(), ref);
+    CHECK(util_run(cmd, out, sizeof out) == 0, "in-process render failed: %s", out);
     int port = -1;
     pid_t worker = -1;
     for (int run = 0; run < 3; run++) {
         char img[256], log[256], connect[64];
-        snprintf(img, sizeof img, "%s", util_temp_path(run ? "keep-b.pfm" : "keep-a.pfm"));
+        snprintf(img, sizeof img, "%s", util_temp_path(run == 0 ? "keep-a.pfm" : run == 1 ? "keep-b.pfm" : "keep-c.pfm"));
         snprintf(log, sizeof log, "%s", util_temp_path(run == 0 ? "keep-0.log" : run == 1 ? "keep-1.log" : "keep-2.log"));
-        const char *argv[] = {harness_tessera(), "render", "scenes/cornell-box.json", "--width", "24", "--height", "20",
-                              "--spp", "4", "--no-progress", "--workers", "0", "--listen",
-                              port > 0 ? connect : "127.0.0.1:0", "-o", img, NULL};
         if (port > 0) snprintf(connect, sizeof connect, "127.0.0.1:%d", port);
+        const char *argv[] = {harness_tessera(), "render", "scenes/cornell-box.json", "--width", "24", "--height", "20",
+                              "--spp", spp[run], "--no-progress", "--workers", "0", "--listen",
+                              port > 0 ? connect : "127.0.0.1:0", "-o", img, NULL};
         pid_t coord = util_spawn(argv, log);
         CHECK(util_wait_for_text(log, "coordinator listening on 127.0.0.1:", 120) == 0, "no coordinator; log %s", log);
         if (port < 0) {
@@ -271,5 +277,7 @@ TEST(worker_keeps_a_scene_across_renders_until_the_keep_time) {
     CHECK(util_wait(worker, 30, NULL) == 0, "the worker did not leave cleanly; log %s", wlog);
     CHECK(loads == 2 && shared == 1, "want 2 loads (first render, after the keep time) and 1 shared (second render), "
           "got %d and %d; log %s", loads, shared, wlog);
-    CHECK(util_same_file(util_temp_path("keep-a.pfm"), util_temp_path("keep-b.pfm")), "renders differ");
+    CHECK(util_same_file(util_temp_path("keep-b.pfm"), ref), "the render at 8 spp on a shared scene differs from the "
+          "in-process one");
+    CHECK(util_same_file(util_temp_path("keep-a.pfm"), util_temp_path("keep-c.pfm")), "renders at 4 spp differ");
 }

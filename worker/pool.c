@@ -21,15 +21,19 @@
 #include "render/scene_memory.h"
 
 /* A loaded scene and the jobs that share it: those of one bundle (by hash)
- * with the settings the loader bakes into the scene (scene_overrides: size,
- * spp, depth, seed). An adaptive render's rounds are jobs of their own with
- * one key, as are a service's jobs of one scene and settings: they load it
- * once. Once its last job is gone it is kept for cfg.keep_s (pool_trim), or
+ * with the settings a tile reads from the scene (width and height: the
+ * camera's rays and the pixels' seeds; max_depth; seed). Not spp: a worker
+ * is told each tile's samples (render_tile_means, render_tile_sums), and
+ * only the in-process renderer reads settings.spp, so a shared scene keeps
+ * the spp of the job that loaded it. An adaptive render's rounds are jobs
+ * of their own with one key, as are a service's jobs of one scene at any
+ * spp (a preview, then the final): they load it once. Once its last job is gone it is kept for cfg.keep_s (pool_trim), or
  * until a job needs a scene it is not; a failed load is never shared. */
 typedef struct pool_scene {
     char hash[SCENE_BUNDLE_HASH_HEX];
-    int width, height, spp, max_depth;
+    int width, height, max_depth;
     uint64_t seed;
+    int spp;             /* the loading job's: in the scene, never read on this path (above) */
     scene_bundle bundle; /* until the scene is loaded */
     scene *s;
     int load_state;      /* under load_lock: 0 not tried, 1 loaded, -1 failed (load_error says why) */
@@ -404,7 +408,7 @@ static pool_scene *scene_find(pool *p, const proto_job *d) {
     pool_scene *sc;
     LIST_FOREACH(sc, &p->scenes, link)
         if (strcmp(sc->hash, d->scene_hash) == 0 && sc->width == d->width && sc->height == d->height &&
-            sc->spp == d->spp && sc->max_depth == d->max_depth && sc->seed == d->seed && !atomic_load(&sc->failed))
+            sc->max_depth == d->max_depth && sc->seed == d->seed && !atomic_load(&sc->failed))
             return sc;
     return NULL;
 }

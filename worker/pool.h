@@ -59,8 +59,8 @@ void pool_free(pool *p);
 
 /* A job of desc over the scene bundle's bytes (bundle, len: the worker's,
  * not taken). Jobs that would load the same scene (the same bundle hash,
- * width, height, spp, max_depth and seed: an adaptive render's rounds, a
- * service's jobs of one scene) share one: *shared is set to 1 when this job
+ * width, height, max_depth and seed, whatever their spp: an adaptive
+ * render's rounds, a service's jobs of one scene) share one: *shared is set to 1 when this job
  * joins a scene the pool holds, and the bytes are then not even read; else
  * they are copied for a render thread to load from, and the scenes no job
  * holds are freed first. Returns NULL with the reason in err (out of
