@@ -27,8 +27,9 @@
  * only the in-process renderer reads settings.spp, so a shared scene keeps
  * the spp of the job that loaded it. An adaptive render's rounds are jobs
  * of their own with one key, as are a service's jobs of one scene at any
- * spp (a preview, then the final): they load it once. Once its last job is gone it is kept for cfg.keep_s (pool_trim), or
- * until a job needs a scene it is not; a failed load is never shared. */
+ * spp (a preview, then the final): they load it once. Once its last job is
+ * gone it is kept for cfg.keep_s (pool_trim), or until a job needs a scene
+ * it is not; a failed load is never shared. */
 typedef struct pool_scene {
     char hash[SCENE_BUNDLE_HASH_HEX];
     int width, height, max_depth;
@@ -394,7 +395,7 @@ void pool_free(pool *p) {
         LIST_REMOVE(j, link);
         job_unref(p, j);
     }
-    scenes_drop_idle(p, 0); /* every job is gone: so is every hold on a scene */
+    scenes_drop_idle(p, 0); /* every job is gone, and every hold on a scene; the threads too (no lock needed) */
     pthread_mutex_destroy(&p->lock);
     pthread_cond_destroy(&p->cond);
     free(p->running);
