@@ -139,6 +139,19 @@ TEST(adaptive_same_bytes_any_threads_tiles_workers) {
     image_free(&counts);
 }
 
+/* The port of the `tessera render --listen` whose log is at log, once it
+ * says it listens; -1 when it never does. */
+static int listening_port(const char *log) {
+    int port = -1;
+    if (util_wait_for_text(log, "coordinator listening on 127.0.0.1:", 120) != 0) return -1;
+    FILE *f = fopen(log, "r");
+    char line[512];
+    while (f && fgets(line, sizeof line, f))
+        if (sscanf(line, "tessera: coordinator listening on 127.0.0.1:%d", &port) == 1) break;
+    if (f) fclose(f);
+    return port;
+}
+
 /* Start `tessera render` of the adaptive Cornell box with no workers of its
  * own (--workers 0 --listen 127.0.0.1:0) into img, its log in log; returns
  * its pid and its port in *port (-1 when it never listened). */
@@ -147,13 +160,7 @@ static pid_t render_listening(const char *img, const char *log, int *port) {
                           "--spp", "128", "--noise-threshold", "0.05", "--min-spp", "8", "--no-progress", "-v",
                           "--tile-size", "8", "--workers", "0", "--listen", "127.0.0.1:0", "-o", img, NULL};
     pid_t coord = util_spawn(argv, log);
-    *port = -1;
-    if (util_wait_for_text(log, "coordinator listening on 127.0.0.1:", 120) != 0) return coord;
-    FILE *f = fopen(log, "r");
-    char line[512];
-    while (f && fgets(line, sizeof line, f))
-        if (sscanf(line, "tessera: coordinator listening on 127.0.0.1:%d", port) == 1) break;
-    if (f) fclose(f);
+    *port = listening_port(log);
     return coord;
 }
 
@@ -256,14 +263,10 @@ TEST(worker_keeps_a_scene_across_renders_until_the_keep_time) {
                               "--spp", spp[run], "--no-progress", "--workers", "0", "--listen",
                               port > 0 ? connect : "127.0.0.1:0", "-o", img, NULL};
         pid_t coord = util_spawn(argv, log);
-        CHECK(util_wait_for_text(log, "coordinator listening on 127.0.0.1:", 120) == 0, "no coordinator; log %s", log);
+        int listening = listening_port(log);
+        CHECK(listening > 0, "no coordinator; log %s", log);
         if (port < 0) {
-            FILE *f = fopen(log, "r");
-            char line[512];
-            while (f && fgets(line, sizeof line, f))
-                if (sscanf(line, "tessera: coordinator listening on 127.0.0.1:%d", &port) == 1) break;
-            if (f) fclose(f);
-            CHECK(port > 0, "no port; log %s", log);
+            port = listening;
             snprintf(connect, sizeof connect, "127.0.0.1:%d", port);
             const char *wargv[] = {util_bin("tessera-worker"), "--connect", connect, "--threads", "1", "-v",
                                    "--retry-max", "1", "--keep-scene", "1.5", NULL};
