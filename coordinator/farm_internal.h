@@ -113,6 +113,18 @@ typedef struct {
     int quarantined; /* jobs it was quarantined in (farm_audit.c) */
 } peer_record;
 
+/* How many bundles a worker holds when no live job needs more: past it,
+ * the coordinator tells the worker to forget the one used longest ago
+ * (`forget_scene`) before it sends another. */
+#define FARM_PEER_SCENES 8
+
+/* A scene bundle sent to a peer on this connection, and when a job of it
+ * was last told (farm.scene_uses). */
+typedef struct {
+    char hash[SCENE_BUNDLE_HASH_HEX];
+    uint64_t used;
+} peer_scene;
+
 struct peer {
     farm *f;
     conn *c;
@@ -121,7 +133,7 @@ struct peer {
     int failures; /* tiles it reported failed, over this connection (the blocklist counts per job) */
     double joined, last_heard, last_sent;
     LIST_HEAD(lease_list, lease) leases;
-    char (*scenes)[SCENE_BUNDLE_HASH_HEX];
+    peer_scene *scenes; /* the bundles it holds, as this side told it (FARM_PEER_SCENES) */
     int scene_count;
     uint32_t *jobs;
     int job_count;
@@ -146,6 +158,7 @@ struct farm {
     uint64_t closed_bytes_in, closed_bytes_out;
     uint32_t next_serial;
     uint64_t next_job_seq; /* job.seq of the last submission */
+    uint64_t scene_uses;   /* jobs told to peers: peer_scene.used's clock */
     uint64_t audited, audit_mismatches, quarantined; /* over all jobs, for the workers table */
     uint64_t audit_unchecked;                        /* audited tiles nobody could check (farm_audit.c) */
     uint64_t blocklisted;                            /* blocklistings over all jobs (farm_block.c) */

@@ -97,20 +97,51 @@ void farm_job_fail(farm *f, job *j, const char *fmt, ...) {
     farm_job_finish(f, j);
 }
 
+/* Whether a job that has not finished renders the scene of this hash. */
+static int scene_in_use(const farm *f, const char *hash) {
+    const job *j;
+    TAILQ_FOREACH(j, &f->jobs, link)
+        if (!j->finished && strcmp(j->desc.scene_hash, hash) == 0) return 1;
+    return 0;
+}
+
+/* Before p is sent another bundle: if it holds FARM_PEER_SCENES or more,
+ * tell it to forget the one used longest ago that no unfinished job needs
+ * (none: it keeps them all). Both sides then agree on what it holds, as
+ * the messages arrive in order; the worker's copy of a job's bundle is
+ * taken when the job arrives, so forgetting the bytes later is safe. */
+static void peer_make_room(peer *p) {
+    if (p->scene_count < FARM_PEER_SCENES) return;
+    int oldest = -1;
+    for (int i = 0; i < p->scene_count; i++)
+        if ((oldest < 0 || p->scenes[i].used < p->scenes[oldest].used) && !scene_in_use(p->f, p->scenes[i].hash))
+            oldest = i;
+    if (oldest < 0) return;
+    cJSON *m = cJSON_CreateObject();
+    cJSON_AddStringToObject(m, "type", "forget_scene");
+    cJSON_AddStringToObject(m, "scene", p->scenes[oldest].hash);
+    peer_send_json(p, m);
+    p->scenes[oldest] = p->scenes[--p->scene_count];
+}
+
 /* Make sure p has the job's scene and description. */
 static void peer_tell_job(peer *p, job *j) {
     for (int i = 0; i < p->job_count; i++)
         if (p->jobs[i] == j->desc.id) return;
-    int have_scene = 0;
-    for (int i = 0; i < p->scene_count; i++) have_scene |= strcmp(p->scenes[i], j->desc.scene_hash) == 0;
-    if (!have_scene) {
+    int have = -1;
+    for (int i = 0; i < p->scene_count && have < 0; i++)
+        if (strcmp(p->scenes[i].hash, j->desc.scene_hash) == 0) have = i;
+    if (have < 0) {
+        peer_make_room(p);
         void *s = realloc(p->scenes, (size_t)(p->scene_count + 1) * sizeof *p->scenes);
         if (s) {
             p->scenes = s;
-            memcpy(p->scenes[p->scene_count++], j->desc.scene_hash, SCENE_BUNDLE_HASH_HEX);
+            have = p->scene_count++;
+            memcpy(p->scenes[have].hash, j->desc.scene_hash, SCENE_BUNDLE_HASH_HEX);
         }
         conn_send_blob(p->c, j->scene);
     }
+    if (have >= 0) p->scenes[have].used = ++p->f->scene_uses;
     uint32_t *js = realloc(p->jobs, (size_t)(p->job_count + 1) * sizeof *p->jobs);
     if (js) {
         p->jobs = js;

@@ -948,3 +948,50 @@ TEST(service_finished_image_is_saved_off_the_loop) {
     worker_stop(w);
     service_stop(&s);
 }
+
+/* A worker holds the bundles its connection was sent until the coordinator
+ * says forget_scene: past FARM_PEER_SCENES (8) it forgets the one used
+ * longest ago that no unfinished job needs, and both sides agree on what
+ * the worker holds. Before, the worker dropped a bundle of its own accord
+ * once it held 8, the coordinator still thought it had it, and a later job
+ * of that scene made the worker call the coordinator a protocol breaker and
+ * reconnect. 10 scenes (different seeds, so different bundles), then the
+ * 9th and the 1st again, on one worker: every job done on one connection,
+ * 3 bundles forgotten (the 1st and 2nd for the 9th and 10th; the 3rd for
+ * the 1st, sent again), the 1st's image the same both times. */
+TEST(service_worker_forgets_scenes_as_the_coordinator_says) {
+    service s = {0};
+    service_start(&s, "svc-forget");
+    char wlog[256], path[4096];
+    snprintf(wlog, sizeof wlog, "%s", util_temp_path("svc-forget-w.log"));
+    snprintf(path, sizeof path, "%s", util_bin("tessera-worker"));
+    const char *argv[] = {path, "--connect", s.addr, "--threads", "1", "--name", "wf", "--retry-max", "1", "-v", NULL};
+    pid_t w = util_spawn(argv, wlog);
+    char err[256];
+    size_t len = 0;
+    char *text = file_read_all(SCENE, 1 << 20, &len, err, sizeof err);
+    CHECK(text, "%s", err);
+    const char *seed_at = text ? strstr(text, "\"seed\": 1") : NULL;
+    CHECK(seed_at, SCENE " has no \"seed\": 1");
+    static const int order[] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 9, 1};
+    for (size_t k = 0; seed_at && k < sizeof order / sizeof order[0]; k++) {
+        char name[64], scene[8192], img[300], out[4096];
+        snprintf(name, sizeof name, "forget-%d.json", order[k]);
+        snprintf(scene, sizeof scene, "%.*s\"seed\": %d%s", (int)(seed_at - text), text, order[k],
+                 seed_at + strlen("\"seed\": 1"));
+        util_write_temp(name, scene);
+        snprintf(img, sizeof img, "%s", util_temp_path(k < 11 ? name : "forget-1-again.json"));
+        strcpy(strrchr(img, '.'), ".pfm");
+        int st = cli(&s, out, sizeof out, "submit %s --width 16 --height 16 --spp 2 --wait -q -o %s",
+                     util_temp_path(name), img);
+        CHECK(st == 0 && strstr(out, "done"), "scene %d (submission %zu): status %d: %s", order[k], k + 1, st, out);
+    }
+    free(text);
+    CHECK(!util_file_count(wlog, "broke the protocol") && util_file_count(wlog, "joined the farm") == 1,
+          "the worker lost its connection; log %s", wlog);
+    CHECK(util_file_count(wlog, "forgotten, as the coordinator says") == 3, "want 3 bundles forgotten; log %s", wlog);
+    CHECK(util_same_file(util_temp_path("forget-1.pfm"), util_temp_path("forget-1-again.pfm")),
+          "the first scene rendered again differs");
+    worker_stop(w);
+    service_stop(&s);
+}

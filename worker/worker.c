@@ -23,7 +23,6 @@
 #include "net/wire.h"
 #include "pool.h"
 
-#define WORKER_MAX_BUNDLES 8
 #define TICK_MS 100
 
 typedef struct {
@@ -53,7 +52,11 @@ typedef struct {
     double heartbeat_s, timeout_s;
     char nonce[AUTH_HEX]; /* ours, for the coordinator to prove itself */
     char challenge[200];  /* the coordinator's nonce: with ours, the link's keys */
-    cached_bundle bundles[WORKER_MAX_BUNDLES];
+    /* The bundles this connection sent, until it says forget_scene: the
+     * coordinator decides which are kept (FARM_PEER_SCENES, farm_sched.c),
+     * so both sides agree on them. */
+    cached_bundle *bundles;
+    int bundle_count;
     int stopping, exit_code;
     unsigned long tiles_sent;
     char label[160]; /* "worker NAME" for logs */
@@ -117,10 +120,17 @@ static void send_tile_note(worker *w, const char *type, const proto_assign *a, c
 }
 
 static void forget_bundles(worker *w) {
-    for (int i = 0; i < WORKER_MAX_BUNDLES; i++) {
-        free(w->bundles[i].bytes);
-        memset(&w->bundles[i], 0, sizeof w->bundles[i]);
-    }
+    for (int i = 0; i < w->bundle_count; i++) free(w->bundles[i].bytes);
+    free(w->bundles);
+    w->bundles = NULL;
+    w->bundle_count = 0;
+}
+
+/* The cached bundle of this hash, or NULL. */
+static cached_bundle *find_bundle(worker *w, const char *hash) {
+    for (int i = 0; i < w->bundle_count; i++)
+        if (strcmp(w->bundles[i].hash, hash) == 0) return &w->bundles[i];
+    return NULL;
 }
 
 /* ---- finished tiles ------------------------------------------------------ */
@@ -194,9 +204,8 @@ static int on_job(worker *w, conn *c, const cJSON *m) {
     proto_job d;
     if (proto_job_parse(m, "coordinator", &d, err, sizeof err)) return protocol_error(w, c, err);
     if (pool_job_find(w->pool, d.id)) return protocol_error(w, c, "job: id already in use");
-    for (int i = 0; i < WORKER_MAX_BUNDLES; i++) {
-        cached_bundle *cb = &w->bundles[i];
-        if (!cb->bytes || strcmp(cb->hash, d.scene_hash) != 0) continue;
+    cached_bundle *cb = find_bundle(w, d.scene_hash);
+    if (cb) {
         int shared;
         if (!pool_job_new(w->pool, &d, cb->bytes, cb->len, &shared, err, sizeof err)) return protocol_error(w, c, err);
         if (w->cfg.verbose)
@@ -270,6 +279,16 @@ static int on_json(worker *w, conn *c, const uint8_t *body, size_t len) {
         pool_job *j;
         if (read_ids(m, 0, &job, &tile)) rc = protocol_error(w, c, "job_end: expected a job number");
         else if ((j = pool_job_find(w->pool, job)) != NULL) pool_job_end(w->pool, j);
+    } else if (strcmp(type, "forget_scene") == 0) {
+        const cJSON *h = cJSON_GetObjectItemCaseSensitive(m, "scene");
+        cached_bundle *cb = cJSON_IsString(h) ? find_bundle(w, h->valuestring) : NULL;
+        if (!cb) {
+            rc = protocol_error(w, c, "forget_scene: not a scene this connection sent");
+        } else {
+            if (w->cfg.verbose) worker_log(w, "scene %.12s forgotten, as the coordinator says", cb->hash);
+            free(cb->bytes);
+            *cb = w->bundles[--w->bundle_count];
+        }
     } else if (strcmp(type, "error") == 0) {
         const cJSON *r = cJSON_GetObjectItemCaseSensitive(m, "reason");
         worker_log(w, "coordinator says: %s", cJSON_IsString(r) ? r->valuestring : "(no reason)");
@@ -282,16 +301,25 @@ static int on_json(worker *w, conn *c, const uint8_t *body, size_t len) {
 }
 
 static int on_scene(worker *w, conn *c, const uint8_t *body, size_t len) {
-    int slot = 0;
-    for (int i = 0; i < WORKER_MAX_BUNDLES; i++)
-        if (!w->bundles[i].bytes) slot = i;
-    cached_bundle *cb = &w->bundles[slot];
+    char hash[SCENE_BUNDLE_HASH_HEX];
+    scene_bundle_hash(body, len, hash);
+    cached_bundle *cb = find_bundle(w, hash);
+    if (!cb) { /* else sent again: the same bytes */
+        cached_bundle *b = realloc(w->bundles, (size_t)(w->bundle_count + 1) * sizeof *b);
+        if (!b) return protocol_error(w, c, "out of memory for a scene");
+        w->bundles = b;
+        cb = &b[w->bundle_count++];
+        memset(cb, 0, sizeof *cb);
+        memcpy(cb->hash, hash, sizeof hash);
+    }
     free(cb->bytes);
     cb->bytes = malloc(len ? len : 1);
-    if (!cb->bytes) return protocol_error(w, c, "out of memory for a scene");
+    if (!cb->bytes) {
+        *cb = w->bundles[--w->bundle_count];
+        return protocol_error(w, c, "out of memory for a scene");
+    }
     memcpy(cb->bytes, body, len);
     cb->len = len;
-    scene_bundle_hash(body, len, cb->hash);
     return 0;
 }
 
