@@ -189,7 +189,6 @@ static void on_grace_timer(uv_timer_t *t) {
 
 static void on_farm_closed(void *ctx) { (void)ctx; }
 
-
 /* SIGTERM every local worker still running. */
 static void term_walk(uv_handle_t *h, void *arg) {
     (void)arg;

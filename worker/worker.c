@@ -303,22 +303,18 @@ static int on_json(worker *w, conn *c, const uint8_t *body, size_t len) {
 static int on_scene(worker *w, conn *c, const uint8_t *body, size_t len) {
     char hash[SCENE_BUNDLE_HASH_HEX];
     scene_bundle_hash(body, len, hash);
-    cached_bundle *cb = find_bundle(w, hash);
-    if (!cb) { /* else sent again: the same bytes */
-        cached_bundle *b = realloc(w->bundles, (size_t)(w->bundle_count + 1) * sizeof *b);
-        if (!b) return protocol_error(w, c, "out of memory for a scene");
-        w->bundles = b;
-        cb = &b[w->bundle_count++];
-        memset(cb, 0, sizeof *cb);
-        memcpy(cb->hash, hash, sizeof hash);
-    }
-    free(cb->bytes);
-    cb->bytes = malloc(len ? len : 1);
-    if (!cb->bytes) {
-        *cb = w->bundles[--w->bundle_count];
+    if (find_bundle(w, hash)) return 0; /* sent again: the same bytes, held already */
+    cached_bundle *b = realloc(w->bundles, (size_t)(w->bundle_count + 1) * sizeof *b);
+    uint8_t *bytes = malloc(len ? len : 1);
+    if (b) w->bundles = b;
+    if (!b || !bytes) {
+        free(bytes);
         return protocol_error(w, c, "out of memory for a scene");
     }
-    memcpy(cb->bytes, body, len);
+    memcpy(bytes, body, len);
+    cached_bundle *cb = &w->bundles[w->bundle_count++];
+    memcpy(cb->hash, hash, sizeof hash);
+    cb->bytes = bytes;
     cb->len = len;
     return 0;
 }
