@@ -13,7 +13,7 @@ void cli_progress(int done, int total, double samples_per_s, int workers, double
     char bar[WIDTH + 1], who[32] = "";
     for (int i = 0; i < WIDTH; i++) bar[i] = i < filled ? '#' : '.';
     bar[WIDTH] = '\0';
-    if (workers >= 0) snprintf(who, sizeof who, "  %d workers", workers);
+    if (workers >= 0) snprintf(who, sizeof who, "  %d worker%s", workers, workers == 1 ? "" : "s");
     fprintf(stderr, "\r[%s] %d/%d tiles  %.2f Msamples/s%s  ETA %.0fs   ", bar, done, total, samples_per_s / 1e6, who,
             eta_s);
     if (final) fputc('\n', stderr);
@@ -41,7 +41,7 @@ void cli_progress_show(cli_progress_state *p, int done, int total, double sample
     if (!final && now - p->last < p->every) return;
     p->last = now;
     char who[32] = "";
-    if (workers >= 0) snprintf(who, sizeof who, ", %d workers", workers);
+    if (workers >= 0) snprintf(who, sizeof who, ", %d worker%s", workers, workers == 1 ? "" : "s");
     fprintf(stderr, "progress: %d/%d tiles (%d%%), %.2f Msamples/s%s, ETA %.0fs\n", done, total,
             total > 0 ? (int)(100.0 * done / total) : 0, samples_per_s / 1e6, who, eta_s);
     fflush(stderr);

@@ -708,7 +708,7 @@ static int do_status(const cli_args *a, long job) {
                    tiles, num(j, "samples_per_s") / 1e6, strcmp(state, "running") ? "-" : eta,
                    name, error[0] ? "  error: " : "", error);
         }
-        printf("%d workers connected\n", (int)num(st, "workers"));
+        printf("%d worker%s connected\n", (int)num(st, "workers"), (int)num(st, "workers") == 1 ? "" : "s");
     }
     cJSON_Delete(st);
     return 0;

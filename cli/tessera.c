@@ -32,6 +32,7 @@
 #include "coordinator/service.h"
 #include "coordinator/membudget.h"
 #include "limit.h"
+#include "fileio.h"
 
 /* From this many primitives the default local farm gives way to rendering
  * in this process with a thread per core (bench/meshes.sh: at 655k
@@ -422,6 +423,33 @@ static int render_on_farm(render_args *a, const scene *s, const scene_bundle *b,
     return 0;
 }
 
+/* The image could not be written to OUT (a full disk, a folder removed
+ * while rendering): keep the render as a linear EXR with its header in
+ * $TMPDIR (else /tmp), then in the current folder, and say where, so the
+ * work is not lost. Prints what it did; can't fail otherwise. */
+static void keep_unsaved_render(const render_args *a, const scene *s, const image *img) {
+    const char *tmpdir = getenv("TMPDIR"), *base = strrchr(a->out_path, '/');
+    const char *folders[2] = {tmpdir && tmpdir[0] ? tmpdir : "/tmp", "."};
+    base = base ? base + 1 : a->out_path;
+    const char *dot = strrchr(base, '.');
+    int stem = dot ? (int)(dot - base) : (int)strlen(base);
+    for (int i = 0; i < 2; i++) {
+        char path[1024], err[1024];
+        snprintf(path, sizeof path, "%s/%.*s-unsaved-%ld.exr", folders[i], stem, base, (long)getpid());
+        image_write_options wo = {0}; /* float32, ZIP */
+        image_meta meta;
+        image_meta_apply(&meta, strcmp(a->scene_path, "-") ? a->scene_path : "<stdin>", s->settings.spp,
+                         s->settings.seed, &wo);
+        if (image_write(path, img, &wo, err, sizeof err) == 0) {
+            fprintf(stderr, "tessera: the render is kept in %s (linear); `tessera tonemap %s -o OUT` writes it out\n",
+                    path, path);
+            return;
+        }
+        fprintf(stderr, "tessera: %s\n", err);
+    }
+    fprintf(stderr, "tessera: the render could not be kept anywhere\n");
+}
+
 static int save_image(const render_args *a, const scene *s, const image *img) {
     /* No time or host in the file: the same render gives the same bytes. */
     char err[1024];
@@ -431,6 +459,7 @@ static int save_image(const render_args *a, const scene *s, const image *img) {
                      &wo);
     if (image_write(a->out_path, img, &wo, err, sizeof err) == 0) return 0;
     fprintf(stderr, "tessera: %s\n", err);
+    keep_unsaved_render(a, s, img);
     return -1;
 }
 
@@ -483,6 +512,11 @@ static int cmd_render(int argc, char **argv) {
     if (!a.out_path) {
         cli_default_output(strcmp(a.scene_path, "-") ? a.scene_path : "stdin", out_default, sizeof out_default);
         a.out_path = out_default;
+    }
+    /* Before any work: a render whose image has nowhere to go is lost. */
+    if (file_check_writable(a.out_path, err, sizeof err)) {
+        fprintf(stderr, "tessera: %s (nothing rendered)\n", err);
+        return 1;
     }
     scene_bundle b;
     if (scene_bundle_read(a.scene_path, &b, err, sizeof err) ||

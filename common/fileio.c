@@ -83,15 +83,39 @@ static int sync_parent(const char *path) {
     return e;
 }
 
-int file_write_atomic(const char *path, const void *data, size_t len, char *err, size_t err_len) {
+/* Create file_write_atomic's temporary file for path: its name into *tmp
+ * (malloc'd, the caller frees; NULL when out of memory) and its
+ * descriptor, or -1 with errno set. */
+static int open_temporary(const char *path, char **tmp) {
     size_t pl = strlen(path);
-    char *tmp = malloc(pl + 16);
+    *tmp = malloc(pl + 16);
+    if (!*tmp) {
+        errno = ENOMEM;
+        return -1;
+    }
+    snprintf(*tmp, pl + 16, "%s.tmp.XXXXXX", path);
+    return mkstemp(*tmp);
+}
+
+int file_check_writable(const char *path, char *err, size_t err_len) {
+    char *tmp;
+    int fd = open_temporary(path, &tmp), e = fd < 0 ? errno : 0;
+    if (fd >= 0) {
+        close(fd);
+        unlink(tmp);
+    }
+    free(tmp);
+    if (e) snprintf(err, err_len, "%s: cannot write: %s", path, strerror(e));
+    return e ? -1 : 0;
+}
+
+int file_write_atomic(const char *path, const void *data, size_t len, char *err, size_t err_len) {
+    char *tmp;
+    int fd = open_temporary(path, &tmp), e = fd < 0 ? errno : 0;
     if (!tmp) {
         snprintf(err, err_len, "%s: cannot write: out of memory", path);
         return -1;
     }
-    snprintf(tmp, pl + 16, "%s.tmp.XXXXXX", path);
-    int fd = mkstemp(tmp), e = fd < 0 ? errno : 0;
     if (!e) {
         mode_t mask = umask(0); /* mkstemp makes 0600; give the usual 0666 & ~umask */
         umask(mask);

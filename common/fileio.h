@@ -32,6 +32,14 @@ long long file_read_with(const char *path, size_t max_len, file_alloc_cb alloc, 
  * journal's records and the scene store. */
 int file_write_atomic(const char *path, const void *data, size_t len, char *err, size_t err_len);
 
+/* Whether file_write_atomic(path, ...) could create its temporary file
+ * now: one is created in path's folder and removed at once, so a folder
+ * that does not exist, is not writable or is on a read-only filesystem is
+ * found before hours of work go into what would be written there (a full
+ * disk is found only by the write itself). Returns 0, or -1 with "PATH:
+ * cannot write: reason" in err. */
+int file_check_writable(const char *path, char *err, size_t err_len);
+
 /* Write all len bytes of buf to fd (retrying short writes and EINTR).
  * Returns 0 or an errno value. */
 int file_write_all(int fd, const void *buf, size_t len);

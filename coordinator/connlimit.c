@@ -132,8 +132,8 @@ int connlimit_promote(connlimit *l, const char *ip, char *why, size_t why_len) {
     if (!e->ip[0]) return 0; /* not counted (cannot happen): nothing to move */
     if (l->caps.max_workers > 0 && e->workers >= l->caps.max_workers) {
         l->last_kind = 2;
-        snprintf(why, why_len, "%s has %d workers connected (--max-workers-per-address %d)", ip, e->workers,
-                 l->caps.max_workers);
+        snprintf(why, why_len, "%s has %d worker%s connected (--max-workers-per-address %d)", ip, e->workers,
+                 e->workers == 1 ? "" : "s", l->caps.max_workers);
         return -1;
     }
     e->open--;

@@ -219,3 +219,35 @@ TEST(cli_sigint_stops_a_farm_render_with_130_and_no_image) {
           "the workers did not stop cleanly; log %s", log);
     CHECK(access(png, F_OK) != 0, "%s was written after SIGINT", png);
 }
+
+/* An image with nowhere to go is refused before the render; one that
+ * cannot be written at the end (here: OUT is a folder, so the final rename
+ * fails) is kept as a linear EXR in $TMPDIR, the same bytes a render to
+ * .exr gives, and the command says where and fails. */
+TEST(cli_render_checks_the_output_first_and_keeps_an_unsaved_image) {
+    char out[8192], cmd[4096], dir[512], exr[600], kept[700];
+    snprintf(dir, sizeof dir, "%s", util_temp_path("cli-unsaved"));
+    snprintf(cmd, sizeof cmd, "rm -rf %s && mkdir -p %s/rescue %s/blocked.exr/inside", dir, dir, dir);
+    CHECK(util_run(cmd, out, sizeof out) == 0, "setup: %s", out);
+    snprintf(cmd, sizeof cmd, "%s render tests/scenes/cornell-small.json --spp 2 --workers 1 -o %s/missing/x.png 2>&1",
+             harness_tessera(), dir);
+    int rc = util_run(cmd, out, sizeof out);
+    CHECK(rc == 1 && strstr(out, "/missing/x.png: cannot write: No such file or directory (nothing rendered)") &&
+              !strstr(out, "progress"),
+          "an output folder that does not exist (%d): %s", rc, out);
+    snprintf(cmd, sizeof cmd,
+             "TMPDIR=%s/rescue %s render tests/scenes/cornell-small.json --spp 2 --workers 1 -o %s/blocked.exr 2>&1",
+             dir, harness_tessera(), dir);
+    rc = util_run(cmd, out, sizeof out);
+    CHECK(rc == 1 && strstr(out, "blocked.exr: cannot write: ") && strstr(out, "the render is kept in "),
+          "an image that cannot be saved (%d): %s", rc, out);
+    snprintf(cmd, sizeof cmd, "ls %s/rescue/blocked-unsaved-*.exr", dir);
+    CHECK(util_run(cmd, kept, sizeof kept) == 0, "no kept image in $TMPDIR: %s", kept);
+    kept[strcspn(kept, "\n")] = 0;
+    snprintf(exr, sizeof exr, "%s/normal.exr", dir);
+    snprintf(cmd, sizeof cmd, "%s render tests/scenes/cornell-small.json --spp 2 --workers 1 -q -o %s 2>&1",
+             harness_tessera(), exr);
+    rc = util_run(cmd, out, sizeof out);
+    CHECK(rc == 0 && util_same_file(kept, exr), "the kept image %s differs from a render to .exr (%d): %s", kept, rc,
+          out);
+}

@@ -150,7 +150,7 @@ wait_tiles() {
 wait_workers() {
     local end=$((SECONDS + $2)) n
     while [ $SECONDS -lt $end ]; do
-        n=$("$T" status 2>> "$LOG" | sed -n 's/^\([0-9]*\) workers connected.*/\1/p')
+        n=$("$T" status 2>> "$LOG" | sed -n 's/^\([0-9]*\) workers* connected.*/\1/p')
         [ "${n:-0}" -eq "$1" ] && return 0
         sleep 0.2
     done
