@@ -563,6 +563,13 @@ static cJSON *wait_job(cli *c, long job, int quiet) {
 
 static int do_submit(const cli_args *a, const char *scene_path) {
     char err[1024], hash[SCENE_BUNDLE_HASH_HEX], out_default[512];
+    const char *out = a->out;
+    if (!out) {
+        cli_default_output(strcmp(scene_path, "-") ? scene_path : "stdin", out_default, sizeof out_default);
+        out = out_default;
+    }
+    if (a->wait && file_check_writable(out, err, sizeof err)) /* before the upload and the wait */
+        return cli_fail("%s (nothing submitted)", err);
     scene_bundle b;
     if (scene_bundle_read(scene_path, &b, err, sizeof err)) return cli_fail("%s", err);
     if ((a->camera && model_bundle_select_camera(&b, a->camera, err, sizeof err)) ||
@@ -655,13 +662,9 @@ static int do_submit(const cli_args *a, const char *scene_path) {
     rc = fin ? 0 : 1;
     if (fin && strcmp(str(fin, "state"), "done") != 0)
         rc = cli_fail("job %ld %s%s%s", job, str(fin, "state"), str(fin, "error")[0] ? ": " : "", str(fin, "error"));
-    const char *out = a->out;
-    if (!out) {
-        cli_default_output(strcmp(scene_path, "-") ? scene_path : "stdin", out_default, sizeof out_default);
-        out = out_default;
-    }
     image_write_options wo = a->wo;
-    if (rc == 0) rc = fetch_to(&c, job, out, &wo, 0);
+    if (rc == 0 && (rc = fetch_to(&c, job, out, &wo, 0)) != 0 && !a->quiet)
+        fprintf(stderr, "job %ld: the image stays on the coordinator: tessera fetch %ld -o OUT\n", job, job);
     if (rc == 0) {
         if (a->json) printf("{\"job\": %ld, \"image\": \"%s\"}\n", job, out);
         else printf("job %ld done, image: %s\n", job, out);

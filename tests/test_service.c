@@ -150,6 +150,15 @@ TEST(service_submit_wait_fetch_status_workers) {
     CHECK(st == 1 && strstr(out, "job 7: unknown job"), "fetch of an unknown job (%d): %s", st, out);
     st = cli(&s, out, sizeof out, "cancel 1");
     CHECK(st == 1 && strstr(out, "job 1 is already done"), "cancel of a finished job (%d): %s", st, out);
+    /* An image with nowhere to go: refused before the upload (no job 2);
+     * one that cannot be written at the end is left to fetch. */
+    st = cli(&s, out, sizeof out, "submit " SCENE " --wait -o %s/missing/x.png", util_temp_path("svc-basic-none"));
+    CHECK(st == 1 && strstr(out, "missing/x.png: cannot write: No such file or directory (nothing submitted)"),
+          "submit --wait to a folder that does not exist (%d): %s", st, out);
+    mkdir(util_temp_path("svc-basic-folder.png"), 0755);
+    st = cli(&s, out, sizeof out, "submit " SCENE " --wait -o %s", util_temp_path("svc-basic-folder.png"));
+    CHECK(st == 1 && strstr(out, "job 2: the image stays on the coordinator: tessera fetch 2 -o OUT"),
+          "submit --wait to a folder's path (%d): %s", st, out);
     worker_stop(w1);
     worker_stop(w2);
     service_stop(&s);
