@@ -70,7 +70,8 @@ static void usage_render(FILE *f) {
     fprintf(f,
             "usage: tessera render SCENE.json|MODEL.glb|MODEL.gltf|MODEL.obj [-o OUT] [options]\n"
             "       tessera render - [-o OUT] [options]   (the scene from stdin; mesh paths\n"
-            "                      relative to the current folder; default OUT stdin.png)\n"
+            "                      relative to the current folder; default OUT stdin.png;\n"
+            "                      SCENE may also be a pipe, e.g. <(sed ... scene.json))\n"
             "\n"
             "Render a scene and save the image; the format follows OUT's extension:\n"
             "  .pfm .exr  linear float RGB (HDR); EXR records scene, spp, seed\n"

@@ -12,28 +12,44 @@
 #include "memhint.h"
 #include <unistd.h>
 
+/* Read exactly n bytes from fd into buf. Returns 0, or an errno value (EIO
+ * for a file that ended early). */
+static int read_exactly(int fd, char *buf, size_t n) {
+    while (n > 0) {
+        ssize_t r = read(fd, buf, n);
+        if (r < 0 && errno == EINTR) continue;
+        if (r < 0) return errno;
+        if (r == 0) return EIO;
+        buf += r;
+        n -= (size_t)r;
+    }
+    return 0;
+}
+
 long long file_read_with(const char *path, size_t max_len, file_alloc_cb alloc, void *ctx, char *err, size_t err_len) {
-    FILE *f = fopen(path, "rb");
-    if (!f) {
+    /* O_NONBLOCK: a FIFO is refused below instead of waiting for a writer
+     * in open(); a regular file ignores the flag. */
+    int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0) {
         snprintf(err, err_len, "%s: cannot open: %s", path, strerror(errno));
         return -1;
     }
     struct stat st;
     size_t n = 0;
     char *buf;
-    int ok = 0;
-    if (fstat(fileno(f), &st) != 0 || !S_ISREG(st.st_mode))
+    int ok = 0, e;
+    if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode))
         snprintf(err, err_len, "%s: not a regular file", path);
     else if ((unsigned long long)st.st_size > max_len)
         snprintf(err, err_len, "%s: file is %lld bytes, more than the limit of %zu", path, (long long)st.st_size,
                  max_len);
     else if (n = (size_t)st.st_size, !(buf = alloc(n, ctx)))
         snprintf(err, err_len, "%s: out of memory reading %zu bytes", path, n);
-    else if (fread(buf, 1, n, f) != n || ferror(f))
-        snprintf(err, err_len, "%s: read error", path);
+    else if ((e = read_exactly(fd, buf, n)) != 0)
+        snprintf(err, err_len, "%s: read error: %s", path, e == EIO ? "the file ended early" : strerror(e));
     else
         ok = 1;
-    fclose(f);
+    close(fd);
     return ok ? (long long)n : -1;
 }
 

@@ -23,4 +23,9 @@ void harness_fail(const char *file, int line, const char *fmt, ...) __attribute_
 /* Path of the tessera binary under test ($TESSERA_BIN). */
 const char *harness_tessera(void);
 
+/* How much longer timing limits may be for the binary under test: 10 for
+ * the sanitizer builds (a path under build/asan/ or build/tsan/), whose
+ * CPU costs are several times the release build's, else 1. */
+double harness_slack(void);
+
 #endif

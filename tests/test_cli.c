@@ -1,7 +1,9 @@
 /* test_cli.c - the command line's manners: the usual spellings of help and
  * version, one-line usage errors with a "did you mean", options that do not
  * apply refused rather than ignored. */
+#include <limits.h>
 #include <signal.h>
+#include <stdlib.h>
 #include <stdio.h>
 #include <string.h>
 #include <unistd.h>
@@ -250,4 +252,31 @@ TEST(cli_render_checks_the_output_first_and_keeps_an_unsaved_image) {
     rc = util_run(cmd, out, sizeof out);
     CHECK(rc == 0 && util_same_file(kept, exr), "the kept image %s differs from a render to .exr (%d): %s", kept, rc,
           out);
+}
+
+/* A scene may come through a pipe (the shell's <(...), a FIFO): read to its
+ * end like stdin, its meshes relative to the current folder. A mesh that
+ * is a FIFO is refused at once, not waited on. */
+TEST(cli_render_reads_a_scene_from_a_pipe_and_refuses_a_fifo_mesh) {
+    char out[8192], cmd[8192], dir[512], a[600], b[600], bin[PATH_MAX];
+    CHECK(realpath(harness_tessera(), bin) != NULL, "cannot resolve %s", harness_tessera());
+    snprintf(dir, sizeof dir, "%s", util_temp_path("cli-pipe"));
+    snprintf(a, sizeof a, "%s/file.pfm", dir);
+    snprintf(b, sizeof b, "%s/pipe.pfm", dir);
+    snprintf(cmd, sizeof cmd, "rm -rf %s && mkdir -p %s/meshes && mkfifo %s/meshes/fifo.obj", dir, dir, dir);
+    CHECK(util_run(cmd, out, sizeof out) == 0, "setup: %s", out);
+    snprintf(cmd, sizeof cmd, "cd scenes && %s render features.json --spp 1 --width 24 --workers 0 -q -o %s 2>&1", bin, a);
+    int rc = util_run(cmd, out, sizeof out);
+    CHECK(rc == 0, "features.json (%d): %s", rc, out);
+    snprintf(cmd, sizeof cmd,
+             "cd scenes && bash -c '%s render <(cat features.json) --spp 1 --width 24 --workers 0 -q -o %s' 2>&1", bin, b);
+    rc = util_run(cmd, out, sizeof out);
+    CHECK(rc == 0 && util_same_file(a, b), "the scene through <(...) (%d): %s", rc, out);
+    snprintf(cmd, sizeof cmd,
+             "sed 's|meshes/tetrahedron.obj|meshes/fifo.obj|' scenes/features.json > %s/f.json && timeout 20 %s render "
+             "%s/f.json --spp 1 --width 24 --workers 0 -q -o %s 2>&1",
+             dir, harness_tessera(), dir, b);
+    rc = util_run(cmd, out, sizeof out);
+    CHECK(rc == 1 && strstr(out, "shapes[4].file: ") && strstr(out, "meshes/fifo.obj: not a regular file"),
+          "a FIFO as a mesh (%d): %s", rc, out);
 }

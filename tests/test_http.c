@@ -1292,8 +1292,10 @@ TEST(http_dashboard_preview_of_a_big_frame_in_bands) {
     printf("    3 previews of a 4096x4096 frame: the loop's longest iteration %.1f ms of CPU (%.1f before them)\n", after,
            before);
     CHECK(pngs == 3, "%d of 3 previews were PNGs", pngs);
-    CHECK(before >= 0 && before < 80 && after < 80, "the loop's longest iteration: %.1f ms of CPU before the previews, "
-          "%.1f after (at most 80 wanted)", before, after);
+    /* Release: 10-25 ms; ASan: 45-63 ms idle, 130 ms with the host busy. */
+    double most = 80 * harness_slack();
+    CHECK(before >= 0 && before < most && after < most, "the loop's longest iteration: %.1f ms of CPU before the "
+          "previews, %.1f after (at most %.0f wanted)", before, after, most);
     unlink(hold);
     web_stop(&w);
 }

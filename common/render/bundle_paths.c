@@ -8,17 +8,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* The folder of path ("." when it has none) into out. */
-static void folder_of(const char *path, char *out, size_t n) {
-    const char *slash = strrchr(path, '/');
-    if (slash == path) snprintf(out, n, "/");
-    else if (slash) snprintf(out, n, "%.*s", (int)(slash - path), path);
-    else snprintf(out, n, ".");
-}
-
 int bundle_paths_check(const scene_bundle *b, const char *scene_path, char *err, size_t err_len) {
     char dir[4096], root[PATH_MAX], path[8192], real[PATH_MAX];
-    folder_of(scene_path, dir, sizeof dir);
+    scene_bundle_folder(scene_path, dir, sizeof dir);
     if (!realpath(dir, root)) {
         snprintf(err, err_len, "%s: cannot resolve the scene's folder %s", scene_path, dir);
         return -1;

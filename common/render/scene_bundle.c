@@ -2,11 +2,13 @@
  * parse and hash them (see scene_bundle.h for the byte layout). */
 #include "scene_bundle.h"
 
+#include <errno.h>
 #include <cjson/cJSON.h>
 #include <sodium.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "fileio.h"
 #include "memhint.h"
@@ -99,19 +101,19 @@ static int bundle_read_meshes(scene_bundle *b, const char *dir) {
     return rc;
 }
 
-/* Read all of stdin (a pipe or a file) up to max bytes into a malloc'd,
- * NUL-terminated buffer; NULL with "<stdin>: reason" in err. */
-static char *read_stdin(size_t max, size_t *len, char *err, size_t err_len) {
+/* Read all of f (a pipe or a file) up to max bytes into a malloc'd,
+ * NUL-terminated buffer; NULL with "NAME: reason" in err. */
+static char *read_stream(FILE *f, const char *name, size_t max, size_t *len, char *err, size_t err_len) {
     size_t n = 0, cap = 65536;
     char *buf = malloc(cap + 1);
     while (buf) {
-        size_t got = fread(buf + n, 1, cap - n, stdin);
+        size_t got = fread(buf + n, 1, cap - n, f);
         n += got;
         if (got == 0) break;
         if (n == cap) {
             char *bigger = cap < max ? realloc(buf, 2 * cap + 1) : NULL;
             if (!bigger) {
-                snprintf(err, err_len, "<stdin>: %s", cap < max ? "out of memory" : "more than the limit of 64 MiB");
+                snprintf(err, err_len, "%s: %s", name, cap < max ? "out of memory" : "more than the limit of 64 MiB");
                 free(buf);
                 return NULL;
             }
@@ -119,8 +121,8 @@ static char *read_stdin(size_t max, size_t *len, char *err, size_t err_len) {
             cap *= 2;
         }
     }
-    if (!buf || ferror(stdin)) {
-        snprintf(err, err_len, "<stdin>: %s", buf ? "read error" : "out of memory");
+    if (!buf || ferror(f)) {
+        snprintf(err, err_len, "%s: %s", name, buf ? "read error" : "out of memory");
         free(buf);
         return NULL;
     }
@@ -129,9 +131,39 @@ static char *read_stdin(size_t max, size_t *len, char *err, size_t err_len) {
     return buf;
 }
 
+/* A scene file that is a pipe: a FIFO, or the shell's <(...) (/dev/fd/N).
+ * Read like stdin: waits for its writer, as cat would. */
+static int is_pipe(const char *path) {
+    struct stat st;
+    return stat(path, &st) == 0 && S_ISFIFO(st.st_mode);
+}
+
+/* The scene text at path (a file or a pipe) into *len bytes, malloc'd and
+ * NUL-terminated; NULL with "PATH: reason" in err. */
+static char *read_scene_text(const char *path, size_t *len, char *err, size_t err_len) {
+    if (strcmp(path, "-") == 0) return read_stream(stdin, "<stdin>", BUNDLE_SCENE_MAX, len, err, err_len);
+    if (!is_pipe(path)) return file_read_all(path, BUNDLE_SCENE_MAX, len, err, err_len);
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        snprintf(err, err_len, "%s: cannot open: %s", path, strerror(errno));
+        return NULL;
+    }
+    char *text = read_stream(f, path, BUNDLE_SCENE_MAX, len, err, err_len);
+    fclose(f);
+    return text;
+}
+
+void scene_bundle_folder(const char *path, char *out, size_t n) {
+    const char *slash = strrchr(path, '/');
+    if (strncmp(path, "/dev/fd/", 8) == 0 || strncmp(path, "/proc/self/fd/", 14) == 0) slash = NULL;
+    if (slash == path) snprintf(out, n, "/");
+    else if (slash) snprintf(out, n, "%.*s", (int)(slash - path), path);
+    else snprintf(out, n, ".");
+}
+
 int scene_bundle_read(const char *path, scene_bundle *out, char *err, size_t err_len) {
     memset(out, 0, sizeof *out);
-    int from_stdin = strcmp(path, "-") == 0; /* meshes then resolve against "." */
+    int from_stdin = strcmp(path, "-") == 0;
     scene_bundle_file *f = bundle_add(out, from_stdin ? "<stdin>" : path);
     if (!f) goto oom;
     model_kind mk = model_kind_of(path);
@@ -139,19 +171,14 @@ int scene_bundle_read(const char *path, scene_bundle *out, char *err, size_t err
         f->data = model_scene_json(path, NULL, &f->len);
         if (!f->data) goto oom;
     } else {
-        f->data = from_stdin ? read_stdin(BUNDLE_SCENE_MAX, &f->len, err, err_len)
-                             : file_read_all(path, BUNDLE_SCENE_MAX, &f->len, err, err_len);
+        f->data = read_scene_text(path, &f->len, err, err_len);
     }
     if (!f->data) {
         scene_bundle_free(out);
         return -1;
     }
     char dir[4096];
-    const char *slash = from_stdin ? NULL : strrchr(path, '/');
-    if (slash)
-        snprintf(dir, sizeof dir, "%.*s", (int)(slash - path), path);
-    else
-        snprintf(dir, sizeof dir, ".");
+    scene_bundle_folder(path, dir, sizeof dir);
     if (bundle_read_meshes(out, dir) == 0) return 0;
 oom:
     snprintf(err, err_len, "%s: out of memory", path);

@@ -34,9 +34,15 @@ typedef struct {
     size_t count;
 } scene_bundle;
 
+/* The folder a scene at path resolves relative names against, into out:
+ * path's own folder ("." when it has none); the current folder for "-"
+ * (stdin) and for the shell's <(...) (/dev/fd/N, /proc/self/fd/N), whose
+ * folder means nothing. Can't fail (truncates to n). */
+void scene_bundle_folder(const char *path, char *out, size_t n);
+
 /* Read the scene at path and every mesh it names (relative names are
- * relative to the scene's folder; path "-" reads the scene from stdin, names
- * it "<stdin>" and resolves them against the current folder). Returns 0, or
+ * relative to scene_bundle_folder; path "-" reads the scene from stdin and
+ * names it "<stdin>"; a pipe is read to its end, as stdin). Returns 0, or
  * -1 with "PATH: reason" in err when the scene file itself can't be read. A mesh that can't be read is
  * kept as an entry with data NULL and its error, so that scene loading
  * reports it against the field that names it. Free with scene_bundle_free. */
