@@ -194,5 +194,9 @@ long connlimit_defaults(connlimit_caps *caps, int reserve) {
 void connlimit_ip_of(const char *addr_port, char *out, size_t len) {
     const char *colon = strrchr(addr_port, ':');
     int n = colon ? (int)(colon - addr_port) : (int)strlen(addr_port);
+    if (n >= 2 && addr_port[0] == '[' && addr_port[n - 1] == ']') { /* "[V6]:PORT" */
+        addr_port++;
+        n -= 2;
+    }
     snprintf(out, len, "%.*s", n, addr_port);
 }

@@ -815,10 +815,12 @@ dashboard *dashboard_new(uv_loop_t *loop, farm *f, const dashboard_options *o, c
     const char *host = o->host ? o->host : "127.0.0.1";
     int secured = o->auth && auth_keyring_enabled(o->auth);
     if (!address_is_loopback(host) && !secured && !o->insecure) {
+        char where[300];
+        address_format(host, o->port, where, sizeof where);
         snprintf(err, err_len,
-                 "--http %s:%d is not a loopback address and there is no --token-file: anyone who can reach it "
+                 "--http %s is not a loopback address and there is no --token-file: anyone who can reach it "
                  "could watch and cancel jobs; give a token, or --insecure to serve it anyway",
-                 host, o->port);
+                 where);
         return NULL;
     }
     if (sodium_init() < 0) {

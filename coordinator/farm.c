@@ -1,6 +1,7 @@
 /* farm.c - the farm: created on a libuv loop, listening for workers, closed
  * and freed (see farm.h; the parts are listed in farm_internal.h). */
 #include "farm_internal.h"
+#include "net/address.h"
 
 void farm_log(const farm *f, const char *fmt, ...) {
     va_list ap;
@@ -39,10 +40,12 @@ farm *farm_new(uv_loop_t *loop, const farm_options *o, char *err, size_t err_len
         return NULL;
     }
     struct sockaddr_storage addr;
+    char where[300];
+    address_format(o->host, o->port, where, sizeof where);
     int rc = uv_ip4_addr(o->host, o->port, (struct sockaddr_in *)&addr);
     if (rc) rc = uv_ip6_addr(o->host, o->port, (struct sockaddr_in6 *)&addr);
     if (rc) {
-        snprintf(err, err_len, "cannot listen on %s:%d: not a numeric IPv4 or IPv6 address", o->host, o->port);
+        snprintf(err, err_len, "cannot listen on %s: not a numeric IPv4 or IPv6 address", where);
         connlimit_free(f->limits);
         free(f);
         return NULL;
@@ -52,7 +55,7 @@ farm *farm_new(uv_loop_t *loop, const farm_options *o, char *err, size_t err_len
     rc = uv_tcp_bind(&f->listener, (struct sockaddr *)&addr, 0);
     if (rc == 0) rc = uv_listen((uv_stream_t *)&f->listener, 1024, farm_on_connection);
     if (rc) {
-        snprintf(err, err_len, "cannot listen on %s:%d: %s", o->host, o->port, uv_strerror(rc));
+        snprintf(err, err_len, "cannot listen on %s: %s", where, uv_strerror(rc));
         uv_close((uv_handle_t *)&f->listener, NULL);
         uv_run(loop, UV_RUN_NOWAIT); /* let the close finish before freeing */
         connlimit_free(f->limits);

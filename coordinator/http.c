@@ -2,6 +2,7 @@
  * libhttp-parser with limits, connections on the caller's libuv loop,
  * one-shot answers and bounded event streams. */
 #include "http.h"
+#include "net/address.h"
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -632,10 +633,12 @@ http_server *http_server_new(uv_loop_t *loop, const http_options *o, http_handle
     s->o.tls = NULL; /* the reference is taken once the server exists */
     LIST_INIT(&s->all);
     struct sockaddr_storage addr;
+    char where[300];
+    address_format(o->host, o->port, where, sizeof where);
     int rc = uv_ip4_addr(o->host, o->port, (struct sockaddr_in *)&addr);
     if (rc) rc = uv_ip6_addr(o->host, o->port, (struct sockaddr_in6 *)&addr);
     if (rc) {
-        snprintf(err, err_len, "cannot listen on %s:%d: not a numeric IPv4 or IPv6 address", o->host, o->port);
+        snprintf(err, err_len, "cannot listen on %s: not a numeric IPv4 or IPv6 address", where);
         connlimit_free(s->limits);
         free(s);
         return NULL;
@@ -645,7 +648,7 @@ http_server *http_server_new(uv_loop_t *loop, const http_options *o, http_handle
     rc = uv_tcp_bind(&s->listener, (struct sockaddr *)&addr, 0);
     if (rc == 0) rc = uv_listen((uv_stream_t *)&s->listener, 128, server_on_connection);
     if (rc) {
-        snprintf(err, err_len, "cannot listen on %s:%d: %s", o->host, o->port, uv_strerror(rc));
+        snprintf(err, err_len, "cannot listen on %s: %s", where, uv_strerror(rc));
         uv_close((uv_handle_t *)&s->listener, NULL);
         uv_run(loop, UV_RUN_NOWAIT);
         connlimit_free(s->limits);

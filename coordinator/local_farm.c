@@ -7,6 +7,7 @@
  * LOCAL_RESTARTS times per slot), and its tiles go back to the queue. */
 #define _GNU_SOURCE
 #include "local_farm.h"
+#include "net/address.h"
 
 
 #include "render/adaptive.h"
@@ -335,7 +336,7 @@ static void set_connect_address(local_run *r) {
     const char *host = r->o->farm.host;
     if (strcmp(host, "0.0.0.0") == 0) host = "127.0.0.1";
     if (strcmp(host, "::") == 0) host = "::1";
-    snprintf(r->connect, sizeof r->connect, strchr(host, ':') ? "[%s]:%d" : "%s:%d", host, farm_port(r->f));
+    address_format(host, farm_port(r->f), r->connect, sizeof r->connect);
 }
 
 /* Spawn the workers and hand the farm its first job (or adaptive round);
@@ -452,12 +453,15 @@ int local_farm_render(const local_farm_options *o, const proto_job *job, const u
             run_free(r);
             return -1;
         }
-        fprintf(stderr, "tessera: watch the render at %s://%s:%d/job/%u\n", dashboard_scheme(r->web),
-                wo.host ? wo.host : "127.0.0.1", dashboard_port(r->web), r->job->id);
+        char where[300];
+        address_format(wo.host ? wo.host : "127.0.0.1", dashboard_port(r->web), where, sizeof where);
+        fprintf(stderr, "tessera: watch the render at %s://%s/job/%u\n", dashboard_scheme(r->web), where, r->job->id);
         fflush(stderr);
     }
     if (o->listening) {
-        fprintf(stderr, "tessera: coordinator listening on %s:%d\n", o->farm.host, farm_port(r->f));
+        char where[300];
+        address_format(o->farm.host, farm_port(r->f), where, sizeof where);
+        fprintf(stderr, "tessera: coordinator listening on %s\n", where);
         fflush(stderr);
     }
     r->start = (double)uv_hrtime() / 1e9;

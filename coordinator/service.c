@@ -3,6 +3,7 @@
  * old jobs, signals and start-up. The job store is jobstore.c. */
 #define _GNU_SOURCE
 #include "service_internal.h"
+#include "net/address.h"
 
 #include <sodium.h>
 #include "paging.h"
@@ -695,7 +696,9 @@ int service_run(const service_options *o) {
         free(s);
         return 1;
     }
-    svc_log("listening on %s:%d, data in %s", o->farm.host, farm_port(s->f), o->data_dir);
+    char where[300];
+    address_format(o->farm.host, farm_port(s->f), where, sizeof where);
+    svc_log("listening on %s, data in %s", where, o->data_dir);
     farm_set_event_cb(s->f, service_on_farm_event, s); /* the jobs' logs, and the dashboard's events */
     svc_log("connections: at most %d in all (--max-connections), %d per address before a worker hello or as "
             "clients (--max-per-address), %d workers per address (--max-workers-per-address); idle ones close after "

@@ -120,8 +120,9 @@ int service_web_start(service *s, char *err, size_t err_len) {
                             .ctx = s};
     s->web = dashboard_new(&s->loop, s->f, &o, &src, err, err_len);
     if (!s->web) return -1;
-    svc_log("dashboard on %s://%s:%d/%s", dashboard_scheme(s->web), o.host ? o.host : "127.0.0.1",
-            dashboard_port(s->web), o.read_only ? " (read-only)" : "");
+    char where[300];
+    address_format(o.host ? o.host : "127.0.0.1", dashboard_port(s->web), where, sizeof where);
+    svc_log("dashboard on %s://%s/%s", dashboard_scheme(s->web), where, o.read_only ? " (read-only)" : "");
     char what[400];
     if (dashboard_tls_describe(s->web, what, sizeof what)) svc_log("dashboard certificate: %s", what);
     else if (o.host && !address_is_loopback(o.host))

@@ -241,4 +241,11 @@ TEST(address_parsing) {
           "no port: %s", err);
     CHECK(address_parse("h:70000", host, sizeof host, &port, err, sizeof err) == -1 && strstr(err, "0 to 65535"),
           "big port: %s", err);
+    char text[80];
+    address_format("::1", 7000, text, sizeof text);
+    CHECK(strcmp(text, "[::1]:7000") == 0 && address_parse(text, host, sizeof host, &port, err, sizeof err) == 0 &&
+              strcmp(host, "::1") == 0 && port == 7000,
+          "an IPv6 address printed as %s", text);
+    address_format("10.0.0.2", 80, text, sizeof text);
+    CHECK(strcmp(text, "10.0.0.2:80") == 0, "an IPv4 address printed as %s", text);
 }

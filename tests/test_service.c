@@ -1004,3 +1004,40 @@ TEST(service_worker_forgets_scenes_as_the_coordinator_says) {
     worker_stop(w);
     service_stop(&s);
 }
+
+/* A coordinator on IPv6 loopback: its log, the workers table and the
+ * per-address limit name the address as [::1]:PORT and ::1 (not
+ * "::1:PORT"), and a job renders the reference's bytes. */
+TEST(service_over_ipv6_names_addresses_with_brackets) {
+    service s = {0};
+    s.port = util_free_port();
+    snprintf(s.dir, sizeof s.dir, "%s", util_temp_path("svc-v6"));
+    snprintf(s.log, sizeof s.log, "%s", util_temp_path("svc-v6.log"));
+    snprintf(s.addr, sizeof s.addr, "[::1]:%d", s.port);
+    s.extra[0] = "--max-workers-per-address";
+    s.extra[1] = "1";
+    service_start(&s, "svc-v6");
+    if (util_file_count(s.log, "cannot listen")) { /* a host without IPv6 loopback */
+        printf("    skipped: no IPv6 loopback here\n");
+        util_wait(s.pid, LONG, NULL);
+        return;
+    }
+    char want[80], out[8192], img[256];
+    snprintf(want, sizeof want, "listening on [::1]:%d,", s.port);
+    CHECK(util_file_count(s.log, want) == 1, "no \"%s\" in %s", want, s.log);
+    pid_t w1 = worker_start(&s, "v6a", "0");
+    int st = 1;
+    for (int i = 0; i < 500 && (st || !strstr(out, "v6a")); i++, util_sleep(0.02)) st = cli(&s, out, sizeof out, "workers");
+    CHECK(st == 0 && strstr(out, "v6a") && strstr(out, "[::1]:"), "workers table over IPv6: %s", out);
+    pid_t w2 = worker_start(&s, "v6b", "0");
+    for (int i = 0; i < 500 && !util_file_count(s.log, "::1 has 1 worker connected"); i++) util_sleep(0.02);
+    CHECK(util_file_count(s.log, "::1 has 1 worker connected (--max-workers-per-address 1)") >= 1,
+          "the second worker from ::1 was not refused by address; log %s", s.log);
+    snprintf(img, sizeof img, "%s", util_temp_path("svc-v6.pfm"));
+    st = cli(&s, out, sizeof out, "submit " SCENE " --wait -o %s", img);
+    CHECK(st == 0 && util_same_file(img, reference()), "a job over IPv6 (%d): %s", st, out);
+    kill(w2, SIGTERM);
+    util_wait(w2, LONG, NULL);
+    worker_stop(w1);
+    service_stop(&s);
+}

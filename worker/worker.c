@@ -17,6 +17,7 @@
 #include <uv.h>
 
 #include "log.h"
+#include "net/address.h"
 #include "net/conn.h"
 #include "job/job.h"
 #include "net/protocol.h"
@@ -33,6 +34,7 @@ typedef struct {
 
 typedef struct {
     worker_config cfg;
+    char where[300]; /* the coordinator's HOST:PORT as logs print it ([V6]:PORT) */
     uv_loop_t loop;
     pool *pool;
     uv_async_t wake;
@@ -193,8 +195,7 @@ static int on_welcome(worker *w, conn *c, const cJSON *m) {
     w->backoff = 0.1;
     conn_set_max_frame(c, SCENE_BUNDLE_MAX_BYTES + 1); /* scene bundles may follow */
     if (!w->cfg.quiet)
-        worker_log(w, "joined the farm at %s:%d (%d threads, %d prefetch)", w->cfg.host, w->cfg.port, w->cfg.threads,
-               w->cfg.prefetch);
+        worker_log(w, "joined the farm at %s (%d threads, %d prefetch)", w->where, w->cfg.threads, w->cfg.prefetch);
     send_ready(w, capacity(w) - w->held);
     return 0;
 }
@@ -347,7 +348,7 @@ static void on_conn_close(conn *c, const char *reason) {
     forget_bundles(w);
     if (w->cfg.once && !w->stopping) {
         if (!was_welcomed)
-            worker_log(w, "cannot reach the coordinator at %s:%d: %s", w->cfg.host, w->cfg.port, reason);
+            worker_log(w, "cannot reach the coordinator at %s: %s", w->where, reason);
         else if (!w->cfg.quiet)
             worker_log(w, "connection ended (%s); exiting (--once)", reason);
         w->exit_code = was_welcomed ? 0 : 1;
@@ -357,8 +358,8 @@ static void on_conn_close(conn *c, const char *reason) {
         if (!w->resolving) close_handles(w); /* exit now, not at the next tick */
         return;
     }
-    worker_log(w, "%s %s:%d: %s; retrying in %.1f s", was_welcomed ? "lost the coordinator at" : "cannot reach",
-               w->cfg.host, w->cfg.port, reason, w->backoff);
+    worker_log(w, "%s %s: %s; retrying in %.1f s", was_welcomed ? "lost the coordinator at" : "cannot reach",
+               w->where, reason, w->backoff);
     schedule_retry(w);
 }
 
@@ -501,14 +502,14 @@ static void check_idle(worker *w, double now) {
     double idle = now - w->last_work;
     if (w->cfg.idle_exit_s <= 0 || w->held > 0 || idle < w->cfg.idle_exit_s) return;
     if (w->welcomed)
-        worker_log(w, "no work from the coordinator at %s:%d for %.1f s (--idle-exit %g); leaving", w->cfg.host,
-                   w->cfg.port, idle, w->cfg.idle_exit_s);
+        worker_log(w, "no work from the coordinator at %s for %.1f s (--idle-exit %g); leaving", w->where, idle,
+                   w->cfg.idle_exit_s);
     else if (now - w->last_welcomed >= w->cfg.idle_exit_s)
-        worker_log(w, "no coordinator reachable at %s:%d for %.1f s (--idle-exit %g); leaving", w->cfg.host,
-                   w->cfg.port, now - w->last_welcomed, w->cfg.idle_exit_s);
+        worker_log(w, "no coordinator reachable at %s for %.1f s (--idle-exit %g); leaving", w->where,
+                   now - w->last_welcomed, w->cfg.idle_exit_s);
     else
-        worker_log(w, "no work for %.1f s and the coordinator at %s:%d went away (--idle-exit %g); leaving", idle,
-                   w->cfg.host, w->cfg.port, w->cfg.idle_exit_s);
+        worker_log(w, "no work for %.1f s and the coordinator at %s went away (--idle-exit %g); leaving", idle,
+                   w->where, w->cfg.idle_exit_s);
     worker_leave(w);
 }
 
@@ -533,6 +534,7 @@ int worker_run(const worker_config *cfg) {
         return 1;
     }
     w->cfg = *cfg;
+    address_format(cfg->host, cfg->port, w->where, sizeof w->where);
     w->backoff = 0.1;
     uv_loop_init(&w->loop);
     w->last_work = w->last_welcomed = now_s(w);

@@ -40,3 +40,7 @@ int address_parse(const char *s, char *host, size_t host_len, int *port, char *e
 int address_is_loopback(const char *host) {
     return strcmp(host, "localhost") == 0 || strncmp(host, "127.", 4) == 0 || strcmp(host, "::1") == 0;
 }
+
+void address_format(const char *host, int port, char *out, size_t len) {
+    snprintf(out, len, strchr(host, ':') ? "[%s]:%d" : "%s:%d", host, port);
+}

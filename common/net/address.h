@@ -14,4 +14,9 @@ int address_parse(const char *s, char *host, size_t host_len, int *port, char *e
  * allowed only there unless the user says --insecure. Can't fail. */
 int address_is_loopback(const char *host);
 
+/* host and port as address_parse reads them back: "HOST:PORT", or
+ * "[HOST]:PORT" when host is an IPv6 address (holds a ':'), so that
+ * "::1:7000" is never printed. Into out (truncated to len); can't fail. */
+void address_format(const char *host, int port, char *out, size_t len);
+
 #endif

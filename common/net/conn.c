@@ -1,5 +1,6 @@
 /* conn.c - framed TCP connections over libuv (see conn.h). */
 #include "conn.h"
+#include "address.h"
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -243,5 +244,5 @@ void conn_peer_address(const conn *c, char *out, size_t len) {
             port = ntohs(((struct sockaddr_in6 *)&ss)->sin6_port);
         }
     }
-    snprintf(out, len, "%s:%d", host, port);
+    address_format(host, port, out, len);
 }
