@@ -637,3 +637,19 @@ TEST(gltf_model_shape_rotates) {
     CHECK(!s && strstr(err, "shapes[0].rotate: only model shapes rotate"), "rotate on a sphere: %s", err);
     scene_free(s);
 }
+
+/* An OBJ whose material library is missing renders grey, as the importer
+ * does, with one warning naming the file (once per command, not per
+ * worker). */
+TEST(gltf_obj_missing_material_library_is_one_warning) {
+    const char *path = util_write_temp("nomtl.obj", "mtllib nomtl-gone.mtl\nv -1 0 -1\nv -1 0 1\nv 1 0 1\nv 1 0 -1\n"
+                                                    "usemtl floor\nf 1 2 3 4\n");
+    char cmd[4096], out[8192], png[600];
+    snprintf(png, sizeof png, "%s.png", path);
+    snprintf(cmd, sizeof cmd, "%s render %s --width 32 --spp 2 --workers 2 -q -o %s 2>&1", harness_tessera(), path, png);
+    int rc = util_run(cmd, out, sizeof out);
+    const char *w = strstr(out, "warning: material library ");
+    CHECK(rc == 0 && w && strstr(w, "nomtl-gone.mtl: cannot open: No such file or directory; its materials are "
+                                    "rendered grey") && !strstr(w + 1, "warning:"),
+          "a missing MTL (%d): %s", rc, out);
+}

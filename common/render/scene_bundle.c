@@ -161,6 +161,16 @@ void scene_bundle_folder(const char *path, char *out, size_t n) {
     else snprintf(out, n, ".");
 }
 
+/* An OBJ's material library that cannot be read is not an error to the
+ * importer (Assimp goes on with grey materials): say so here, once per
+ * command, where the files are read (workers get the bundle, not the
+ * files). Can't fail. */
+static void warn_missing_materials(const scene_bundle *b) {
+    for (size_t i = 1; i < b->count; i++)
+        if (!b->files[i].data && model_kind_of(b->files[i].name) == MODEL_MTL)
+            fprintf(stderr, "warning: material library %s; its materials are rendered grey\n", b->files[i].error);
+}
+
 int scene_bundle_read(const char *path, scene_bundle *out, char *err, size_t err_len) {
     memset(out, 0, sizeof *out);
     int from_stdin = strcmp(path, "-") == 0;
@@ -179,7 +189,10 @@ int scene_bundle_read(const char *path, scene_bundle *out, char *err, size_t err
     }
     char dir[4096];
     scene_bundle_folder(path, dir, sizeof dir);
-    if (bundle_read_meshes(out, dir) == 0) return 0;
+    if (bundle_read_meshes(out, dir) == 0) {
+        warn_missing_materials(out);
+        return 0;
+    }
 oom:
     snprintf(err, err_len, "%s: out of memory", path);
     scene_bundle_free(out);
