@@ -135,8 +135,9 @@ struct peer {
     LIST_HEAD(lease_list, lease) leases;
     peer_scene *scenes; /* the bundles it holds, as this side told it (FARM_PEER_SCENES) */
     int scene_count;
-    uint32_t *jobs;
+    uint32_t *jobs; /* the ids of the jobs it was told of that the farm still holds */
     int job_count;
+    uint32_t forgotten_max; /* the highest id of those it was told of that the farm has forgotten */
     peer_record rec;
     char nonce[AUTH_HEX]; /* the challenge this connection must answer */
     char label[200]; /* "worker NAME (ADDR)" */
@@ -214,6 +215,9 @@ void farm_job_finish(farm *f, job *j);
 
 void farm_job_fail(farm *f, job *j, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 
+/* Whether p was told of job id: 1 (the farm holds the job), 2 (it may
+ * have been: an id no higher than one it was told of that the farm has
+ * forgotten since, so a tile of it is a late result), or 0. */
 int peer_told_job(const peer *p, uint32_t id);
 
 lease *peer_find_lease(peer *p, uint32_t job_id, uint32_t tile);

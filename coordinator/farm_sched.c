@@ -153,7 +153,21 @@ static void peer_tell_job(peer *p, job *j) {
 int peer_told_job(const peer *p, uint32_t id) {
     for (int i = 0; i < p->job_count; i++)
         if (p->jobs[i] == id) return 1;
-    return 0;
+    return id <= p->forgotten_max ? 2 : 0;
+}
+
+/* The farm forgets job id: so do its peers' lists (which would otherwise
+ * grow by one id per job for as long as a worker stays connected, and be
+ * searched on every tile), each keeping only the highest such id. */
+static void peers_forget_job(farm *f, uint32_t id) {
+    peer *p;
+    LIST_FOREACH(p, &f->peers, link)
+        for (int i = 0; i < p->job_count; i++)
+            if (p->jobs[i] == id) {
+                p->jobs[i] = p->jobs[--p->job_count];
+                if (id > p->forgotten_max) p->forgotten_max = id;
+                break;
+            }
 }
 
 lease *peer_find_lease(peer *p, uint32_t job_id, uint32_t tile) {
@@ -338,6 +352,7 @@ int farm_forget(farm *f, uint32_t id) {
                 free(l);
             }
     }
+    peers_forget_job(f, id);
     TAILQ_REMOVE(&f->jobs, j, link);
     farm_job_free(j);
     return 0;
