@@ -489,8 +489,11 @@ static void worker_leave(worker *w) {
 static void on_signal(uv_signal_t *s, int signum) {
     worker *w = s->data;
     if (w->stopping) return;
-    if (!w->cfg.quiet)
-        worker_log(w, "%s: abandoning %d tiles and leaving", signum == SIGTERM ? "SIGTERM" : "SIGINT", w->held);
+    const char *sig = signum == SIGTERM ? "SIGTERM" : "SIGINT";
+    if (!w->cfg.quiet && w->held > 0)
+        worker_log(w, "%s: abandoning %d tile%s and leaving", sig, w->held, w->held == 1 ? "" : "s");
+    else if (!w->cfg.quiet)
+        worker_log(w, "%s: leaving", sig);
     worker_leave(w);
 }
 

@@ -211,7 +211,7 @@ wait_text timelimit-coord.log "coordinator listening on" 30 || fail "coordinator
 j=$(TESSERA_WORKER_ARGS="--threads 1 --throttle-ms 2000" sbatch --parsable --time=1 -c 1 "$SBATCH_POOL" "127.0.0.1:$port")
 wait_text timelimit-coord.log "worker slurm-$j-0 (" 60 || fail "the worker under the time limit never joined"
 wait_gone "$j" 150 || fail "job $j still running 150 s after its 1-minute limit"
-grep -q "SIGTERM: abandoning [1-9][0-9]* tiles" tessera-pool-"$j"*.log ||
+grep -q "SIGTERM: abandoning [1-9][0-9]* tiles*" tessera-pool-"$j"*.log ||
     fail "the worker did not get SIGTERM while holding tiles; log $WORK/$(ls tessera-pool-"$j"*.log 2>/dev/null)"
 grep -q "worker slurm-$j-0 (.*left: worker left (.*its unfinished tiles go back to the queue" timelimit-coord.log ||
     fail "the coordinator did not get the tiles back; log $WORK/timelimit-coord.log"
