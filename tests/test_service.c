@@ -35,15 +35,19 @@ typedef struct {
 
 /* Start tessera-coordinator on a free port with a data dir under the test
  * folder (kept between a kill and a restart when dir is reused). */
+/* Give s a free port on host (an IPv6 one in brackets), and its data
+ * folder and log under the test folder by name. */
+static void service_place(service *s, const char *name, const char *host) {
+    s->port = util_free_port();
+    snprintf(s->dir, sizeof s->dir, "%s", util_temp_path(name));
+    char logname[128];
+    snprintf(logname, sizeof logname, "%s.log", name);
+    snprintf(s->log, sizeof s->log, "%s", util_temp_path(logname));
+    snprintf(s->addr, sizeof s->addr, strchr(host, ':') ? "[%s]:%d" : "%s:%d", host, s->port);
+}
+
 static void service_start(service *s, const char *name) {
-    if (!s->port) {
-        s->port = util_free_port();
-        snprintf(s->dir, sizeof s->dir, "%s", util_temp_path(name));
-        char logname[128];
-        snprintf(logname, sizeof logname, "%s.log", name);
-        snprintf(s->log, sizeof s->log, "%s", util_temp_path(logname));
-        snprintf(s->addr, sizeof s->addr, "127.0.0.1:%d", s->port);
-    }
+    if (!s->port) service_place(s, name, "127.0.0.1");
     char coord[4096];
     snprintf(coord, sizeof coord, "%s", util_bin("tessera-coordinator"));
     const char *argv[24] = {coord, "--listen", s->addr, "--data-dir", s->dir, "--heartbeat", "0.2",
@@ -455,10 +459,7 @@ TEST(service_token_required_of_workers_and_clients) {
 
 TEST(service_limits_and_a_full_disk_are_reported) {
     service s = {0};
-    s.port = util_free_port();
-    snprintf(s.dir, sizeof s.dir, "%s", util_temp_path("svc-full"));
-    snprintf(s.log, sizeof s.log, "%s", util_temp_path("svc-full.log"));
-    snprintf(s.addr, sizeof s.addr, "127.0.0.1:%d", s.port);
+    service_place(&s, "svc-full", "127.0.0.1");
     /* A coordinator whose files may not grow past 20 KB: the tile journal
      * fills up part way through a job, as on a full disk. */
     char coord[4096];
@@ -1010,10 +1011,7 @@ TEST(service_worker_forgets_scenes_as_the_coordinator_says) {
  * "::1:PORT"), and a job renders the reference's bytes. */
 TEST(service_over_ipv6_names_addresses_with_brackets) {
     service s = {0};
-    s.port = util_free_port();
-    snprintf(s.dir, sizeof s.dir, "%s", util_temp_path("svc-v6"));
-    snprintf(s.log, sizeof s.log, "%s", util_temp_path("svc-v6.log"));
-    snprintf(s.addr, sizeof s.addr, "[::1]:%d", s.port);
+    service_place(&s, "svc-v6", "::1");
     s.extra[0] = "--max-workers-per-address";
     s.extra[1] = "1";
     service_start(&s, "svc-v6");
