@@ -568,7 +568,7 @@ static int do_submit(const cli_args *a, const char *scene_path) {
         cli_default_output(strcmp(scene_path, "-") ? scene_path : "stdin", out_default, sizeof out_default);
         out = out_default;
     }
-    if (a->wait && file_check_writable(out, err, sizeof err)) /* before the upload and the wait */
+    if (a->wait && image_check_path(out, err, sizeof err)) /* before the upload and the wait */
         return cli_fail("%s (nothing submitted)", err);
     scene_bundle b;
     if (scene_bundle_read(scene_path, &b, err, sizeof err)) return cli_fail("%s", err);

@@ -32,7 +32,6 @@
 #include "coordinator/service.h"
 #include "coordinator/membudget.h"
 #include "limit.h"
-#include "fileio.h"
 
 /* From this many primitives the default local farm gives way to rendering
  * in this process with a thread per core (bench/meshes.sh: at 655k
@@ -515,7 +514,7 @@ static int cmd_render(int argc, char **argv) {
         a.out_path = out_default;
     }
     /* Before any work: a render whose image has nowhere to go is lost. */
-    if (file_check_writable(a.out_path, err, sizeof err)) {
+    if (image_check_path(a.out_path, err, sizeof err)) {
         fprintf(stderr, "tessera: %s (nothing rendered)\n", err);
         return 1;
     }

@@ -237,6 +237,12 @@ TEST(cli_render_checks_the_output_first_and_keeps_an_unsaved_image) {
     CHECK(rc == 1 && strstr(out, "/missing/x.png: cannot write: No such file or directory (nothing rendered)") &&
               !strstr(out, "progress"),
           "an output folder that does not exist (%d): %s", rc, out);
+    snprintf(cmd, sizeof cmd, "TMPDIR=%s/rescue %s render tests/scenes/cornell-small.json --spp 2 --workers 1 -o %s/x.bmp "
+             "2>&1", dir, harness_tessera(), dir);
+    rc = util_run(cmd, out, sizeof out);
+    CHECK(rc == 1 && strstr(out, "x.bmp: unknown image format \"bmp\"") && strstr(out, "(nothing rendered)") &&
+              !strstr(out, "progress"),
+          "an unknown output format (%d): %s", rc, out);
     snprintf(cmd, sizeof cmd,
              "TMPDIR=%s/rescue %s render tests/scenes/cornell-small.json --spp 2 --workers 1 -o %s/blocked.exr 2>&1",
              dir, harness_tessera(), dir);

@@ -125,6 +125,27 @@ static uint8_t *encode_8bit(const char *ext, const image *img, image_write_optio
     return buf;
 }
 
+/* Whether image_write knows the format the extension ext names. */
+static int known_format(const char *ext) {
+    static const char *const known[] = {"pfm", "exr", "ppm", "png", "jpg", "jpeg"};
+    for (size_t i = 0; i < sizeof known / sizeof known[0]; i++)
+        if (strcasecmp(ext, known[i]) == 0) return 1;
+    return 0;
+}
+
+/* image_write's message for an extension it does not know. */
+static void unknown_format(const char *path, const char *ext, char *err, size_t err_len) {
+    snprintf(err, err_len, "%s: unknown image format \"%s\" (known: .pfm .exr .ppm .png .jpg .jpeg)", path, ext);
+}
+
+int image_check_path(const char *path, char *err, size_t err_len) {
+    if (!known_format(extension(path))) {
+        unknown_format(path, extension(path), err, err_len);
+        return -1;
+    }
+    return file_check_writable(path, err, err_len);
+}
+
 int image_write(const char *path, const image *img, image_write_options *opt, char *err, size_t err_len) {
     const char *ext = extension(path);
     size_t len = 0;
@@ -141,7 +162,7 @@ int image_write(const char *path, const image *img, image_write_options *opt, ch
                strcasecmp(ext, "jpeg") == 0) {
         buf = encode_8bit(ext, img, opt, &len, why, sizeof why);
     } else {
-        snprintf(err, err_len, "%s: unknown image format \"%s\" (known: .pfm .exr .ppm .png .jpg .jpeg)", path, ext);
+        unknown_format(path, ext, err, err_len);
         return -1;
     }
     if (buf && strcasecmp(ext, "png") == 0) /* the EXR attributes, as tEXt chunks */

@@ -39,6 +39,11 @@ typedef struct {
  * errors). Nothing is left at path, nor any temporary file, on failure. */
 int image_write(const char *path, const image *img, image_write_options *opt, char *err, size_t err_len);
 
+/* What image_write(path, ...) would refuse before any work is done for it:
+ * an extension it does not know, or a folder where no file can be made
+ * (file_check_writable). Returns 0, or -1 with "PATH: reason" in err. */
+int image_check_path(const char *path, char *err, size_t err_len);
+
 /* Read a .pfm or .ppm file into img (allocated here; free with image_free).
  * PPM values are decoded from sRGB to linear. Returns 0, or -1 with
  * "PATH: reason" in err. */
