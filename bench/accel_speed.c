@@ -40,7 +40,8 @@ int main(int argc, char **argv) {
     const char *path = NULL, *names[8];
     accel_kind kinds[8];
     int nk = 0, rounds = 3, pair_both = 0;
-    scene_overrides ov = {-1, -1, -1, -1, 0, 0, 1}; /* no intersector: built below, one per kind */
+    /* no intersector: built below, one per kind */
+    scene_overrides ov = {.width = -1, .height = -1, .spp = -1, .max_depth = -1, .no_accel = 1};
     for (int i = 1; i < argc; i++) {
         if (i + 1 < argc && strcmp(argv[i], "--width") == 0) ov.width = atoi(argv[++i]);
         else if (i + 1 < argc && strcmp(argv[i], "--height") == 0) ov.height = atoi(argv[++i]);

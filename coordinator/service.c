@@ -199,7 +199,8 @@ static void on_submit(client *cl, const cJSON *m) {
     sampler_kind sampler = SAMPLER_SOBOL_GLOBAL; /* the default, as tessera render's */
     if (sname && (!cJSON_IsString(sname) || sampler_parse(sname->valuestring, &sampler) != 0))
         return client_error(cl, "submit: sampler must be \"sobol-global\", \"sobol\" or \"random\"");
-    scene_overrides ov = {(int)w, (int)ht, (int)spp, (int)depth, 0, 0, 1}; /* workers build the intersector */
+    /* no intersector: the workers build theirs */
+    scene_overrides ov = {.width = (int)w, .height = (int)ht, .spp = (int)spp, .max_depth = (int)depth, .no_accel = 1};
     const cJSON *seed = cJSON_GetObjectItemCaseSensitive(m, "seed");
     if (seed) {
         if (request_seed(seed, &ov.seed))

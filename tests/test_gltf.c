@@ -218,7 +218,7 @@ TEST(gltf_texture_decode_limits_srgb_and_wrap) {
  * arrow up, blue square bottom right (UV orientation end to end). */
 TEST(gltf_textured_plane_shows_the_arrow_the_right_way) {
     char err[1024];
-    scene_overrides ov = {64, 48, 16, -1, 0, 0, 0};
+    scene_overrides ov = {.width = 64, .height = 48, .spp = 16, .max_depth = -1};
     scene *s = scene_load("scenes/gltf/arrow-plane.gltf", &ov, err, sizeof err);
     CHECK(s, "%s", err);
     if (!s) return;
@@ -426,7 +426,7 @@ static double normal_map_mean(const char *map_b64, const char *light_rotation) {
              UNIT_QUAD_GLTF_DATA,
              light_rotation, map_b64);
     char err[1024];
-    scene_overrides ov = {8, 8, 4, 1, 0, 0, 0}; /* direct light only */
+    scene_overrides ov = {.width = 8, .height = 8, .spp = 4, .max_depth = 1}; /* direct light only */
     scene *s = scene_load(util_write_temp("nmap.gltf", text), &ov, err, sizeof err);
     CHECK(s, "%s", err);
     if (!s) return -1;
@@ -474,7 +474,7 @@ static double quad_green_mean(const char *alpha_mode) {
              UNIT_QUAD_GLTF_DATA,
              alpha_mode);
     char err[1024];
-    scene_overrides ov = {8, 8, 4, 4, 0, 0, 0};
+    scene_overrides ov = {.width = 8, .height = 8, .spp = 4, .max_depth = 4};
     scene *s = scene_load(util_write_temp("alpha.gltf", text), &ov, err, sizeof err);
     CHECK(s, "%s", err);
     if (!s) return -1;
@@ -502,7 +502,7 @@ TEST(gltf_obj_alone_renders_with_its_lights) {
                                                     "v -0.3 1 -0.3\nv 0.3 1 -0.3\nv 0.3 1 0.3\nv -0.3 1 0.3\n"
                                                     "usemtl floor\nf 1 2 3 4\nusemtl lamp\nf 5 6 7 8\n");
     char err[1024];
-    scene_overrides ov = {160, -1, 4, -1, 0, 0, 0};
+    scene_overrides ov = {.width = 160, .height = -1, .spp = 4, .max_depth = -1};
     scene *s = scene_load(path, &ov, err, sizeof err);
     CHECK(s, "%s", err);
     if (!s) return;

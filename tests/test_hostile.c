@@ -33,12 +33,6 @@ typedef struct {
 } coord;
 
 
-static double now_s(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 /* Start tessera-coordinator on a free port over the data dir c->dir (made
  * under the test folder when empty), with extra options (NULL-terminated).
  * Returns 0 once it listens, -1 after 30 s. */
@@ -153,9 +147,9 @@ TEST(hostile_status_of_10000_kept_jobs_answers_within_a_second) {
     double best = 1e9, best_cpu = 1e9;
     for (int run = 0; run < 3; run++) { /* the best of three: the machine is shared */
         snprintf(args, sizeof args, "status > %s", listing);
-        double t0 = now_s(), c0 = children_cpu_s() + proc_cpu_s(c.pid);
+        double t0 = util_now(), c0 = children_cpu_s() + proc_cpu_s(c.pid);
         int rc = cli(&c, out, sizeof out, args);
-        double t = now_s() - t0, cpu = children_cpu_s() + proc_cpu_s(c.pid) - c0;
+        double t = util_now() - t0, cpu = children_cpu_s() + proc_cpu_s(c.pid) - c0;
         best = t < best ? t : best;
         best_cpu = cpu < best_cpu ? cpu : best_cpu;
         CHECK(rc == 0, "status of 10,000 jobs exited %d: %s", rc, out);
@@ -188,9 +182,9 @@ TEST(hostile_silent_coordinator_is_a_timeout_not_a_hang) {
     char cmd[1024], out[4096];
     snprintf(cmd, sizeof cmd, "TESSERA_CLIENT_TIMEOUT=1 TESSERA_COORDINATOR=127.0.0.1:%d %s status", port,
              harness_tessera());
-    double t0 = now_s();
+    double t0 = util_now();
     int rc = util_run(cmd, out, sizeof out);
-    double t = now_s() - t0;
+    double t = util_now() - t0;
     close(fd);
     CHECK(rc != 0, "status against a silent coordinator exited 0");
     CHECK(strstr(out, "did not answer within 1 s") != NULL, "no timeout message: %s", out);
@@ -221,10 +215,10 @@ static int raw_send_text(int fd, const char *json) { return raw_send(fd, WIRE_KI
 static int raw_read(int fd, char *out, size_t cap, double timeout_s) {
     uint8_t hdr[WIRE_HEADER_BYTES];
     size_t have = 0, need = sizeof hdr, len = 0;
-    double end = now_s() + timeout_s;
+    double end = util_now() + timeout_s;
     while (have < need) {
         struct pollfd pf = {fd, POLLIN, 0};
-        int left = (int)((end - now_s()) * 1000);
+        int left = (int)((end - util_now()) * 1000);
         if (left <= 0 || poll(&pf, 1, left) <= 0) return -1;
         ssize_t n = have < sizeof hdr ? recv(fd, hdr + have, sizeof hdr - have, 0)
                                       : recv(fd, out + have - sizeof hdr, need - have, 0);
@@ -424,9 +418,9 @@ static char *many_materials(int n, int dup) {
  * name given twice is still refused, naming it. */
 TEST(hostile_scene_of_100000_materials_loads_in_linear_time) {
     char *text = many_materials(100000, 0), err[512];
-    double t0 = now_s();
+    double t0 = util_now();
     scene *s = text ? util_scene_from_text(text, err, sizeof err) : NULL;
-    double t = now_s() - t0;
+    double t = util_now() - t0;
     CHECK(s != NULL, "scene of 100,000 materials refused: %s", s ? "" : err);
     CHECK(t < 10.0 * harness_slack(), "loading 100,000 materials took %.1f s (want < 10 s: linear; quadratic took 30 s)", t);
     if (s) scene_free(s);
@@ -472,19 +466,19 @@ TEST(hostile_large_upload_is_checked_off_the_loop) {
     CHECK(up >= 0 && st >= 0 && raw_upload(up, path, hash) == 0, "cannot connect and upload");
     snprintf(msg, sizeof msg, "{\"type\":\"submit\",\"scene\":\"%s\",\"name\":\"big\"}", hash);
     CHECK(raw_send_text(up, msg) == 0, "cannot submit");
-    double t0 = now_s(), worst = 0;
+    double t0 = util_now(), worst = 0;
     int polls = 0, answered = 0;
-    while (!answered && now_s() - t0 < 60) {
-        double a = now_s();
+    while (!answered && util_now() - t0 < 60) {
+        double a = util_now();
         if (raw_send_text(st, "{\"type\":\"status\"}") || raw_read(st, ans, sizeof ans, 10)) break;
-        double rt = now_s() - a;
+        double rt = util_now() - a;
         worst = rt > worst ? rt : worst;
         polls++;
         struct pollfd pf = {up, POLLIN, 0};
         answered = poll(&pf, 1, 20) > 0;
     }
     CHECK(answered && raw_read(up, ans, sizeof ans, 5) == 0 && strstr(ans, "submitted"), "the large scene: %s", ans);
-    CHECK(polls >= 5, "only %d status answers while the scene was checked (it took %.2f s)", polls, now_s() - t0);
+    CHECK(polls >= 5, "only %d status answers while the scene was checked (it took %.2f s)", polls, util_now() - t0);
     CHECK(worst < 1.0 * harness_slack(), "a status took %.0f ms while the scene was checked (want < 100 ms; < 1 s on a loaded host)",
           worst * 1e3);
     CHECK(raw_send_text(st, "{\"type\":\"status\"}") == 0 && raw_read(st, ans, sizeof ans, 10) == 0, "no status");
@@ -804,11 +798,11 @@ TEST(hostile_absurd_mesh_scale_is_refused) {
 static int raw_frame(int fd, uint8_t **body, size_t *len, double timeout_s) {
     uint8_t hdr[WIRE_HEADER_BYTES];
     size_t have = 0, need = sizeof hdr;
-    double end = now_s() + timeout_s;
+    double end = util_now() + timeout_s;
     *body = NULL;
     while (have < need) {
         struct pollfd pf = {fd, POLLIN, 0};
-        int left = (int)((end - now_s()) * 1000);
+        int left = (int)((end - util_now()) * 1000);
         ssize_t n = left > 0 && poll(&pf, 1, left) > 0
                         ? (have < sizeof hdr ? recv(fd, hdr + have, sizeof hdr - have, 0)
                                              : recv(fd, *body + have - sizeof hdr, need - have, 0))
@@ -909,9 +903,9 @@ TEST(hostile_fetch_streams_in_chunks_with_back_pressure) {
     raw_send_text(fd, "{\"type\":\"fetch\",\"job\":1}");
     util_sleep(1.0);
     long during = rss_kib(c.pid);
-    double t0 = now_s();
+    double t0 = util_now();
     st = cli(&c, out, sizeof out, "status");
-    double t = now_s() - t0;
+    double t = util_now() - t0;
     CHECK(st == 0 && t < 2 * harness_slack(), "status took %.2f s (%d) while a client stalled a fetch: %s", t, st, out);
     CHECK(harness_slack() > 1 || (before > 0 && during - before < 1024),
           "coordinator RSS grew %ld KiB while a client did not read a 9 MiB image (want < 1024)", during - before);
@@ -1020,11 +1014,11 @@ TEST(hostile_connections_past_the_caps_are_refused) {
           kept3, refused3);
     CHECK(strstr(why3, "127.0.0.3") && strstr(why3, "--max-per-address 8"), "the refusal does not name the address "
           "and the cap: %s", why3);
-    double t0 = now_s();
+    double t0 = util_now();
     int st = raw_hello_from(&c, "127.0.0.2", "client");
     int ok = st >= 0 && raw_send_text(st, "{\"type\":\"status\"}") == 0 && raw_read(st, ans, sizeof ans, 10) == 0 &&
              strstr(ans, "\"jobs\"");
-    double t = now_s() - t0;
+    double t = util_now() - t0;
     if (st >= 0) close(st);
     CHECK(ok, "status from 127.0.0.2 beside a capped 127.0.0.3 failed: %s", ans);
     CHECK(t < 1.0 * harness_slack(), "status from 127.0.0.2 took %.0f ms (connect, hello and answer; want well under 1 s)", t * 1e3);
@@ -1105,7 +1099,7 @@ TEST(hostile_idle_connections_are_closed_at_every_stage) {
     fd[CLIENT_IDLE] = raw_hello_from(&c, NULL, "client");
     fd[WORKER_SILENT] = raw_hello_from(&c, NULL, NULL);
     fd[WORKER_TRICKLE] = raw_hello_from(&c, NULL, NULL);
-    double t0 = now_s(), closed_at[STAGES] = {0};
+    double t0 = util_now(), closed_at[STAGES] = {0};
     for (int i = 0; i < STAGES; i++) CHECK(fd[i] >= 0, "cannot open the connection %s", names[i]);
     uint8_t hdr[WIRE_HEADER_BYTES];
     wire_put_u32(hdr, 1001); /* a JSON frame of 1000 bytes that never completes */
@@ -1113,12 +1107,12 @@ TEST(hostile_idle_connections_are_closed_at_every_stage) {
     if (fd[WORKER_TRICKLE] >= 0) send(fd[WORKER_TRICKLE], hdr, sizeof hdr, MSG_NOSIGNAL);
     if (fd[PRE_TRICKLE] >= 0) send(fd[PRE_TRICKLE], hdr, sizeof hdr, MSG_NOSIGNAL);
     int open_left = STAGES;
-    for (int tick = 0; open_left > 0 && now_s() - t0 < 15 * harness_slack(); tick++) {
+    for (int tick = 0; open_left > 0 && util_now() - t0 < 15 * harness_slack(); tick++) {
         for (int i = 0; i < STAGES; i++) {
             if (fd[i] < 0 || closed_at[i] > 0) continue;
             if ((i == PRE_TRICKLE || i == WORKER_TRICKLE) && tick % 4 == 0) send(fd[i], "x", 1, MSG_NOSIGNAL);
             if (drained_to_eof(fd[i])) {
-                closed_at[i] = now_s() - t0;
+                closed_at[i] = util_now() - t0;
                 open_left--;
             }
         }
@@ -1243,10 +1237,10 @@ TEST(hostile_memory_budget_admits_what_fits) {
           "a frame that can never fit was not refused at submit with the figures (%d): %s", rc, out);
     coord_stop(&small_c);
     char cmd[1024];
-    double t0 = now_s();
+    double t0 = util_now();
     snprintf(cmd, sizeof cmd, "%s render tests/scenes/cornell-small.json %s --max-memory %s --workers 0 -o %s",
              harness_tessera(), side_args, tight_budget, util_temp_path("hostile-memory-render.pfm"));
     rc = util_run(cmd, out, sizeof out);
-    CHECK(rc != 0 && strstr(out, need) && strstr(out, is) && now_s() - t0 < 5 * harness_slack(),
-          "render of a frame it cannot hold was not refused up front (%d, %.1f s): %s", rc, now_s() - t0, out);
+    CHECK(rc != 0 && strstr(out, need) && strstr(out, is) && util_now() - t0 < 5 * harness_slack(),
+          "render of a frame it cannot hold was not refused up front (%d, %.1f s): %s", rc, util_now() - t0, out);
 }

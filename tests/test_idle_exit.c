@@ -22,12 +22,6 @@
 #define SCENE "tests/scenes/cornell-small.json"
 #define LONG 120.0 /* seconds: only hit when something is broken */
 
-static double mono_s(void) {
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-
 /* A fresh path under the test folder (static storage per call site). */
 static void temp_into(char *dst, size_t cap, const char *name) {
     snprintf(dst, cap, "%s", util_temp_path(name));
@@ -50,10 +44,10 @@ TEST(idle_exit_no_coordinator) {
     char log[256], addr[64];
     temp_into(log, sizeof log, "idle-none.log");
     snprintf(addr, sizeof addr, "127.0.0.1:%d", util_free_port()); /* nobody listens there */
-    double t0 = mono_s();
+    double t0 = util_now();
     pid_t w = start_idle_worker(log, addr, "lonely", "1", "0");
     int st = util_wait(w, LONG, NULL);
-    double took = mono_s() - t0;
+    double took = util_now() - t0;
     CHECK(st == 0, "worker exited with %d, want 0; log %s", st, log);
     CHECK(took >= 0.9 && took < 30, "worker left after %.2f s, want about 1 s", took);
     CHECK(util_file_count(log, "no coordinator reachable at 127.0.0.1:") == 1,
@@ -87,12 +81,12 @@ TEST(idle_exit_after_render_not_during) {
     CHECK(wst < 0, "the worker left during the render (status %d); logs %s %s", wst, clog, wlog);
     if (wst >= 0) kill(coord, SIGTERM); /* it has no worker left */
     int cst = util_wait(coord, LONG, NULL);
-    double coord_end = mono_s();
+    double coord_end = util_now();
     CHECK(cst == 0, "coordinator exited with %d; log %s", cst, clog);
     CHECK(util_same_file(img, ref), "image differs from the single-process render; logs %s %s", clog, wlog);
     CHECK(util_file_count(clog, "left: worker left") == 0, "the worker said bye during the render; log %s", clog);
     if (wst < 0) wst = util_wait(w, LONG, NULL);
-    double after = mono_s() - coord_end;
+    double after = util_now() - coord_end;
     CHECK(wst == 0, "worker exited with %d after the render, want 0; log %s", wst, wlog);
     CHECK(after < 12, "worker left %.2f s after the render ended, want within about 2 s", after);
     CHECK(util_file_count(wlog, "(--idle-exit 2); leaving") == 1, "no reason logged for leaving; log %s", wlog);
@@ -112,10 +106,10 @@ TEST(idle_exit_service_without_jobs) {
                            NULL};
     pid_t svc = util_spawn(sargv, slog);
     CHECK(util_wait_for_text(slog, "listening on", LONG) == 0, "service did not start; log %s", slog);
-    double t0 = mono_s();
+    double t0 = util_now();
     pid_t w = start_idle_worker(wlog, addr, "pool-1", "2.5", "0");
     int st = util_wait(w, LONG, NULL);
-    double took = mono_s() - t0;
+    double took = util_now() - t0;
     CHECK(st == 0, "worker exited with %d, want 0; log %s", st, wlog);
     CHECK(took >= 2.4 && took < 30, "worker left after %.2f s, want about 2.5 s", took);
     CHECK(util_file_count(wlog, "no work from the coordinator at 127.0.0.1:") == 1, "wrong or no reason; log %s",
@@ -153,9 +147,9 @@ TEST(worker_told_to_leave_while_connecting_exits) {
     pid_t w = util_spawn(argv, log);
     util_sleep(0.5); /* resolved, connect() issued and waiting */
     kill(w, SIGTERM);
-    double t0 = mono_s();
+    double t0 = util_now();
     int st = util_wait(w, 10, NULL);
-    double took = mono_s() - t0;
+    double took = util_now() - t0;
     CHECK(st == 0, "the worker did not leave cleanly on SIGTERM while connecting (status %d after %.1f s); log %s", st,
           took, log);
     CHECK(took < 5, "the worker took %.1f s to leave", took);

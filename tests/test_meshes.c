@@ -180,7 +180,7 @@ TEST(mesh_paired_shadow_rays_same_bytes) {
     static const char *const scenes[] = {ICO_SCENE, "scenes/features.json"};
     for (size_t p = 0; p < 2; p++) {
         char err[512];
-        scene_overrides ov = {48, 48, 8, -1, 0, 0, 0};
+        scene_overrides ov = {.width = 48, .height = 48, .spp = 8, .max_depth = -1};
         scene *s = scene_load(scenes[p], &ov, err, sizeof err);
         CHECK(s != NULL, "%s", err);
         if (!s) continue;

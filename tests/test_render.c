@@ -244,7 +244,7 @@ static void count_progress(void *ctx, int tiles_done, int tiles_total, const tra
  * (0.100 s before the fix). */
 TEST(render_frame_threads_end_when_the_last_tile_is_done) {
     char err[512];
-    scene_overrides ov = {8, 8, 1, -1, 0, 0, 0};
+    scene_overrides ov = {.width = 8, .height = 8, .spp = 1, .max_depth = -1};
     scene *s = scene_load("scenes/cornell-box.json", &ov, err, sizeof err);
     CHECK(s != NULL, "%s", err);
     if (!s) return;

@@ -1039,3 +1039,59 @@ TEST(service_over_ipv6_names_addresses_with_brackets) {
     worker_stop(w1);
     service_stop(&s);
 }
+
+/* A worker told to leave (SIGTERM) while it loads a big scene stops the
+ * load at its next step (between shapes, or within the BVH build) instead
+ * of finishing a load nobody will use: the log says "cancelled" and it
+ * exits well before the load would have ended. The scene: 40 instances of
+ * a 65,536-triangle grid (2.6M triangles; the OBJ parsed once). */
+TEST(service_worker_leaving_cancels_a_scene_load) {
+    service s = {0};
+    service_start(&s, "svc-cancel-load");
+    char obj[600], json[600], log[300], name[64];
+    snprintf(obj, sizeof obj, "%s", util_temp_path("cancel-grid.obj"));
+    FILE *f = fopen(obj, "w");
+    CHECK(f != NULL, "cannot write %s", obj);
+    if (!f) return;
+    const int n = 128; /* (n+1)^2 vertices, 2 n^2... 4 n^2 = 65,536 triangles: two grids of n x n quads */
+    for (int g = 0; g < 2; g++)
+        for (int y = 0; y <= n; y++)
+            for (int x = 0; x <= n; x++) fprintf(f, "v %d %d %d\n", x, y, g);
+    for (int g = 0; g < 2; g++)
+        for (int y = 0; y < n; y++)
+            for (int x = 0; x < n; x++) {
+                int a = g * (n + 1) * (n + 1) + y * (n + 1) + x + 1;
+                fprintf(f, "f %d %d %d\nf %d %d %d\n", a, a + 1, a + n + 2, a, a + n + 2, a + n + 1);
+            }
+    fclose(f);
+    char *text = malloc(1 << 20);
+    int len = snprintf(text, 1 << 20, "{\"render\": {\"width\": 64, \"height\": 64, \"spp\": 1}, \"camera\": "
+                       "{\"type\": \"perspective\", \"position\": [64, 64, -300], \"look_at\": [64, 64, 0], \"up\": [0, 1, 0], "
+                       "\"fov\": 40}, \"materials\": "
+                       "{\"m\": {\"type\": \"diffuse\", \"albedo\": [0.5, 0.5, 0.5]}}, \"shapes\": [");
+    for (int i = 0; i < 40; i++)
+        len += snprintf(text + len, (size_t)(1 << 20) - (size_t)len, "%s{\"type\": \"mesh\", \"file\": "
+                        "\"cancel-grid.obj\", \"material\": \"m\", \"translate\": [0, 0, %d]}", i ? ", " : "", 3 * i);
+    snprintf(text + len, (size_t)(1 << 20) - (size_t)len, "], \"background\": [1, 1, 1]}\n");
+    snprintf(json, sizeof json, "%s", util_write_temp("cancel-load.json", text));
+    free(text);
+    snprintf(log, sizeof log, "%s", util_temp_path("cancel-load-worker.log"));
+    snprintf(name, sizeof name, "%s", util_bin("tessera-worker"));
+    const char *argv[] = {name, "--connect", s.addr, "--threads", "1", "--name", "loader", "-v", NULL};
+    pid_t w = util_spawn(argv, log);
+    char out[8192];
+    int st = cli(&s, out, sizeof out, "submit %s", json);
+    CHECK(st == 0, "submit (%d): %s", st, out);
+    if (st == 0)
+        CHECK(util_wait_for_text(log, "job 1: scene ", LONG) == 0, "the worker never started the job; log %s", log);
+    util_sleep(0.3);
+    kill(w, SIGTERM);
+    double t0 = util_now();
+    st = util_wait(w, LONG, NULL);
+    double took = util_now() - t0;
+    CHECK(st == 0 && util_file_count(log, "cancelled") == 1 && !util_file_count(log, "loaded, "),
+          "the load was not cancelled (status %d, %.2f s); log %s", st, took, log);
+    CHECK(took < 5 * harness_slack(), "the worker took %.2f s to leave while loading; log %s", took, log);
+    printf("    left %.2f s after SIGTERM, 0.3 s into the load\n", took);
+    service_stop(&s);
+}

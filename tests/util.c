@@ -106,21 +106,21 @@ void util_sleep(double s) {
     nanosleep(&ts, NULL);
 }
 
-static double mono(void) {
+double util_now(void) {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
 int util_wait(pid_t pid, double timeout_s, long *maxrss_kb) {
-    double end = mono() + timeout_s;
+    double end = util_now() + timeout_s;
     int st;
     struct rusage ru;
     for (;;) {
         pid_t r = wait4(pid, &st, WNOHANG, &ru);
         if (r == pid) break;
         if (r < 0) return -1;
-        if (mono() > end) {
+        if (util_now() > end) {
             kill(pid, SIGKILL);
             waitpid(pid, &st, 0);
             return -1;
@@ -144,9 +144,9 @@ int util_file_count(const char *path, const char *text) {
 }
 
 int util_wait_for_text(const char *path, const char *text, double timeout_s) {
-    double end = mono() + timeout_s;
+    double end = util_now() + timeout_s;
     while (!util_file_count(path, text)) {
-        if (mono() > end) return -1;
+        if (util_now() > end) return -1;
         util_sleep(0.01);
     }
     return 0;

@@ -63,6 +63,9 @@ int util_touch(const char *path);
  * maxrss_kb, if not NULL, receives its peak resident memory. */
 int util_wait(pid_t pid, double timeout_s, long *maxrss_kb);
 
+/* Seconds on a clock that only goes forward (CLOCK_MONOTONIC). */
+double util_now(void);
+
 /* Wait up to timeout_s until the file at path contains text. Returns 0 or
  * -1 on timeout. */
 int util_wait_for_text(const char *path, const char *text, double timeout_s);

@@ -65,6 +65,7 @@ struct pool {
     pthread_t *threads;
     int thread_count;
     int stopping;
+    atomic_int leaving;    /* pool_leave: loads in progress give up */
     const char *hold_path; /* test hook, see test_hold(); NULL unless set */
     long hold_after, hold_seen;
     int fault_kind;       /* test hook, see test_fault(): 0 none, 1 scale, 2 flipbit, 3 crash, 4 fail */
@@ -139,13 +140,20 @@ static void pool_log(pool *p, const char *fmt, ...) {
     p->cfg.log(p->cfg.log_ctx, line);
 }
 
+/* scene_cancel_cb of the pool's loads: once it is leaving. */
+static int pool_leaving(void *ctx) {
+    pool *p = ctx;
+    return atomic_load_explicit(&p->leaving, memory_order_relaxed);
+}
+
 /* Build job j's scene if no thread has yet. Returns 0 when it is ready. */
 static int job_ensure_scene(pool *p, pool_job *j) {
     pool_scene *sc = j->sc;
     pthread_mutex_lock(&sc->load_lock);
     if (sc->load_state == 0) {
         double t0 = pool_clock();
-        scene_overrides ov = {sc->width, sc->height, sc->spp, sc->max_depth, 1, sc->seed, 0};
+        scene_overrides ov = {.width = sc->width, .height = sc->height, .spp = sc->spp, .max_depth = sc->max_depth,
+                              .has_seed = 1, .seed = sc->seed, .cancelled = pool_leaving, .cancel_ctx = p};
         ov.no_accel = 1; /* built below, once the bundle is gone */
         sc->s = scene_memory_check(&sc->bundle, sc->load_error, sizeof sc->load_error) ? NULL
                 : scene_load_bundle(&sc->bundle, &ov, sc->load_error, sizeof sc->load_error);
@@ -378,7 +386,7 @@ pool *pool_new(const pool_config *cfg) {
 
 void pool_free(pool *p) {
     if (!p) return;
-    pool_cancel_all(p);
+    pool_leave(p);
     pthread_mutex_lock(&p->lock);
     p->stopping = 1;
     pthread_cond_broadcast(&p->cond);
@@ -551,11 +559,18 @@ int pool_cancel(pool *p, uint32_t job, uint32_t tile) {
     return n > 0;
 }
 
-void pool_cancel_all(pool *p) {
+
+/* Cancel every task (queued ones come back as TASK_CANCELLED). */
+static void pool_cancel_all(pool *p) {
     pthread_mutex_lock(&p->lock);
     int n = cancel_matching(p, NULL, 0, 0);
     pthread_mutex_unlock(&p->lock);
     if (n) p->cfg.wake(p->cfg.wake_ctx);
+}
+
+void pool_leave(pool *p) {
+    atomic_store(&p->leaving, 1);
+    pool_cancel_all(p);
 }
 
 pool_task *pool_take_done(pool *p) {

@@ -482,7 +482,7 @@ static void worker_leave(worker *w) {
         uint8_t *frame = proto_frame_simple("bye", &len);
         worker_send(w, frame, len);
     }
-    pool_cancel_all(w->pool);
+    pool_leave(w->pool); /* a scene being loaded too */
     if (w->c) conn_close(w->c, "leaving", 1);
 }
 

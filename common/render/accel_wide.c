@@ -115,7 +115,21 @@ typedef struct {
     unsigned leaf_lanes; /* 4 (wide_leaf4) or 8 (wide_leaf8) */
     atomic_size_t nodes, leaves;
     atomic_size_t oversized; /* a leaf the builder made with more than leaf_lanes primitives (0: none) */
+    atomic_int cancelled;    /* the scene's cancel callback said so (cb_progress) */
 } build_ctx;
+
+/* The builder's progress monitor: false stops the build (rtcBuildBVH then
+ * returns NULL) once the scene's cancel callback says so. Embree calls it
+ * as subtrees are finished: a cancel took 0.2-0.9 s to take effect in a
+ * 2.6M-triangle SAH build of about 1.1 s. (A NULL node would not stop
+ * the build sooner: Embree hands it to cb_set_bounds.) */
+static bool cb_progress(void *user, double done) {
+    build_ctx *b = user;
+    (void)done;
+    if (!b->s->cancelled || !b->s->cancelled(b->s->cancel_ctx)) return true;
+    atomic_store(&b->cancelled, 1);
+    return false;
+}
 
 static void *cb_create_node(RTCThreadLocalAllocator alloc, unsigned int child_count, void *user) {
     build_ctx *b = user;
@@ -271,6 +285,7 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
     args.setNodeBounds = cb_set_bounds;
     args.createLeaf = cb_create_leaf;
     args.userPtr = &b;
+    args.buildProgress = cb_progress;
     w->root = (uintptr_t)rtcBuildBVH(&args);
     /* The tree is in the arena: the RTCBVH holds only its builder's arrays
      * (256 MiB at 10.5M triangles), freed now rather than with the tree. */
@@ -283,8 +298,9 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
         accel_wide_free(w);
         return NULL;
     }
-    if (!w->root || w->dev.error[0]) {
-        snprintf(err, err_len, "building the wide BVH: %s", w->dev.error[0] ? w->dev.error : "out of memory");
+    if (atomic_load(&b.cancelled) || !w->root || w->dev.error[0]) {
+        snprintf(err, err_len, "building the wide BVH: %s",
+                 atomic_load(&b.cancelled) ? "cancelled" : w->dev.error[0] ? w->dev.error : "out of memory");
         accel_wide_free(w);
         return NULL;
     }

@@ -68,6 +68,12 @@ typedef struct {
     accel_kind accel; /* render.accel: "auto" (default), "bvh", "flat", "embree" or "wide" */
 } render_settings;
 
+/* Asked between the steps of a load and during an acceleration build,
+ * from the loading thread (and the build's): non-zero makes the load give
+ * up with "cancelled" (a worker told to leave). Must be cheap and
+ * thread-safe. */
+typedef int (*scene_cancel_cb)(void *ctx);
+
 /* Command-line overrides; a negative value (or has_seed == 0) means "keep
  * what the scene file says". */
 typedef struct {
@@ -76,6 +82,8 @@ typedef struct {
     uint64_t seed;
     int no_accel; /* 1: leave scene.accel NULL (a coordinator that only hands the scene out, or a
                    * caller that frees the bundle first, then calls scene_build_accel) */
+    scene_cancel_cb cancelled; /* NULL: never; kept in the scene for scene_build_accel */
+    void *cancel_ctx;
 } scene_overrides;
 
 typedef struct {
@@ -186,6 +194,11 @@ typedef struct scene {
     float *corner_uvs;    /* 2 per corner, glTF convention (v down the image) */
     struct texture *textures; /* render/texture.h */
     uint32_t texture_count;
+
+    /* The load's scene_overrides.cancelled and its context, asked by
+     * scene_build_accel's build too; NULL for none. */
+    scene_cancel_cb cancelled;
+    void *cancel_ctx;
 } scene;
 
 /* Load and validate a scene file. On success returns the scene (free it with

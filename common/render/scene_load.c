@@ -617,6 +617,7 @@ static void plan_shapes(loader *L, const cJSON *shapes) {
         parsed_file *p = NULL;
         for (size_t i = 0; i < L->parsed_count && !p; i++) p = L->parsed[i].f == f ? &L->parsed[i] : NULL;
         if (!p) {
+            if (L->s->cancelled && L->s->cancelled(L->s->cancel_ctx)) return; /* load_shapes says so */
             if (!(p = push((void **)&L->parsed, &L->parsed_count, &L->parsed_cap, sizeof *p))) return;
             p->f = f;
             p->taken = 0;
@@ -857,6 +858,15 @@ static int load_shape(loader *L, const cJSON *sh, const char *where) {
                    "or model)", type);
 }
 
+/* Whether the caller asked the load to stop (scene_overrides.cancelled):
+ * -1 with "FILE: cancelled" in the error, else 0. Asked between steps. */
+static int load_cancelled(loader *L) {
+    scene *s = L->s;
+    if (!s->cancelled || !s->cancelled(s->cancel_ctx)) return 0;
+    snprintf(L->j.err, L->j.err_len, "%s: cancelled", L->j.file);
+    return -1;
+}
+
 static int load_shapes(loader *L, const cJSON *root) {
     const cJSON *shapes = cJSON_GetObjectItemCaseSensitive(root, "shapes");
     if (!shapes) return 0;
@@ -866,7 +876,7 @@ static int load_shapes(loader *L, const cJSON *root) {
     for (const cJSON *sh = shapes->child; sh; sh = sh->next, i++) {
         char where[64];
         snprintf(where, sizeof where, "shapes[%d]", i);
-        if (load_shape(L, sh, where)) return -1;
+        if (load_cancelled(L) || load_shape(L, sh, where)) return -1;
     }
     free_parsed(L); /* before the scene is assembled, the peak of the load */
     return 0;
@@ -1171,13 +1181,17 @@ static int load_root(loader *L, const cJSON *root, const scene_overrides *ov) {
     } else if (load_camera(L, root)) {
         return -1;
     }
-    if (assemble(L) || assemble_shading(L)) return -1;
+    if (load_cancelled(L) || assemble(L) || load_cancelled(L) || assemble_shading(L)) return -1;
     record_features(L->s);
     return 0;
 }
 
 int scene_build_accel(scene *s, char *err, size_t err_len) {
     char why[256];
+    if (s->cancelled && s->cancelled(s->cancel_ctx)) {
+        snprintf(err, err_len, "%s: cancelled", s->path);
+        return -1;
+    }
     s->accel = accel_build_err(s, s->settings.accel, why, sizeof why);
     if (s->accel) return 0;
     snprintf(err, err_len, "%s: shapes: building the intersector: %s", s->path, why);
@@ -1197,6 +1211,10 @@ scene *scene_load_bundle(const scene_bundle *b, const scene_overrides *ov, char 
     L.j.err_len = err_len;
     L.bundle = b;
     L.s = calloc(1, sizeof(scene));
+    if (L.s && ov) {
+        L.s->cancelled = ov->cancelled;
+        L.s->cancel_ctx = ov->cancel_ctx;
+    }
     cJSON *root = L.s ? jf_parse(&L.j, b->files[0].data, b->files[0].len) : NULL;
     int rc = root ? load_root(&L, root, ov) : -1;
     if (!L.s) snprintf(err, err_len, "%s: out of memory", path);

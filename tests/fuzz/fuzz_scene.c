@@ -16,7 +16,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     scene_bundle_file files[2] = {{"fuzz.json", text, size, NULL}, {"m.obj", text, size, NULL}};
     scene_bundle b = {files, 2};
     char err[1024];
-    scene_overrides ov = {64, 64, -1, -1, 0, 0, 0}; /* keep the BVH and image small */
+    scene_overrides ov = {.width = 64, .height = 64, .spp = -1, .max_depth = -1}; /* a small image */
     scene *s = scene_load_bundle(&b, &ov, err, sizeof err);
     if (!s && !err[0]) abort(); /* a refusal must say why */
     scene_free(s);
