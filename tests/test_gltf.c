@@ -2,6 +2,7 @@
  * importer, refusals of bad files, textures (decoding, limits, sRGB, wrap
  * modes, orientation), shading with textures and the same bytes from any
  * farm layout. Scenes from scenes/gltf (bench/gltf/make_scenes.py). */
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -652,4 +653,31 @@ TEST(gltf_obj_missing_material_library_is_one_warning) {
     CHECK(rc == 0 && w && strstr(w, "nomtl-gone.mtl: cannot open: No such file or directory; its materials are "
                                     "rendered grey") && !strstr(w + 1, "warning:"),
           "a missing MTL (%d): %s", rc, out);
+}
+
+/* A model through stdin or a pipe, which has no name to tell its kind:
+ * GLB by its magic, glTF by its "asset" object. It renders as the file
+ * does (same bytes); a glTF's buffers resolve against the current folder. */
+TEST(gltf_model_from_stdin_or_a_pipe) {
+    char cmd[8192], out[8192], a[512], b[512], c[512], bin[PATH_MAX];
+    CHECK(realpath(harness_tessera(), bin) != NULL, "cannot resolve %s", harness_tessera());
+    snprintf(a, sizeof a, "%s", util_temp_path("stdin-file.pfm"));
+    snprintf(b, sizeof b, "%s", util_temp_path("stdin-piped.pfm"));
+    snprintf(c, sizeof c, "%s", util_temp_path("stdin-gltf.pfm"));
+    static const char *const models[] = {"suzanne.glb", "arrow-plane.gltf"};
+    for (int i = 0; i < 2; i++) {
+        snprintf(cmd, sizeof cmd, "cd scenes/gltf && %s render %s --width 48 --spp 2 --workers 0 -q -o %s 2>&1", bin,
+                 models[i], a);
+        int rc = util_run(cmd, out, sizeof out);
+        CHECK(rc == 0, "%s (%d): %s", models[i], rc, out);
+        snprintf(cmd, sizeof cmd, "cd scenes/gltf && cat %s | %s render - --width 48 --spp 2 --workers 0 -q -o %s 2>&1",
+                 models[i], bin, b);
+        rc = util_run(cmd, out, sizeof out);
+        CHECK(rc == 0 && util_same_file(a, b), "%s through stdin (%d): %s", models[i], rc, out);
+    }
+    snprintf(cmd, sizeof cmd, "cat scenes/gltf/arrow-plane.gltf | %s render - --width 48 --spp 2 --workers 0 -q -o %s 2>&1",
+             harness_tessera(), c);
+    int rc = util_run(cmd, out, sizeof out);
+    CHECK(rc == 1 && strstr(out, "<stdin>: import.file: stdin.gltf: buffers[0].uri: ./arrow-plane.bin: cannot open"),
+          "a glTF on stdin whose buffer is not in the current folder (%d): %s", rc, out);
 }

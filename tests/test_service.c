@@ -1095,3 +1095,25 @@ TEST(service_worker_leaving_cancels_a_scene_load) {
     printf("    left %.2f s after SIGTERM, 0.3 s into the load\n", took);
     service_stop(&s);
 }
+
+/* submit - < model.glb: the streamed model is uploaded (it is no file, so
+ * the check that uploads stay under the scene's folder passes it) and
+ * renders the bytes `tessera render model.glb` gives. */
+TEST(service_submit_of_a_model_from_stdin) {
+    service s = {0};
+    service_start(&s, "svc-stdin-model");
+    pid_t w = worker_start(&s, "sm", "0");
+    char out[8192], a[256], b[256], cmd[4096];
+    snprintf(a, sizeof a, "%s", util_temp_path("svc-stdin-model.pfm"));
+    snprintf(b, sizeof b, "%s", util_temp_path("svc-stdin-model-ref.pfm"));
+    snprintf(cmd, sizeof cmd, "TESSERA_COORDINATOR=%s %s submit - --width 48 --spp 2 --wait -q -o %s "
+             "< scenes/gltf/suzanne.glb 2>&1", s.addr, harness_tessera(), a);
+    int st = util_run(cmd, out, sizeof out);
+    CHECK(st == 0, "submit - < suzanne.glb (%d): %s", st, out);
+    snprintf(cmd, sizeof cmd, "%s render scenes/gltf/suzanne.glb --width 48 --spp 2 --workers 0 -q -o %s 2>&1",
+             harness_tessera(), b);
+    st = util_run(cmd, out, sizeof out);
+    CHECK(st == 0 && util_same_file(a, b), "the streamed model's image differs from the file's (%d): %s", st, out);
+    worker_stop(w);
+    service_stop(&s);
+}

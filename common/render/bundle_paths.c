@@ -18,7 +18,7 @@ int bundle_paths_check(const scene_bundle *b, const char *scene_path, char *err,
     size_t rl = strlen(root);
     for (size_t i = 1; i < b->count; i++) {
         const char *name = b->files[i].name;
-        if (!b->files[i].data) continue; /* unreadable: the loader names it */
+        if (!b->files[i].data || b->files[i].streamed) continue; /* unreadable (the loader names it); not a file */
         if (name[0] == '/') snprintf(path, sizeof path, "%s", name);
         else snprintf(path, sizeof path, "%s/%s", dir, name);
         int inside = realpath(path, real) && strncmp(real, root, rl) == 0 &&

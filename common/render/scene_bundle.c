@@ -171,6 +171,34 @@ static void warn_missing_materials(const scene_bundle *b) {
             fprintf(stderr, "warning: material library %s; its materials are rendered grey\n", b->files[i].error);
 }
 
+/* A model that came through stdin or a pipe, which has no name to tell its
+ * kind by: binary glTF by its magic, glTF JSON by its "asset" object (a
+ * scene file has none). Returns the entry name it gets ("stdin.glb",
+ * "pipe.gltf", ...), or NULL for anything else (a scene). */
+static const char *streamed_model_name(const char *data, size_t len, int from_stdin) {
+    if (len >= 12 && memcmp(data, "glTF", 4) == 0) return from_stdin ? "stdin.glb" : "pipe.glb";
+    if (len == 0 || memchr(data, '{', len < 64 ? len : 64) == NULL) return NULL;
+    cJSON *root = cJSON_ParseWithLength(data, len);
+    int gltf = cJSON_IsObject(cJSON_GetObjectItemCaseSensitive(root, "asset"));
+    cJSON_Delete(root);
+    return !gltf ? NULL : from_stdin ? "stdin.gltf" : "pipe.gltf";
+}
+
+/* b->files[0] holds a streamed model's bytes: move them to an entry of
+ * their own named `name`, read what it references against dir, and make
+ * files[0] the scene that imports it (as for a model file given by name).
+ * Returns 0, or -1 when out of memory. */
+static int bundle_stream_model(scene_bundle *b, const char *name, const char *dir) {
+    scene_bundle_file *m = bundle_add(b, name);
+    if (!m) return -1;
+    m->data = b->files[0].data;
+    m->len = b->files[0].len;
+    m->streamed = 1;
+    b->files[0].data = model_scene_json(name, NULL, &b->files[0].len);
+    if (!b->files[0].data) return -1;
+    return bundle_read_references(b, dir, b->count - 1);
+}
+
 int scene_bundle_read(const char *path, scene_bundle *out, char *err, size_t err_len) {
     memset(out, 0, sizeof *out);
     int from_stdin = strcmp(path, "-") == 0;
@@ -189,6 +217,8 @@ int scene_bundle_read(const char *path, scene_bundle *out, char *err, size_t err
     }
     char dir[4096];
     scene_bundle_folder(path, dir, sizeof dir);
+    const char *streamed = from_stdin || is_pipe(path) ? streamed_model_name(f->data, f->len, from_stdin) : NULL;
+    if (streamed && bundle_stream_model(out, streamed, dir)) goto oom;
     if (bundle_read_meshes(out, dir) == 0) {
         warn_missing_materials(out);
         return 0;

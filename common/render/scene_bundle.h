@@ -27,6 +27,7 @@ typedef struct {
     char *data;  /* contents, NUL-terminated; NULL if it could not be read */
     size_t len;
     char *error; /* why data is NULL ("meshes/x.obj: No such file ..."), else NULL */
+    int streamed; /* a model read from stdin or a pipe ("stdin.glb"): no file of that name */
 } scene_bundle_file;
 
 typedef struct {
