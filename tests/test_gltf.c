@@ -680,4 +680,9 @@ TEST(gltf_model_from_stdin_or_a_pipe) {
     int rc = util_run(cmd, out, sizeof out);
     CHECK(rc == 1 && strstr(out, "<stdin>: import.file: stdin.gltf: buffers[0].uri: ./arrow-plane.bin: cannot open"),
           "a glTF on stdin whose buffer is not in the current folder (%d): %s", rc, out);
+    snprintf(cmd, sizeof cmd, "cd scenes/gltf && %s render - --camera Nope --width 48 --spp 2 -q -o %s < "
+             "arrow-plane.gltf 2>&1", bin, c);
+    rc = util_run(cmd, out, sizeof out);
+    CHECK(rc == 1 && strstr(out, "<stdin>: import.camera: stdin.gltf: no camera named \"Nope\""),
+          "--camera of a model on stdin (%d): %s", rc, out);
 }

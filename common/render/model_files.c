@@ -198,6 +198,7 @@ char *model_scene_json(const char *path, const char *camera, size_t *len) {
 
 int model_bundle_select_camera(scene_bundle *b, const char *camera, char *err, size_t err_len) {
     const char *path = b->files[0].name;
+    if (b->count > 1 && b->files[1].streamed) path = b->files[1].name; /* a model from stdin or a pipe */
     if (model_kind_of(path) == MODEL_NONE || model_kind_of(path) == MODEL_MTL) {
         snprintf(err, err_len, "%s: --camera applies to glTF and OBJ files, not to a JSON scene", path);
         return -1;
