@@ -113,7 +113,8 @@ static char *read_stream(FILE *f, const char *name, size_t max, size_t *len, cha
         if (n == cap) {
             char *bigger = cap < max ? realloc(buf, 2 * cap + 1) : NULL;
             if (!bigger) {
-                snprintf(err, err_len, "%s: %s", name, cap < max ? "out of memory" : "more than the limit of 64 MiB");
+                if (cap < max) snprintf(err, err_len, "%s: out of memory", name);
+                else snprintf(err, err_len, "%s: more than the limit of %zu MiB", name, max >> 20);
                 free(buf);
                 return NULL;
             }
@@ -139,16 +140,18 @@ static int is_pipe(const char *path) {
 }
 
 /* The scene text at path (a file or a pipe) into *len bytes, malloc'd and
- * NUL-terminated; NULL with "PATH: reason" in err. */
+ * NUL-terminated; NULL with "PATH: reason" in err. What comes through
+ * stdin or a pipe may be a model (streamed_model_name), so it may be as
+ * long as a mesh file; the caller holds a scene to BUNDLE_SCENE_MAX. */
 static char *read_scene_text(const char *path, size_t *len, char *err, size_t err_len) {
-    if (strcmp(path, "-") == 0) return read_stream(stdin, "<stdin>", BUNDLE_SCENE_MAX, len, err, err_len);
+    if (strcmp(path, "-") == 0) return read_stream(stdin, "<stdin>", BUNDLE_MESH_MAX, len, err, err_len);
     if (!is_pipe(path)) return file_read_all(path, BUNDLE_SCENE_MAX, len, err, err_len);
     FILE *f = fopen(path, "rb");
     if (!f) {
         snprintf(err, err_len, "%s: cannot open: %s", path, strerror(errno));
         return NULL;
     }
-    char *text = read_stream(f, path, BUNDLE_SCENE_MAX, len, err, err_len);
+    char *text = read_stream(f, path, BUNDLE_MESH_MAX, len, err, err_len);
     fclose(f);
     return text;
 }
@@ -217,7 +220,13 @@ int scene_bundle_read(const char *path, scene_bundle *out, char *err, size_t err
     }
     char dir[4096];
     scene_bundle_folder(path, dir, sizeof dir);
-    const char *streamed = from_stdin || is_pipe(path) ? streamed_model_name(f->data, f->len, from_stdin) : NULL;
+    int stream = from_stdin || is_pipe(path);
+    const char *streamed = stream ? streamed_model_name(f->data, f->len, from_stdin) : NULL;
+    if (stream && !streamed && f->len > BUNDLE_SCENE_MAX) {
+        snprintf(err, err_len, "%s: more than the limit of %u MiB", f->name, BUNDLE_SCENE_MAX >> 20);
+        scene_bundle_free(out);
+        return -1;
+    }
     if (streamed && bundle_stream_model(out, streamed, dir)) goto oom;
     if (bundle_read_meshes(out, dir) == 0) {
         warn_missing_materials(out);
