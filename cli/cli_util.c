@@ -53,3 +53,8 @@ void cli_default_output(const char *scene_path, char *out, size_t n) {
     const char *dot = strrchr(base, '.');
     snprintf(out, n, "%.*s.png", dot ? (int)(dot - base) : (int)strlen(base), base);
 }
+
+void cli_note_terminal_scene(const char *scene_path) {
+    if (strcmp(scene_path, "-") == 0 && isatty(STDIN_FILENO))
+        fprintf(stderr, "tessera: reading the scene from the terminal; end it with Ctrl-D\n");
+}

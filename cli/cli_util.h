@@ -30,4 +30,8 @@ void cli_progress_show(cli_progress_state *p, int done, int total, double sample
  * folder ("scenes/box.json" -> "box.png"). Can't fail. */
 void cli_default_output(const char *scene_path, char *out, size_t n);
 
+/* Scene "-" with stdin a terminal: say that the scene is read from it and
+ * how to end it, so the wait is not mistaken for a hang. Can't fail. */
+void cli_note_terminal_scene(const char *scene_path);
+
 #endif

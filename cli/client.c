@@ -571,6 +571,7 @@ static int do_submit(const cli_args *a, const char *scene_path) {
     if (a->wait && image_check_path(out, err, sizeof err)) /* before the upload and the wait */
         return cli_fail("%s (nothing submitted)", err);
     scene_bundle b;
+    cli_note_terminal_scene(scene_path);
     if (scene_bundle_read(scene_path, &b, err, sizeof err)) return cli_fail("%s", err);
     if ((a->camera && model_bundle_select_camera(&b, a->camera, err, sizeof err)) ||
         bundle_paths_check(&b, scene_path, err, sizeof err)) { /* never send a file from outside the scene's folder */

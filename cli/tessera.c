@@ -520,6 +520,7 @@ static int cmd_render(int argc, char **argv) {
         return 1;
     }
     scene_bundle b;
+    cli_note_terminal_scene(a.scene_path);
     if (scene_bundle_read(a.scene_path, &b, err, sizeof err) ||
         (a.camera && model_bundle_select_camera(&b, a.camera, err, sizeof err))) {
         fprintf(stderr, "tessera: %s\n", err);
