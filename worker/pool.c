@@ -152,9 +152,10 @@ static int job_ensure_scene(pool *p, pool_job *j) {
     pthread_mutex_lock(&sc->load_lock);
     if (sc->load_state == 0) {
         double t0 = pool_clock();
+        /* no_accel: the intersector is built below, once the bundle is gone */
         scene_overrides ov = {.width = sc->width, .height = sc->height, .spp = sc->spp, .max_depth = sc->max_depth,
-                              .has_seed = 1, .seed = sc->seed, .cancelled = pool_leaving, .cancel_ctx = p};
-        ov.no_accel = 1; /* built below, once the bundle is gone */
+                              .has_seed = 1, .seed = sc->seed, .no_accel = 1, .cancelled = pool_leaving,
+                              .cancel_ctx = p};
         sc->s = scene_memory_check(&sc->bundle, sc->load_error, sizeof sc->load_error) ? NULL
                 : scene_load_bundle(&sc->bundle, &ov, sc->load_error, sizeof sc->load_error);
         scene_bundle_free(&sc->bundle); /* the scene holds what it needs: the meshes' text goes before the build */
@@ -558,7 +559,6 @@ int pool_cancel(pool *p, uint32_t job, uint32_t tile) {
     if (n) p->cfg.wake(p->cfg.wake_ctx);
     return n > 0;
 }
-
 
 /* Cancel every task (queued ones come back as TASK_CANCELLED). */
 static void pool_cancel_all(pool *p) {

@@ -92,10 +92,10 @@ int pool_push(pool *p, pool_job *j, const proto_assign *a, uint64_t generation);
 int pool_cancel(pool *p, uint32_t job, uint32_t tile);
 
 /* The worker is leaving: every task is cancelled (queued ones come back
- * as TASK_CANCELLED), and a scene being loaded stops
- * at its next step (between mesh files and shapes, or within the BVH
- * build) and fails with "cancelled", so that pool_free does not wait for
- * a load whose result nobody will use. Irreversible. */
+ * as TASK_CANCELLED), and a scene being loaded stops at its next step
+ * (between mesh files and shapes, or within the BVH build) and fails with
+ * "cancelled", so that pool_free does not wait for a load whose result
+ * nobody will use. Irreversible. */
 void pool_leave(pool *p);
 
 /* Finished tasks, oldest first: the first, the others following it by
