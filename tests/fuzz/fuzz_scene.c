@@ -13,7 +13,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     if (!text) return 0;
     memcpy(text, data, size);
     text[size] = '\0';
-    scene_bundle_file files[2] = {{"fuzz.json", text, size, NULL}, {"m.obj", text, size, NULL}};
+    scene_bundle_file files[2] = {{.name = "fuzz.json", .data = text, .len = size},
+                                  {.name = "m.obj", .data = text, .len = size}};
     scene_bundle b = {files, 2};
     char err[1024];
     scene_overrides ov = {.width = 64, .height = 64, .spp = -1, .max_depth = -1}; /* a small image */
