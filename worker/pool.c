@@ -21,20 +21,19 @@
 #include "render/scene_memory.h"
 
 /* A loaded scene and the jobs that share it: those of one bundle (by hash)
- * with the settings a tile reads from the scene (width and height: the
- * camera's rays and the pixels' seeds; max_depth; seed). Not spp: a worker
- * is told each tile's samples (render_tile_means, render_tile_sums), and
- * only the in-process renderer reads settings.spp, so a shared scene keeps
- * the spp of the job that loaded it. An adaptive render's rounds are jobs
- * of their own with one key, as are a service's jobs of one scene at any
- * spp (a preview, then the final): they load it once. Once its last job is
- * gone it is kept for cfg.keep_s (pool_trim), or until a job needs a scene
- * it is not; a failed load is never shared. */
+ * at one image size (the load depends on it: an imported model's
+ * automatic camera frames it for the aspect ratio). The settings the load
+ * only stores (seed, max_depth, spp) are each job's own: its tiles are
+ * rendered through job_view. An adaptive render's rounds are jobs of their
+ * own with one key, as are a service's jobs of one scene at any spp, seed
+ * or depth (a preview, then the final): they load it once. Once its last
+ * job is gone it is kept for cfg.keep_s (pool_trim), or until a job needs
+ * a scene it is not; a failed load is never shared. */
 typedef struct pool_scene {
     char hash[SCENE_BUNDLE_HASH_HEX];
-    int width, height, max_depth;
+    int width, height;
+    int max_depth, spp;  /* the loading job's, as is seed: stored in the scene, replaced by job_view */
     uint64_t seed;
-    int spp;             /* the loading job's: in the scene, never read on this path (above) */
     scene_bundle bundle; /* until the scene is loaded */
     scene *s;
     int load_state;      /* under load_lock: 0 not tried, 1 loaded, -1 failed (load_error says why) */
@@ -138,6 +137,17 @@ static void pool_log(pool *p, const char *fmt, ...) {
     vsnprintf(line, sizeof line, fmt, ap);
     va_end(ap);
     p->cfg.log(p->cfg.log_ctx, line);
+}
+
+/* The scene as job j renders it: its loaded scene with the job's own seed,
+ * depth and spp. A shallow copy (plain struct): everything else is the
+ * shared scene's, read-only; nothing in a load depends on these three. */
+static scene job_view(const pool_job *j) {
+    scene v = *j->sc->s;
+    v.settings.seed = j->desc.seed;
+    v.settings.max_depth = j->desc.max_depth;
+    v.settings.spp = j->desc.spp;
+    return v;
 }
 
 /* scene_cancel_cb of the pool's loads: once it is leaving. */
@@ -302,9 +312,10 @@ static void task_render(pool *p, pool_task *t) {
     t->status = TASK_FAILED;
     snprintf(t->error, sizeof t->error, "out of memory for tile %u", a->tile);
     if (accum && rgb) {
-        int rc = adaptive ? render_tile_sums(j->sc->s, &j->desc.integrator, &a->rect, a->first, a->count, a->mask, rgb,
+        scene view = job_view(j);
+        int rc = adaptive ? render_tile_sums(&view, &j->desc.integrator, &a->rect, a->first, a->count, a->mask, rgb,
                                              &hdr.stats, &t->cancel)
-                          : render_tile_means(j->sc->s, &j->desc.integrator, &a->rect, j->desc.spp, 1, accum, rgb,
+                          : render_tile_means(&view, &j->desc.integrator, &a->rect, j->desc.spp, 1, accum, rgb,
                                               &hdr.stats, &t->cancel);
         if (rc == 0 && (p->fault_kind == 1 || p->fault_kind == 2)) test_fault(p, t, rgb, (size_t)channels * (size_t)w * (size_t)h);
         if (rc != 0) {
@@ -418,7 +429,7 @@ static pool_scene *scene_find(pool *p, const proto_job *d) {
     pool_scene *sc;
     LIST_FOREACH(sc, &p->scenes, link)
         if (strcmp(sc->hash, d->scene_hash) == 0 && sc->width == d->width && sc->height == d->height &&
-            sc->max_depth == d->max_depth && sc->seed == d->seed && !atomic_load(&sc->failed))
+            !atomic_load(&sc->failed))
             return sc;
     return NULL;
 }
