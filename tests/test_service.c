@@ -1118,33 +1118,49 @@ TEST(service_submit_of_a_model_from_stdin) {
     service_stop(&s);
 }
 
-/* Jobs of one scene at one size but another seed or depth share the
- * worker's loaded scene (each renders through its own view of it) and
- * give the bytes a render of their own settings gives. */
-TEST(service_jobs_of_other_seeds_share_a_loaded_scene) {
+/* Jobs of one scene at another size, seed or depth share the worker's
+ * loaded scene (each renders through its own view of it) and give the
+ * bytes a render of their own settings gives; a model framed by the
+ * automatic camera (an OBJ alone) is loaded again for another size, as its
+ * camera depends on the aspect ratio. */
+TEST(service_jobs_of_other_sizes_and_seeds_share_a_loaded_scene) {
     service s = {0};
     service_start(&s, "svc-share-seed");
-    char wlog[300], name[4096], out[8192], img[2][256], ref[256], cmd[4096];
+    char wlog[300], name[4096], out[8192], img[3][256], ref[256], cmd[4096];
     snprintf(wlog, sizeof wlog, "%s", util_temp_path("share-seed-worker.log"));
     snprintf(name, sizeof name, "%s", util_bin("tessera-worker"));
     const char *argv[] = {name, "--connect", s.addr, "--threads", "1", "--name", "sharer", "-v", NULL};
     pid_t w = util_spawn(argv, wlog);
-    static const char *const opts[2] = {"--seed 1 --max-depth 8", "--seed 7 --max-depth 3"};
-    for (int i = 0; i < 2; i++) {
-        snprintf(img[i], sizeof img[i], "%s", util_temp_path(i ? "share-seed-b.pfm" : "share-seed-a.pfm"));
-        int st = cli(&s, out, sizeof out, "submit " SCENE " --width 32 --height 32 --spp 4 %s --wait -q -o %s", opts[i],
-                     img[i]);
+    static const char *const opts[3] = {"--width 32 --height 32 --seed 1 --max-depth 8",
+                                        "--width 32 --height 32 --seed 7 --max-depth 3",
+                                        "--width 40 --height 24 --seed 1 --max-depth 8"};
+    for (int i = 0; i < 3; i++) {
+        snprintf(img[i], sizeof img[i], "%s", util_temp_path(i == 0 ? "share-a.pfm" : i == 1 ? "share-b.pfm" : "share-c.pfm"));
+        int st = cli(&s, out, sizeof out, "submit " SCENE " --spp 4 %s --wait -q -o %s", opts[i], img[i]);
         CHECK(st == 0, "job %d (%d): %s", i + 1, st, out);
-        snprintf(ref, sizeof ref, "%s", util_temp_path("share-seed-ref.pfm"));
-        snprintf(cmd, sizeof cmd, "%s render " SCENE " --width 32 --height 32 --spp 4 %s --workers 0 -q -o %s 2>&1",
-                 harness_tessera(), opts[i], ref);
+        snprintf(ref, sizeof ref, "%s", util_temp_path("share-ref.pfm"));
+        snprintf(cmd, sizeof cmd, "%s render " SCENE " --spp 4 %s --workers 0 -q -o %s 2>&1", harness_tessera(), opts[i],
+                 ref);
         st = util_run(cmd, out, sizeof out);
         CHECK(st == 0 && util_same_file(img[i], ref), "job %d (%s) differs from its in-process render (%d): %s", i + 1,
               opts[i], st, out);
     }
     CHECK(!util_same_file(img[0], img[1]), "the two seeds gave the same image");
     int loads = util_file_count(wlog, " loaded, "), shared = util_file_count(wlog, "shared, not loaded again");
-    CHECK(loads == 1 && shared == 1, "want 1 load and 1 shared, got %d and %d; log %s", loads, shared, wlog);
+    CHECK(loads == 1 && shared == 2, "want 1 load and 2 shared, got %d and %d; log %s", loads, shared, wlog);
+    for (int i = 0; i < 2; i++) {
+        int st = cli(&s, out, sizeof out, "submit scenes/meshes/tetrahedron.obj --width %d --height 24 --spp 2 --wait -q "
+                     "-o %s", i ? 40 : 32, img[i]);
+        CHECK(st == 0, "the OBJ at size %d (%d): %s", i, st, out);
+        snprintf(cmd, sizeof cmd, "%s render scenes/meshes/tetrahedron.obj --width %d --height 24 --spp 2 --workers 0 -q "
+                 "-o %s 2>&1", harness_tessera(), i ? 40 : 32, ref);
+        st = util_run(cmd, out, sizeof out);
+        CHECK(st == 0 && util_same_file(img[i], ref), "the OBJ at size %d differs from its in-process render (%d): %s", i,
+              st, out);
+    }
+    loads = util_file_count(wlog, " loaded, ");
+    CHECK(loads == 3, "the OBJ framed by the automatic camera at two sizes: want 2 more loads, got %d; log %s",
+          loads - 1, wlog);
     worker_stop(w);
     service_stop(&s);
 }

@@ -186,6 +186,8 @@ typedef struct scene {
     double world_scale;
 
     size_t degenerate_triangles; /* skipped at load, reported with -v */
+    int camera_framed; /* 1: the automatic camera of a model without one, framed for settings' aspect ratio
+                        * (the only part of a load that depends on the image size) */
 
     /* Imported models (render/import.h): per-corner texture coordinates,
      * NULL unless an imported triangle has normals or uvs; triangle t's
