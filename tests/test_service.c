@@ -1120,9 +1120,9 @@ TEST(service_submit_of_a_model_from_stdin) {
 
 /* Jobs of one scene at another size, seed or depth share the worker's
  * loaded scene (each renders through its own view of it) and give the
- * bytes a render of their own settings gives; a model framed by the
- * automatic camera (an OBJ alone) is loaded again for another size, as its
- * camera depends on the aspect ratio. */
+ * bytes a render of their own settings gives, also a model framed by the
+ * automatic camera (an OBJ alone), whose camera the view frames again for
+ * its aspect ratio. */
 TEST(service_jobs_of_other_sizes_and_seeds_share_a_loaded_scene) {
     service s = {0};
     service_start(&s, "svc-share-seed");
@@ -1158,9 +1158,9 @@ TEST(service_jobs_of_other_sizes_and_seeds_share_a_loaded_scene) {
         CHECK(st == 0 && util_same_file(img[i], ref), "the OBJ at size %d differs from its in-process render (%d): %s", i,
               st, out);
     }
-    loads = util_file_count(wlog, " loaded, ");
-    CHECK(loads == 3, "the OBJ framed by the automatic camera at two sizes: want 2 more loads, got %d; log %s",
-          loads - 1, wlog);
+    loads = util_file_count(wlog, " loaded, "), shared = util_file_count(wlog, "shared, not loaded again");
+    CHECK(loads == 2 && shared == 3, "the OBJ framed by the automatic camera at two sizes: want 1 more load and 1 "
+          "more shared, got %d and %d; log %s", loads - 1, shared - 2, wlog);
     worker_stop(w);
     service_stop(&s);
 }

@@ -21,12 +21,9 @@
 #include "render/scene_memory.h"
 
 /* A loaded scene and the jobs that share it: those of one bundle (by hash)
- * at any image size, seed, depth and spp, which the load only stores
- * (each job renders through job_view); but only at its own size while it
- * is not loaded yet, or when its load depends on the size (an imported
- * model's automatic camera is framed for the aspect ratio:
- * scene.camera_framed). An adaptive render's rounds, and a service's jobs
- * of one scene (a preview, then the final), load it once. Once its last
+ * at any image size, seed, depth and spp (each job renders through
+ * job_view). An adaptive render's rounds, and a service's jobs of one
+ * scene (a preview, then the final), load it once. Once its last
  * job is gone it is kept for cfg.keep_s (pool_trim), or until a job needs
  * a scene it is not; a failed load is never shared. */
 typedef struct pool_scene {
@@ -38,7 +35,6 @@ typedef struct pool_scene {
     scene *s;
     int load_state;      /* under load_lock: 0 not tried, 1 loaded, -1 failed (load_error says why) */
     atomic_int failed;   /* load_state == -1, read without load_lock */
-    atomic_int any_size; /* loaded, and not for one image size (!camera_framed): jobs of any size share it */
     char load_error[512];
     pthread_mutex_t load_lock;
     int refs;            /* jobs holding it; under pool.lock */
@@ -141,10 +137,10 @@ static void pool_log(pool *p, const char *fmt, ...) {
 }
 
 /* The scene as job j renders it: its loaded scene with the job's own
- * size, seed, depth and spp. A shallow copy (plain struct): everything
- * else is the shared scene's, read-only; no load depends on the last
- * three, and scene_find shares one whose load depended on the size
- * (camera_framed) only with jobs of that size. */
+ * size, seed, depth and spp, and an automatic camera framed for that size
+ * (the one part of a load that depends on it: scene_frame_camera). A
+ * shallow copy (plain struct): everything else is the shared scene's,
+ * read-only. */
 static scene job_view(const pool_job *j) {
     scene v = *j->sc->s;
     v.settings.width = j->desc.width;
@@ -152,6 +148,7 @@ static scene job_view(const pool_job *j) {
     v.settings.seed = j->desc.seed;
     v.settings.max_depth = j->desc.max_depth;
     v.settings.spp = j->desc.spp;
+    scene_frame_camera(&v);
     return v;
 }
 
@@ -180,7 +177,6 @@ static int job_ensure_scene(pool *p, pool_job *j) {
         }
         sc->load_state = sc->s ? 1 : -1;
         atomic_store(&sc->failed, sc->load_state == -1);
-        atomic_store(&sc->any_size, sc->s && !sc->s->camera_framed);
         if (sc->s)
             pool_log(p, "job %u: scene %.12s loaded, %u triangles, intersector %s, in %.2f s", j->desc.id, sc->hash,
                      sc->s->triangle_count, accel_kind_name(accel_get_kind(sc->s->accel)), pool_clock() - t0);
@@ -434,8 +430,7 @@ void pool_free(pool *p) {
 static pool_scene *scene_find(pool *p, const proto_job *d) {
     pool_scene *sc;
     LIST_FOREACH(sc, &p->scenes, link)
-        if (strcmp(sc->hash, d->scene_hash) == 0 && !atomic_load(&sc->failed) &&
-            ((sc->width == d->width && sc->height == d->height) || atomic_load(&sc->any_size)))
+        if (strcmp(sc->hash, d->scene_hash) == 0 && !atomic_load(&sc->failed))
             return sc;
     return NULL;
 }
@@ -453,7 +448,6 @@ static pool_scene *scene_entry_new(const proto_job *d, const uint8_t *bundle, si
     sc->width = d->width, sc->height = d->height, sc->spp = d->spp, sc->max_depth = d->max_depth;
     sc->seed = d->seed;
     atomic_init(&sc->failed, 0);
-    atomic_init(&sc->any_size, 0);
     pthread_mutex_init(&sc->load_lock, NULL);
     return sc;
 }

@@ -186,8 +186,15 @@ typedef struct scene {
     double world_scale;
 
     size_t degenerate_triangles; /* skipped at load, reported with -v */
-    int camera_framed; /* 1: the automatic camera of a model without one, framed for settings' aspect ratio
-                        * (the only part of a load that depends on the image size) */
+    /* The automatic camera of an imported model without one: framed for
+     * the image's aspect ratio (the only part of a load that depends on
+     * the image size) from these bounds, in the model's units;
+     * scene_frame_camera frames it again for another size. framed == 0
+     * for any other camera. */
+    struct {
+        int framed;
+        double lo[3], hi[3];
+    } auto_camera;
 
     /* Imported models (render/import.h): per-corner texture coordinates,
      * NULL unless an imported triangle has normals or uvs; triangle t's
@@ -220,6 +227,12 @@ scene *scene_load_bundle(const scene_bundle *b, const scene_overrides *overrides
  * mesh text: the build is the load's peak). Returns 0, or -1 with err
  * "FILE: shapes: building the intersector: WHY" (s->accel stays NULL). */
 int scene_build_accel(scene *s, char *err, size_t err_len);
+
+/* Frame s's automatic camera (s->auto_camera.framed) for the aspect ratio
+ * of s->settings.width and height, as the load does: a worker renders a
+ * job of another size from a shared scene through a copy so framed. Does
+ * nothing for any other camera; can't fail. */
+void scene_frame_camera(scene *s);
 
 /* Free a scene and everything it owns; NULL is allowed. */
 void scene_free(scene *s);
