@@ -128,6 +128,18 @@ TEST(gltf_bad_files_are_refused_naming_the_fault) {
             CHECK(strstr(err, "buffers[0].uri") && strstr(err, "127 characters"),
                   "a data: URI with a %d-character header: want an error naming buffers[0].uri, got \"%s\"", n, err);
     }
+    /* A base64 payload with bytes that are not base64 after its padding (on
+     * bytes past 0x7f there Assimp 5.2 leaked; found by fuzz_gltf) or
+     * before it: refused, naming the field and the byte. */
+    static const char *const tails[] = {"\xff\xff", "AB", "="};
+    for (int k = 0; k < 4; k++) {
+        char uri[512];
+        if (k < 3) snprintf(uri, sizeof uri, "%s%s", TRI_DATA, tails[k]); /* ...=\xff\xff, ...=AB, ...== (61 chars) */
+        else snprintf(uri, sizeof uri, "%s", TRI_DATA), uri[strlen(uri) - 5] = '*';
+        const char *err = load_error(tri_gltf("bad-base64.gltf", "", 4, "", "", uri, 5123, 5126));
+        CHECK(strstr(err, "buffers[0].uri: the data: URI's base64 is not base64 from its byte"),
+              "payload %d: want an error naming buffers[0].uri, got \"%s\"", k, err);
+    }
     /* Not glTF 2. */
     util_write_temp("v1.gltf", "{\"asset\": {\"version\": \"1.0\"}}");
     CHECK(strstr(load_error(util_temp_path("v1.gltf")), "only glTF 2"), "glTF 1 accepted");
