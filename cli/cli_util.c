@@ -48,6 +48,7 @@ void cli_progress_show(cli_progress_state *p, int done, int total, double sample
 }
 
 void cli_default_output(const char *scene_path, char *out, size_t n) {
+    if (strcmp(scene_path, "-") == 0) scene_path = "stdin";
     const char *base = strrchr(scene_path, '/');
     base = base ? base + 1 : scene_path;
     const char *dot = strrchr(base, '.');

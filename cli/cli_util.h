@@ -27,7 +27,8 @@ void cli_progress_show(cli_progress_state *p, int done, int total, double sample
                        int final);
 
 /* The default output for a scene: its base name with .png, in the current
- * folder ("scenes/box.json" -> "box.png"). Can't fail. */
+ * folder ("scenes/box.json" -> "box.png"; "-", stdin: "stdin.png"). Can't
+ * fail. */
 void cli_default_output(const char *scene_path, char *out, size_t n);
 
 /* Scene "-" with stdin a terminal: say that the scene is read from it and

@@ -565,7 +565,7 @@ static int do_submit(const cli_args *a, const char *scene_path) {
     char err[1024], hash[SCENE_BUNDLE_HASH_HEX], out_default[512];
     const char *out = a->out;
     if (!out) {
-        cli_default_output(strcmp(scene_path, "-") ? scene_path : "stdin", out_default, sizeof out_default);
+        cli_default_output(scene_path, out_default, sizeof out_default);
         out = out_default;
     }
     if (a->wait && image_check_path(out, err, sizeof err)) /* before the upload and the wait */

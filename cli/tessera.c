@@ -425,10 +425,11 @@ static int render_on_farm(render_args *a, const scene *s, const scene_bundle *b,
 }
 
 /* The image could not be written to OUT (a full disk, a folder removed
- * while rendering): keep the render as a linear EXR with its header in
- * $TMPDIR (else /tmp), then in the current folder, and say where, so the
- * work is not lost. Prints what it did; can't fail otherwise. */
-static void keep_unsaved_render(const render_args *a, const scene *s, const image *img) {
+ * while rendering): keep the render as a linear EXR with the header saved
+ * (the attributes of `saved`) in $TMPDIR (else /tmp), then in the current
+ * folder, and say where, so the work is not lost. Prints what it did;
+ * can't fail otherwise. */
+static void keep_unsaved_render(const render_args *a, const image *img, const image_write_options *saved) {
     const char *tmpdir = getenv("TMPDIR"), *base = strrchr(a->out_path, '/');
     const char *folders[2] = {tmpdir && tmpdir[0] ? tmpdir : "/tmp", "."};
     base = base ? base + 1 : a->out_path;
@@ -437,10 +438,8 @@ static void keep_unsaved_render(const render_args *a, const scene *s, const imag
     for (int i = 0; i < 2; i++) {
         char path[1024], err[1024];
         snprintf(path, sizeof path, "%s/%.*s-unsaved-%ld.exr", folders[i], stem, base, (long)getpid());
-        image_write_options wo = {0}; /* float32, ZIP */
-        image_meta meta;
-        image_meta_apply(&meta, strcmp(a->scene_path, "-") ? a->scene_path : "<stdin>", s->settings.spp,
-                         s->settings.seed, &wo);
+        /* float32, ZIP, whatever OUT asked for */
+        image_write_options wo = {.exr = {.attrs = saved->exr.attrs, .attr_count = saved->exr.attr_count}};
         if (image_write(path, img, &wo, err, sizeof err) == 0) {
             fprintf(stderr, "tessera: the render is kept in %s (linear); `tessera tonemap %s -o OUT` writes it out\n",
                     path, path);
@@ -460,7 +459,7 @@ static int save_image(const render_args *a, const scene *s, const image *img) {
                      &wo);
     if (image_write(a->out_path, img, &wo, err, sizeof err) == 0) return 0;
     fprintf(stderr, "tessera: %s\n", err);
-    keep_unsaved_render(a, s, img);
+    keep_unsaved_render(a, img, &wo);
     return -1;
 }
 
@@ -511,7 +510,7 @@ static int cmd_render(int argc, char **argv) {
     char err[1024], out_default[512];
     parse_render_args(argc, argv, &a);
     if (!a.out_path) {
-        cli_default_output(strcmp(a.scene_path, "-") ? a.scene_path : "stdin", out_default, sizeof out_default);
+        cli_default_output(a.scene_path, out_default, sizeof out_default);
         a.out_path = out_default;
     }
     /* Before any work: a render whose image has nowhere to go is lost. */

@@ -215,9 +215,9 @@ void farm_job_finish(farm *f, job *j);
 
 void farm_job_fail(farm *f, job *j, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 
-/* Whether p was told of job id: 1 (the farm holds the job), 2 (it may
- * have been: an id no higher than one it was told of that the farm has
- * forgotten since, so a tile of it is a late result), or 0. */
+/* Whether p was told of job id, or may have been: an id no higher than
+ * one it was told of that the farm has forgotten since (a tile of it is a
+ * late result, not a violation). */
 int peer_told_job(const peer *p, uint32_t id);
 
 lease *peer_find_lease(peer *p, uint32_t job_id, uint32_t tile);

@@ -153,7 +153,7 @@ static void peer_tell_job(peer *p, job *j) {
 int peer_told_job(const peer *p, uint32_t id) {
     for (int i = 0; i < p->job_count; i++)
         if (p->jobs[i] == id) return 1;
-    return id <= p->forgotten_max ? 2 : 0;
+    return id <= p->forgotten_max;
 }
 
 /* The farm forgets job id: so do its peers' lists (which would otherwise

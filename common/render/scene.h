@@ -234,6 +234,10 @@ int scene_build_accel(scene *s, char *err, size_t err_len);
  * nothing for any other camera; can't fail. */
 void scene_frame_camera(scene *s);
 
+/* Whether s's load or build was asked to stop (scene_overrides.cancelled);
+ * 0 when no callback was given. */
+static inline int scene_is_cancelled(const scene *s) { return s->cancelled && s->cancelled(s->cancel_ctx); }
+
 /* Free a scene and everything it owns; NULL is allowed. */
 void scene_free(scene *s);
 

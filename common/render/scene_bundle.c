@@ -139,13 +139,14 @@ static int is_pipe(const char *path) {
     return stat(path, &st) == 0 && S_ISFIFO(st.st_mode);
 }
 
-/* The scene text at path (a file or a pipe) into *len bytes, malloc'd and
- * NUL-terminated; NULL with "PATH: reason" in err. What comes through
- * stdin or a pipe may be a model (streamed_model_name), so it may be as
- * long as a mesh file; the caller holds a scene to BUNDLE_SCENE_MAX. */
-static char *read_scene_text(const char *path, size_t *len, char *err, size_t err_len) {
+/* The scene text at path (a file, or with stream set "-" or a pipe) into
+ * *len bytes, malloc'd and NUL-terminated; NULL with "PATH: reason" in
+ * err. What comes through stdin or a pipe may be a model
+ * (streamed_model_name), so it may be as long as a mesh file; the caller
+ * holds a scene to BUNDLE_SCENE_MAX. */
+static char *read_scene_text(const char *path, int stream, size_t *len, char *err, size_t err_len) {
     if (strcmp(path, "-") == 0) return read_stream(stdin, "<stdin>", BUNDLE_MESH_MAX, len, err, err_len);
-    if (!is_pipe(path)) return file_read_all(path, BUNDLE_SCENE_MAX, len, err, err_len);
+    if (!stream) return file_read_all(path, BUNDLE_SCENE_MAX, len, err, err_len);
     FILE *f = fopen(path, "rb");
     if (!f) {
         snprintf(err, err_len, "%s: cannot open: %s", path, strerror(errno));
@@ -204,7 +205,7 @@ static int bundle_stream_model(scene_bundle *b, const char *name, const char *di
 
 int scene_bundle_read(const char *path, scene_bundle *out, char *err, size_t err_len) {
     memset(out, 0, sizeof *out);
-    int from_stdin = strcmp(path, "-") == 0;
+    int from_stdin = strcmp(path, "-") == 0, stream = from_stdin || is_pipe(path);
     scene_bundle_file *f = bundle_add(out, from_stdin ? "<stdin>" : path);
     if (!f) goto oom;
     model_kind mk = model_kind_of(path);
@@ -212,7 +213,7 @@ int scene_bundle_read(const char *path, scene_bundle *out, char *err, size_t err
         f->data = model_scene_json(path, NULL, &f->len);
         if (!f->data) goto oom;
     } else {
-        f->data = read_scene_text(path, &f->len, err, err_len);
+        f->data = read_scene_text(path, stream, &f->len, err, err_len);
     }
     if (!f->data) {
         scene_bundle_free(out);
@@ -220,7 +221,6 @@ int scene_bundle_read(const char *path, scene_bundle *out, char *err, size_t err
     }
     char dir[4096];
     scene_bundle_folder(path, dir, sizeof dir);
-    int stream = from_stdin || is_pipe(path);
     const char *streamed = stream ? streamed_model_name(f->data, f->len, from_stdin) : NULL;
     if (stream && !streamed && f->len > BUNDLE_SCENE_MAX) {
         snprintf(err, err_len, "%s: more than the limit of %u MiB", f->name, BUNDLE_SCENE_MAX >> 20);

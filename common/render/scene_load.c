@@ -617,7 +617,7 @@ static void plan_shapes(loader *L, const cJSON *shapes) {
         parsed_file *p = NULL;
         for (size_t i = 0; i < L->parsed_count && !p; i++) p = L->parsed[i].f == f ? &L->parsed[i] : NULL;
         if (!p) {
-            if (L->s->cancelled && L->s->cancelled(L->s->cancel_ctx)) return; /* load_shapes says so */
+            if (scene_is_cancelled(L->s)) return; /* load_shapes says so */
             if (!(p = push((void **)&L->parsed, &L->parsed_count, &L->parsed_cap, sizeof *p))) return;
             p->f = f;
             p->taken = 0;
@@ -861,8 +861,7 @@ static int load_shape(loader *L, const cJSON *sh, const char *where) {
 /* Whether the caller asked the load to stop (scene_overrides.cancelled):
  * -1 with "FILE: cancelled" in the error, else 0. Asked between steps. */
 static int load_cancelled(loader *L) {
-    scene *s = L->s;
-    if (!s->cancelled || !s->cancelled(s->cancel_ctx)) return 0;
+    if (!scene_is_cancelled(L->s)) return 0;
     snprintf(L->j.err, L->j.err_len, "%s: cancelled", L->j.file);
     return -1;
 }
@@ -1188,7 +1187,7 @@ static int load_root(loader *L, const cJSON *root, const scene_overrides *ov) {
 
 int scene_build_accel(scene *s, char *err, size_t err_len) {
     char why[256];
-    if (s->cancelled && s->cancelled(s->cancel_ctx)) {
+    if (scene_is_cancelled(s)) {
         snprintf(err, err_len, "%s: cancelled", s->path);
         return -1;
     }
