@@ -323,6 +323,20 @@ static void show_progress(void *ctx, int done, int total, const trace_stats *so_
     cli_progress_show(p->ps, done, total, rate, -1, eta, done == total);
 }
 
+/* -v's line for the wide BVH: its walk, who built it, its size. */
+static void print_wide_stats(const accel_wide_stats *ws) {
+    char how[192];
+    if (ws->build_threads)
+        snprintf(how, sizeof how, "Tessera's %s build on %d thread%s", ws->builder, ws->build_threads,
+                 ws->build_threads == 1 ? "" : "s");
+    else
+        snprintf(how, sizeof how, "Embree's %s build, device \"%s\"", ws->builder, ws->config);
+    fprintf(stderr, "intersector: wide (%d-wide BVH, Tessera's %s walk and tests; %s), %zu nodes, %zu leaves, "
+            "%.1f KiB, peak %.1f KiB while building, built in %.3f ms\n", ws->node_width, ws->walk_isa, how,
+            ws->node_count, ws->leaf_count, (double)ws->memory_bytes / 1024.0, (double)ws->peak_bytes / 1024.0,
+            ws->build_seconds * 1e3);
+}
+
 static void print_scene_info(const scene *s) {
     bvh_stats bs;
     accel_embree_stats es;
@@ -336,10 +350,7 @@ static void print_scene_info(const scene *s) {
     if (!s->accel)
         fprintf(stderr, "intersector: built by each worker (their \"scene ... loaded\" lines below name it)\n");
     else if (accel_get_wide_stats(s->accel, &ws) == 0)
-        fprintf(stderr, "intersector: wide (%d-wide BVH, Tessera's %s walk and tests; %s build, builder device \"%s\"), "
-                "%zu nodes, %zu leaves, %.1f KiB, peak %.1f KiB while building, built in %.3f ms\n", ws.node_width,
-                ws.walk_isa, ws.builder, ws.config, ws.node_count,
-                ws.leaf_count, (double)ws.memory_bytes / 1024.0, (double)ws.peak_bytes / 1024.0, ws.build_seconds * 1e3);
+        print_wide_stats(&ws);
     else if (accel_get_embree_stats(s->accel, &es) == 0)
         fprintf(stderr, "intersector: embree (Tessera's tests at the leaves; device \"%s\"), %.1f KiB, peak %.1f KiB "
                 "while building, built in %.3f ms\n", es.config, (double)es.final_bytes / 1024.0,

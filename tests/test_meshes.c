@@ -423,13 +423,16 @@ TEST(mesh_embree_every_isa_agrees) {
         int hits = 0, differ = emb && tree ? count_differences(s, tree, emb, 60000, &hits) : -1;
         CHECK(differ == 0, "%s: %d of 60000 rays differ from the BVH", cfg, differ);
         accel_free(emb);
-        /* The wide BVH built by that ISA's builder, on one thread and on all. */
+        /* The wide BVH built by that ISA's Morton builder, on one thread and
+         * on all. */
         static const char *const threads[] = {"", ",threads=1"};
         for (int th = 0; th < 2; th++) {
             char wcfg[96];
             snprintf(wcfg, sizeof wcfg, "%s%s", cfg, threads[th]);
             setenv("TESSERA_EMBREE_CONFIG", wcfg, 1);
+            setenv("TESSERA_WIDE_BUILDER", "morton", 1);
             accel *wide = accel_build_err(s, ACCEL_WIDE, err, sizeof err);
+            unsetenv("TESSERA_WIDE_BUILDER");
             unsetenv("TESSERA_EMBREE_CONFIG");
             accel_wide_stats ws;
             CHECK(wide && accel_get_wide_stats(wide, &ws) == 0 && strcmp(ws.config, wcfg) == 0, "%s: %s", wcfg, err);

@@ -1,11 +1,12 @@
-/* accel_wide.c - the 8-wide BVH of accel_wide.h: Embree's generic builder
- * makes it, Tessera walks it and decides every hit.
+/* accel_wide.c - the 8-wide BVH of accel_wide.h: Tessera's binned SAH
+ * builder (or, from ACCEL_WIDE_MORTON_MIN_PRIMITIVES, Embree's Morton-code
+ * builder) makes it, Tessera walks it and decides every hit.
  *
  * Build: one padded box per primitive (accel_padded_box), handed to
- * rtcBuildBVH (binned SAH, or from ACCEL_WIDE_MORTON_MIN_PRIMITIVES Morton
- * codes; parallel on the device's threads); its callbacks
- * create the nodes and leaves below in the tree's own arena (bump_arena.h),
- * which the accel_wide owns and frees.
+ * sah_build (sah_build.h; par.h's threads) or to rtcBuildBVH (the Embree
+ * device's threads); their callbacks create the nodes and leaves below in
+ * the tree's own arena (bump_arena.h), which the accel_wide owns and
+ * frees.
  *
  * Walk (accel_wide_walk.h, compiled for SSE, AVX2 and AVX-512VL; the
  * widest the CPU runs is chosen at build time): a node holds its children's
@@ -33,6 +34,8 @@
 #include <string.h>
 #include "bump_arena.h"
 #include "elapsed.h"
+#include "par.h"
+#include "sah_build.h"
 
 #include "accel_embree.h"
 #include <embree3/rtcore_builder.h>
@@ -116,14 +119,16 @@ typedef struct {
     atomic_size_t nodes, leaves;
     atomic_size_t oversized; /* a leaf the builder made with more than leaf_lanes primitives (0: none) */
     atomic_int cancelled;    /* the scene's cancel callback said so (cb_progress) */
+    int threads;             /* the SAH build's (build_sah) */
 } build_ctx;
 
-/* The builder's progress monitor: false stops the build (rtcBuildBVH then
- * returns NULL) once the scene's cancel callback says so. Embree calls it
- * seldom: a cancel took 0.2-0.9 s to take effect in a 2.6M-triangle SAH
- * build of about 1.1 s. (Returning NULL from cb_create_node is no quicker
- * way out: Embree's builder source passes the node to setNodeBounds
- * unchecked.) */
+/* Embree's progress monitor: false stops the Morton build (rtcBuildBVH
+ * then returns NULL) once the scene's cancel callback says so. Embree
+ * calls it seldom: a cancel took 0.2-0.9 s to take effect in its
+ * 2.6M-triangle SAH build of about 1.1 s (Tessera's own SAH build asks at
+ * every set of more than 4096 primitives: 0.02-0.03 s). (Returning NULL from
+ * cb_create_node is no quicker way out: Embree's builder source passes the
+ * node to setNodeBounds unchecked.) */
 static bool cb_progress(void *user, double done) {
     build_ctx *b = user;
     (void)done;
@@ -167,14 +172,14 @@ static void cb_set_bounds(void *node, const struct RTCBounds **bounds, unsigned 
 }
 
 /* Fill a leaf of `lanes` lanes (v: its 3 x 3 x lanes floats) with the
- * build's primitives, triangles first. Returns 1 if it holds a sphere. */
-static int fill_leaf(const scene *s, const struct RTCBuildPrimitive *prims, size_t count, unsigned lanes, float *v,
-                     uint32_t *id) {
+ * primitives ids[0 .. count), triangles first. Returns 1 if it holds a
+ * sphere. */
+static int fill_leaf(const scene *s, const uint32_t *ids, size_t count, unsigned lanes, float *v, uint32_t *id) {
     for (unsigned i = 0; i < 9 * lanes; i++) v[i] = NAN; /* lanes without a triangle: no test accepts NaN */
     for (unsigned i = 0; i < lanes; i++) id[i] = PRIM_NONE;
     unsigned n = 0;
     for (size_t i = 0; i < count && i < lanes; i++) {
-        uint32_t p = prims[i].primID;
+        uint32_t p = ids[i];
         if (p >= s->triangle_count) continue;
         const triangle *t = &s->triangles[p];
         const vec3 *vs[3] = {&t->v0, &t->v1, &t->v2};
@@ -187,32 +192,64 @@ static int fill_leaf(const scene *s, const struct RTCBuildPrimitive *prims, size
     }
     int spheres = 0;
     for (size_t i = 0; i < count && i < lanes; i++)
-        if (prims[i].primID >= s->triangle_count) id[n++] = prims[i].primID, spheres = 1;
+        if (ids[i] >= s->triangle_count) id[n++] = ids[i], spheres = 1;
     return spheres;
 }
 
-static void *cb_create_leaf(RTCThreadLocalAllocator alloc, const struct RTCBuildPrimitive *prims, size_t count,
-                            void *user) {
-    build_ctx *b = user;
+/* A leaf of ids[0 .. count) in the arena, as a tagged reference; NULL
+ * when out of memory. */
+static void *make_leaf(build_ctx *b, const uint32_t *ids, size_t count) {
     void *leaf;
     int spheres = 0;
     if (count > b->leaf_lanes) /* never with maxLeafSize set; were it to happen, the build fails, no primitive is lost */
         atomic_store_explicit(&b->oversized, count, memory_order_relaxed);
-    (void)alloc;
     if (b->leaf_lanes == 8) {
         wide_leaf8 *l = leaf = bump_arena_alloc(b->arena, sizeof *l);
-        if (l) spheres = fill_leaf(b->s, prims, count, 8, &l->v[0][0][0], l->id);
+        if (l) spheres = fill_leaf(b->s, ids, count, 8, &l->v[0][0][0], l->id);
     } else {
         wide_leaf4 *l = leaf = bump_arena_alloc(b->arena, sizeof *l);
-        if (l) spheres = fill_leaf(b->s, prims, count, 4, &l->v[0][0][0], l->id);
+        if (l) spheres = fill_leaf(b->s, ids, count, 4, &l->v[0][0][0], l->id);
     }
     if (!leaf) return NULL;
     atomic_fetch_add_explicit(&b->leaves, 1, memory_order_relaxed);
     return (void *)((uintptr_t)leaf | LEAF_TAG | (spheres ? SPHERE_TAG : 0));
 }
 
-/* The build primitives: every primitive's padded box. Returns NULL when out
- * of memory; the caller frees. */
+static void *cb_create_leaf(RTCThreadLocalAllocator alloc, const struct RTCBuildPrimitive *prims, size_t count,
+                            void *user) {
+    uint32_t ids[8];
+    (void)alloc;
+    for (size_t i = 0; i < count && i < 8; i++) ids[i] = prims[i].primID;
+    return make_leaf(user, ids, count);
+}
+
+/* sah_build's callbacks (sah_build.h), into the same nodes and leaves. */
+static void *sah_create_node(void *user) { return cb_create_node(NULL, NODE_W, user); }
+
+static void sah_set_child(void *node, unsigned k, void *child, const float lo[3], const float hi[3], void *user) {
+    wide_node *n = node;
+    (void)user;
+    n->child[k] = (uintptr_t)child;
+    n->box[0][k] = lo[0], n->box[1][k] = hi[0];
+    n->box[2][k] = lo[1], n->box[3][k] = hi[1];
+    n->box[4][k] = lo[2], n->box[5][k] = hi[2];
+}
+
+static void *sah_create_leaf(const sah_prim *prims, size_t count, void *user) {
+    uint32_t ids[8];
+    for (size_t i = 0; i < count && i < 8; i++) ids[i] = prims[i].id;
+    return make_leaf(user, ids, count);
+}
+
+static int sah_cancelled(void *user) {
+    build_ctx *b = user;
+    if (!scene_is_cancelled(b->s)) return 0;
+    atomic_store(&b->cancelled, 1);
+    return 1;
+}
+
+/* The build primitives: every primitive's padded box. Returns NULL when
+ * out of memory; the caller frees. */
 static struct RTCBuildPrimitive *build_primitives(const scene *s, size_t n) {
     struct RTCBuildPrimitive *p = aligned_alloc(32, (n * sizeof *p + 31) / 32 * 32);
     if (!p) return NULL;
@@ -233,48 +270,64 @@ static int use_morton(size_t n) {
     return n >= ACCEL_WIDE_MORTON_MIN_PRIMITIVES;
 }
 
-accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
-    struct timespec t0 = elapsed_mark();
-    accel_wide *w = calloc(1, sizeof *w);
-    if (!w) return snprintf(err, err_len, "out of memory"), NULL;
-    if (accel_embree_device_open(&w->dev, err, err_len) != 0) {
-        free(w);
-        return NULL;
+/* The leaves' sizes for the builders: leaves of 4 from 3 primitives up
+ * for the SSE walk, 6.5% fewer instructions than from 1 at 655k
+ * triangles; leaves of 8 from 8 up for the 8-lane walks (from 3: 5-7% more
+ * instructions per ray, from 6: 7%), which also take 40% fewer bytes than
+ * leaves of 4 (docs/meshes.md). A block of 1 to leaf_lanes primitives
+ * costs one leaf test. */
+static unsigned leaf_min(unsigned leaf_lanes) { return leaf_lanes == 8 ? 8 : 3; }
+
+/* Tessera's binned SAH (sah_build.h) over b's scene: the root, or NULL
+ * when out of memory or cancelled (b->cancelled says which). */
+typedef struct {
+    const scene *s;
+    sah_prim *p;
+} sah_boxes;
+
+static void make_sah_boxes(void *ctx, size_t begin, size_t end, int part) {
+    sah_boxes *B = ctx;
+    (void)part;
+    for (size_t i = begin; i < end; i++) {
+        float lo[3], hi[3];
+        accel_padded_box(B->s, (uint32_t)i, lo, hi);
+        B->p[i] = (sah_prim){{lo[0], lo[1], lo[2]}, (uint32_t)i, {hi[0], hi[1], hi[2]}, 0};
     }
-    w->stats.config = w->dev.config;
-    w->stats.node_width = NODE_W;
-    w->stats.builder = "binned SAH";
-    choose_walk(w);
-    size_t n = (size_t)s->triangle_count + s->sphere_count;
-    w->stats.primitive_count = n;
-    if (n == 0) return w; /* nothing to hit: root 0 */
-    int morton = use_morton(n);
-    struct RTCBuildPrimitive *prims = build_primitives(s, n);
-    /* Chunks of about a tenth of the tree (a node and a leaf per 8
-     * primitives), 4 to 128 MiB. */
-    size_t chunk = n / 8 * (sizeof(wide_node) + sizeof(wide_leaf8)) / 10;
-    chunk = chunk < ARENA_CHUNK_MIN ? ARENA_CHUNK_MIN : chunk > ARENA_CHUNK_MAX ? ARENA_CHUNK_MAX : chunk;
-    if (prims && !(w->arena = bump_arena_new(chunk, !morton))) free(prims), prims = NULL;
+}
+
+static void *build_sah(build_ctx *b, size_t n, size_t *peak) {
+    sah_prim *p = aligned_alloc(32, (n * sizeof *p + 31) / 32 * 32);
+    if (!p) return NULL;
+    sah_boxes boxes = {b->s, p};
+    par_run(n, par_parts(n, 1 << 14), make_sah_boxes, &boxes);
+    sah_args args = {.width = NODE_W, .leaf_min = leaf_min(b->leaf_lanes), .leaf_max = b->leaf_lanes,
+                     .block = b->leaf_lanes, .max_depth = WIDE_MAX_DEPTH, .trav_cost = 1.0f, .isect_cost = 1.0f,
+                     .create_node = sah_create_node, .set_child = sah_set_child, .create_leaf = sah_create_leaf,
+                     .cancelled = sah_cancelled, .user = b};
+    void *root = sah_build(&args, p, n);
+    free(p);
+    b->threads = sah_build_threads(n);
+    *peak = n * sizeof *p;
+    return root;
+}
+
+/* Embree's Morton-code builder (rtcBuildBVH at RTC_BUILD_QUALITY_LOW) on
+ * w's device over b's scene: the root, or NULL with w->dev.error set or b
+ * cancelled, or out of memory. */
+static void *build_morton(accel_wide *w, build_ctx *b, size_t n, size_t *peak) {
+    struct RTCBuildPrimitive *prims = build_primitives(b->s, n);
     RTCBVH bvh = prims ? rtcNewBVH(w->dev.device) : NULL;
     if (!bvh) {
         free(prims);
-        snprintf(err, err_len, "%s", w->dev.error[0] ? w->dev.error : "out of memory");
-        accel_wide_free(w);
         return NULL;
     }
-    build_ctx b = {.s = s, .arena = w->arena, .leaf_lanes = w->leaf_lanes};
     struct RTCBuildArguments args = rtcDefaultBuildArguments();
-    w->stats.builder = morton ? "Morton" : "binned SAH";
-    args.buildQuality = morton ? RTC_BUILD_QUALITY_LOW : RTC_BUILD_QUALITY_MEDIUM;
+    args.buildQuality = RTC_BUILD_QUALITY_LOW;
     args.maxBranchingFactor = NODE_W;
     args.maxDepth = WIDE_MAX_DEPTH;
-    args.sahBlockSize = w->leaf_lanes; /* 1 to leaf_lanes primitives cost one leaf test */
-    args.maxLeafSize = w->leaf_lanes;
-    /* Measured (docs/meshes.md): leaves of 4 from 3 primitives up, 6.5%
-     * fewer instructions than from 1 at 655k triangles; leaves of 8 from 8
-     * up (from 3: 5-7% more instructions per ray, from 6: 7%), which also
-     * take 40% fewer bytes than leaves of 4. */
-    args.minLeafSize = w->leaf_lanes == 8 ? 8 : 3;
+    args.sahBlockSize = b->leaf_lanes;
+    args.maxLeafSize = b->leaf_lanes;
+    args.minLeafSize = leaf_min(b->leaf_lanes);
     args.traversalCost = 1.0f;
     args.intersectionCost = 1.0f;
     args.bvh = bvh;
@@ -285,13 +338,45 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
     args.setNodeChildren = cb_set_children;
     args.setNodeBounds = cb_set_bounds;
     args.createLeaf = cb_create_leaf;
-    args.userPtr = &b;
+    args.userPtr = b;
     args.buildProgress = cb_progress;
-    w->root = (uintptr_t)rtcBuildBVH(&args);
+    void *root = rtcBuildBVH(&args);
     /* The tree is in the arena: the RTCBVH holds only its builder's arrays
      * (256 MiB at 10.5M triangles), freed now rather than with the tree. */
     rtcReleaseBVH(bvh);
     free(prims);
+    *peak = (size_t)atomic_load(&w->dev.peak) + n * sizeof *prims;
+    return root;
+}
+
+accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
+    struct timespec t0 = elapsed_mark();
+    accel_wide *w = calloc(1, sizeof *w);
+    if (!w) return snprintf(err, err_len, "out of memory"), NULL;
+    size_t n = (size_t)s->triangle_count + s->sphere_count;
+    int morton = n && use_morton(n);
+    if (morton && accel_embree_device_open(&w->dev, err, err_len) != 0) {
+        free(w);
+        return NULL;
+    }
+    w->stats.config = w->dev.config;
+    w->stats.node_width = NODE_W;
+    w->stats.builder = morton ? "Morton" : "binned SAH";
+    choose_walk(w);
+    w->stats.primitive_count = n;
+    if (n == 0) return w; /* nothing to hit: root 0 */
+    /* Chunks of about a tenth of the tree (a node and a leaf per 8
+     * primitives), 4 to 128 MiB. */
+    size_t chunk = n / 8 * (sizeof(wide_node) + sizeof(wide_leaf8)) / 10;
+    chunk = chunk < ARENA_CHUNK_MIN ? ARENA_CHUNK_MIN : chunk > ARENA_CHUNK_MAX ? ARENA_CHUNK_MAX : chunk;
+    if (!(w->arena = bump_arena_new(chunk, !morton))) {
+        snprintf(err, err_len, "out of memory");
+        accel_wide_free(w);
+        return NULL;
+    }
+    build_ctx b = {.s = s, .arena = w->arena, .leaf_lanes = w->leaf_lanes};
+    size_t peak = 0;
+    w->root = (uintptr_t)(morton ? build_morton(w, &b, n, &peak) : build_sah(&b, n, &peak));
     size_t oversized = atomic_load(&b.oversized);
     if (w->root && !w->dev.error[0] && oversized) {
         snprintf(err, err_len, "building the wide BVH: the builder made a leaf of %zu primitives (at most %u)",
@@ -305,10 +390,11 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
         accel_wide_free(w);
         return NULL;
     }
+    w->stats.build_threads = b.threads;
     w->stats.node_count = atomic_load(&b.nodes);
     w->stats.leaf_count = atomic_load(&b.leaves);
     w->stats.memory_bytes = bump_arena_bytes(w->arena);
-    w->stats.peak_bytes = (size_t)atomic_load(&w->dev.peak) + n * sizeof *prims + w->stats.memory_bytes;
+    w->stats.peak_bytes = peak + w->stats.memory_bytes;
     w->stats.build_seconds = elapsed_seconds(&t0);
     return w;
 }

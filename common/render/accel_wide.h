@@ -1,6 +1,7 @@
 /* accel_wide.h - Tessera's own 8-wide BVH for large scenes: built in
- * parallel by Embree's generic builder (rtcBuildBVH, binned SAH over boxes
- * Tessera supplies), walked by Tessera with one SIMD slab test for a node's
+ * parallel by Tessera's binned SAH builder (sah_build.h; from
+ * ACCEL_WIDE_MORTON_MIN_PRIMITIVES by Embree's Morton-code builder,
+ * rtcBuildBVH, over boxes Tessera supplies), walked by Tessera with one SIMD slab test for a node's
  * eight children, leaves of up to eight triangles (four without AVX2)
  * tested at once by the flat kernel's watertight test (accel_flat.h),
  * spheres by the scalar test.
@@ -12,7 +13,8 @@
  *   barycentrics as intersect.h computes them for the caller's ray and tmax;
  *   occluded  = some primitive has such a hit.
  *
- * The tree (whose shape depends on the build's threads) only decides the
+ * The tree (whose shape depends on the Morton build's threads; the SAH
+ * build's does not) only decides the
  * order in which candidates are tried: boxes are padded
  * (accel_padded_box), the slab test's far distance is widened by
  * 1 + 3 * 2^-23 (more than its rounding, pbrt's bound) and the culling
@@ -22,8 +24,9 @@
  * AVX-512; TESSERA_NO_AVX512 / TESSERA_NO_AVX2 stop it lower): the tree and
  * the walk only decide the order in which candidates are tried.
  *
- * TESSERA_EMBREE_CONFIG, if set, configures the builder's Embree device
- * (e.g. "threads=1"). Built once per scene, then read-only: any number of
+ * TESSERA_EMBREE_CONFIG, if set, configures the Morton builder's Embree
+ * device (e.g. "threads=1"); TESSERA_LOAD_THREADS the SAH builder's
+ * threads. Built once per scene, then read-only: any number of
  * threads may trace through it at once. */
 #ifndef TESSERA_ACCEL_WIDE_H
 #define TESSERA_ACCEL_WIDE_H
@@ -44,15 +47,17 @@ typedef struct {
     size_t primitive_count;
     size_t memory_bytes;   /* bytes held after the build (nodes and leaves) */
     size_t peak_bytes;     /* bytes held at the build's peak, boxes included */
-    const char *config;    /* the builder's Embree device configuration ("" for Embree's defaults) */
-    const char *builder;   /* "binned SAH" or "Morton" (ACCEL_WIDE_MORTON_MIN_PRIMITIVES) */
+    const char *config;    /* the Morton builder's Embree device configuration ("" for Embree's defaults, or the SAH) */
+    const char *builder;   /* "binned SAH" (Tessera's) or "Morton" (Embree's; ACCEL_WIDE_MORTON_MIN_PRIMITIVES) */
+    int build_threads;     /* the SAH build's threads (0 for the Morton build: Embree's device decides) */
 } accel_wide_stats;
 
 /* From this many primitives the tree is built by Embree's Morton-code
  * builder (RTC_BUILD_QUALITY_LOW) instead of the binned SAH: at 10.5M
- * triangles it builds in 1.7-2.3 s instead of 5.0 s (and Embree's own
- * scene, which auto picked there before, in 3.5 s) and renders as fast as
- * Embree's, for about 1.6x Embree's peak memory (docs/meshes.md). Below,
+ * triangles it builds in 1.7-2.5 s instead of 4.2-4.3 s (Tessera's SAH;
+ * Embree's generic SAH took 5.0 s, Embree's own scene, which auto picked
+ * there before, 3.5 s) and renders as fast as Embree's, for about 1.6x
+ * Embree's peak memory (docs/meshes.md). Below,
  * its trees cost 19-25% more render CPU than the SAH's, more than the
  * build saves. TESSERA_WIDE_BUILDER=sah or =morton overrides the choice
  * (for tests and benchmarks); the bytes rendered never depend on it. */

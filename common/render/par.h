@@ -1,6 +1,7 @@
 /* par.h - a loop over [0, n) split into contiguous ranges, one thread each.
  *
- * For the loader's per-vertex and per-triangle loops: every range writes
+ * For the loader's per-vertex and per-triangle loops (and sah_build.c's
+ * binning and subtrees): every range writes
  * only its own elements (and its own slot of a per-range result the caller
  * merges in range order), so the result is the same bytes whatever the
  * number of ranges. */

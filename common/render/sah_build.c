@@ -1,0 +1,454 @@
+/* sah_build.c - the binned SAH builder of sah_build.h.
+ *
+ * A set is a range of the primitive array with two boxes: the union of its
+ * primitives' boxes (geom) and the bounds of their centres (cent, kept
+ * doubled as lo + hi: the same order and the same bins, one addition
+ * fewer). Splitting a set bins its centres along each axis, sweeps the bins
+ * for the cheapest plane, then partitions the range in place, the two
+ * sides' boxes gathered on the way. Every step is exact (minima, maxima,
+ * counts) or the same operation on the same numbers, so the tree depends
+ * on the boxes alone: the top is built on the calling thread, the subtrees
+ * it leaves (deferred sets, each its own range) are then built by par.h's
+ * threads, taken largest first. */
+#include "sah_build.h"
+
+#include <emmintrin.h>
+#include <math.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "par.h"
+
+#define SAH_BINS 32
+/* Levels kept for a set that reaches the depth limit unsplit: below
+ * max_depth - LARGE_LEAF_LEVELS a set is cut by index into `width` parts a
+ * level, so even 2^32 primitives end in leaves within the limit. */
+#define LARGE_LEAF_LEVELS 11
+/* A set is deferred to the threads below the top when it holds at most
+ * 1 / (2 threads) of the primitives, but never one of fewer than this. */
+#define DEFER_MIN 4096
+/* Sets of at least this many primitives are binned by every thread at once. */
+#define PAR_BIN_MIN (1u << 18)
+
+typedef struct {
+    __m128 lo, hi; /* lane 3 unused */
+} box4;
+
+typedef struct {
+    size_t begin, end;
+    box4 geom, cent;
+} set;
+
+/* How a set's centres map to bins: bin = clamp(floor((c - ofs) * scale)). */
+typedef struct {
+    unsigned nbins;
+    __m128 ofs, scale, top; /* top: nbins - 1 */
+} bin_map;
+
+typedef struct {
+    box4 box[3][SAH_BINS];
+    uint32_t count[3][SAH_BINS];
+} bins;
+
+/* A split: the bin plane `pos` on `axis` (left: bins below pos), its cost
+ * (the two sides' areas times their blocks); axis -1 when no plane leaves
+ * primitives on both sides. */
+typedef struct {
+    int axis;
+    unsigned pos;
+    float cost;
+    bin_map map;
+    float ofs, scale, top; /* the map's, on axis */
+} split;
+
+/* A set left for the threads: it becomes child k of node. */
+typedef struct {
+    set s;
+    unsigned depth, k;
+    void *node;
+} task;
+
+typedef struct {
+    const sah_args *a;
+    sah_prim *prims;
+    size_t defer_max; /* sets up to this size are deferred (0: none) */
+    task *tasks;
+    size_t task_count, task_cap;
+    atomic_size_t next_task;
+    atomic_int failed;
+    int threads;     /* par.h's threads for the deferred sets */
+    int bin_threads; /* threads that bin one large set at once: 1 once the deferred sets run */
+} build;
+
+static inline box4 box_empty(void) { return (box4){_mm_set1_ps(INFINITY), _mm_set1_ps(-INFINITY)}; }
+
+static inline void box_grow(box4 *b, __m128 lo, __m128 hi) {
+    b->lo = _mm_min_ps(b->lo, lo);
+    b->hi = _mm_max_ps(b->hi, hi);
+}
+
+static inline void box_merge(box4 *b, const box4 *o) { box_grow(b, o->lo, o->hi); }
+
+/* Half the surface area of a non-empty box. */
+static inline float half_area(const box4 *b) {
+    float d[4];
+    _mm_storeu_ps(d, _mm_sub_ps(b->hi, b->lo));
+    return d[0] * d[1] + d[1] * d[2] + d[2] * d[0];
+}
+
+static inline float blocks(const sah_args *a, size_t n) { return (float)((n + a->block - 1) / a->block); }
+
+static inline __m128 prim_lo(const sah_prim *p) { return _mm_load_ps(p->lo); }
+static inline __m128 prim_hi(const sah_prim *p) { return _mm_load_ps(p->hi); }
+
+/* A primitive's bin on each axis (lanes 0-2). */
+static inline __m128i bin_of(const bin_map *m, __m128 lo, __m128 hi) {
+    __m128 pos = _mm_mul_ps(_mm_sub_ps(_mm_add_ps(lo, hi), m->ofs), m->scale);
+    return _mm_cvttps_epi32(_mm_min_ps(_mm_max_ps(pos, _mm_setzero_ps()), m->top));
+}
+
+/* Up to 32 bins, fewer for small sets (Embree's rule: 4 + n / 20); an axis
+ * along which the centres do not spread gets scale 0 (one bin). */
+static bin_map map_for(const set *s) {
+    bin_map m;
+    size_t n = s->end - s->begin;
+    m.nbins = n / 20 + 4 < SAH_BINS ? (unsigned)(n / 20 + 4) : SAH_BINS;
+    float lo[4], hi[4], sc[4] = {0, 0, 0, 0};
+    _mm_storeu_ps(lo, s->cent.lo);
+    _mm_storeu_ps(hi, s->cent.hi);
+    for (int a = 0; a < 3; a++) {
+        float ext = hi[a] - lo[a];
+        if (ext > 0.0f && isfinite(ext)) sc[a] = 0.99f * (float)m.nbins / ext;
+    }
+    m.ofs = s->cent.lo;
+    m.scale = _mm_loadu_ps(sc);
+    m.top = _mm_set1_ps((float)(m.nbins - 1));
+    return m;
+}
+
+static void bins_clear(bins *b, unsigned nbins) {
+    for (int a = 0; a < 3; a++)
+        for (unsigned i = 0; i < nbins; i++) b->box[a][i] = box_empty(), b->count[a][i] = 0;
+}
+
+static inline void bin_one(bins *b, __m128 lo, __m128 hi, const bin_map *m) {
+    __m128i bi = bin_of(m, lo, hi);
+    int ix = _mm_cvtsi128_si32(bi), iy = _mm_cvtsi128_si32(_mm_shuffle_epi32(bi, 0x55)),
+        iz = _mm_cvtsi128_si32(_mm_shuffle_epi32(bi, 0xaa));
+    box_grow(&b->box[0][ix], lo, hi), b->count[0][ix]++;
+    box_grow(&b->box[1][iy], lo, hi), b->count[1][iy]++;
+    box_grow(&b->box[2][iz], lo, hi), b->count[2][iz]++;
+}
+
+static void bins_merge(bins *b, const bins *o, unsigned nbins) {
+    for (int a = 0; a < 3; a++)
+        for (unsigned i = 0; i < nbins; i++) box_merge(&b->box[a][i], &o->box[a][i]), b->count[a][i] += o->count[a][i];
+}
+
+/* Bin p[begin .. end) into b (cleared first). Neighbours in the array
+ * (a mesh's neighbouring triangles) mostly fall in the same bins, so the
+ * even and odd ones go to two sets of bins, merged at the end: each bin's
+ * update then waits on the one two primitives back, not on the last. */
+static void bin_range(const sah_prim *p, size_t begin, size_t end, const bin_map *m, bins *b) {
+    bins odd;
+    bins_clear(b, m->nbins);
+    bins_clear(&odd, m->nbins);
+    size_t i = begin;
+    for (; i + 1 < end; i += 2) {
+        bin_one(b, prim_lo(&p[i]), prim_hi(&p[i]), m);
+        bin_one(&odd, prim_lo(&p[i + 1]), prim_hi(&p[i + 1]), m);
+    }
+    if (i < end) bin_one(b, prim_lo(&p[i]), prim_hi(&p[i]), m);
+    bins_merge(b, &odd, m->nbins);
+}
+
+/* Binning by every thread at once: each part bins its own range, the parts
+ * are merged (minima, maxima and sums: the same bins in any order). */
+typedef struct {
+    const sah_prim *p;
+    size_t begin;
+    const bin_map *m;
+    bins part[PAR_MAX_PARTS];
+} par_bins;
+
+static void bin_part(void *ctx, size_t begin, size_t end, int part) {
+    par_bins *P = ctx;
+    bin_range(P->p, P->begin + begin, P->begin + end, P->m, &P->part[part]);
+}
+
+static void bin_set(build *B, const set *s, const bin_map *m, bins *out) {
+    size_t n = s->end - s->begin;
+    par_bins *P = B->bin_threads < 2 || n < PAR_BIN_MIN ? NULL : malloc(sizeof *P);
+    if (!P) { /* one thread (also when out of memory): the same bins */
+        bin_range(B->prims, s->begin, s->end, m, out);
+        return;
+    }
+    P->p = B->prims, P->begin = s->begin, P->m = m;
+    int parts = B->bin_threads < PAR_MAX_PARTS ? B->bin_threads : PAR_MAX_PARTS;
+    par_run(n, parts, bin_part, P);
+    *out = P->part[0];
+    for (int k = 1; k < parts; k++) bins_merge(out, &P->part[k], m->nbins);
+    free(P);
+}
+
+/* The cheapest bin plane of s: per axis, the right sides' areas by a sweep
+ * from the top bin, then the left sides' from the bottom; cost = left area x
+ * left blocks + right area x right blocks, the first of equal costs kept. */
+static split find_split(build *B, const set *s) {
+    split best = {.axis = -1, .cost = INFINITY, .map = map_for(s)};
+    const bin_map *m = &best.map;
+    float sc[4];
+    _mm_storeu_ps(sc, m->scale);
+    bins b;
+    bin_set(B, s, m, &b);
+    for (int a = 0; a < 3; a++) {
+        if (sc[a] == 0.0f) continue;
+        float right_area[SAH_BINS];
+        size_t right_count[SAH_BINS];
+        box4 acc = box_empty();
+        size_t cnt = 0;
+        for (unsigned i = m->nbins - 1; i > 0; i--) {
+            box_merge(&acc, &b.box[a][i]);
+            cnt += b.count[a][i];
+            right_count[i] = cnt;
+            right_area[i] = cnt ? half_area(&acc) : 0.0f;
+        }
+        acc = box_empty();
+        cnt = 0;
+        for (unsigned i = 1; i < m->nbins; i++) {
+            box_merge(&acc, &b.box[a][i - 1]);
+            cnt += b.count[a][i - 1];
+            if (!cnt || !right_count[i]) continue;
+            float cost = half_area(&acc) * blocks(B->a, cnt) + right_area[i] * blocks(B->a, right_count[i]);
+            if (cost < best.cost) best.cost = cost, best.axis = a, best.pos = i;
+        }
+    }
+    if (best.axis >= 0) {
+        float o[4];
+        _mm_storeu_ps(o, m->ofs);
+        best.ofs = o[best.axis], best.scale = sc[best.axis], best.top = (float)(m->nbins - 1);
+    }
+    return best;
+}
+
+/* Whether p's centre is below sp's plane: bin_of's operations on sp's
+ * axis alone, so the same bin as binning gave it. */
+static inline int goes_left(const split *sp, const sah_prim *p) {
+    int a = sp->axis;
+    float pos = (p->lo[a] + p->hi[a] - sp->ofs) * sp->scale;
+    pos = pos > 0.0f ? pos : 0.0f;
+    pos = pos < sp->top ? pos : sp->top;
+    return (int)pos < (int)sp->pos;
+}
+
+static inline void set_grow(set *s, const sah_prim *p) {
+    __m128 lo = prim_lo(p), hi = prim_hi(p), c = _mm_add_ps(lo, hi);
+    box_grow(&s->geom, lo, hi);
+    box_grow(&s->cent, c, c);
+}
+
+static set set_new(size_t begin, size_t end) { return (set){begin, end, box_empty(), box_empty()}; }
+
+/* Split s in two, in place: by sp's plane, or (no plane) at the middle of
+ * the range. Both sides get their boxes. */
+static void partition(build *B, const set *s, const split *sp, set *l, set *r) {
+    sah_prim *p = B->prims;
+    if (sp->axis < 0) {
+        size_t mid = s->begin + (s->end - s->begin) / 2;
+        *l = set_new(s->begin, mid), *r = set_new(mid, s->end);
+        for (size_t i = l->begin; i < l->end; i++) set_grow(l, &p[i]);
+        for (size_t i = r->begin; i < r->end; i++) set_grow(r, &p[i]);
+        return;
+    }
+    size_t i = s->begin, j = s->end;
+    set L = set_new(0, 0), R = set_new(0, 0);
+    for (;;) {
+        while (i < j && goes_left(sp, &p[i])) set_grow(&L, &p[i]), i++;
+        while (i < j && !goes_left(sp, &p[j - 1])) set_grow(&R, &p[j - 1]), j--;
+        if (i >= j) break;
+        sah_prim t = p[i];
+        p[i] = p[j - 1], p[j - 1] = t;
+        set_grow(&L, &p[i]), set_grow(&R, &p[j - 1]);
+        i++, j--;
+    }
+    *l = L, *r = R;
+    l->begin = s->begin, l->end = i;
+    r->begin = i, r->end = s->end;
+}
+
+/* A leaf of s's primitives, in order of id. */
+static void *make_leaf(build *B, const set *s) {
+    sah_prim *p = B->prims + s->begin;
+    size_t n = s->end - s->begin;
+    for (size_t i = 1; i < n; i++) {
+        sah_prim t = p[i];
+        size_t j = i;
+        for (; j > 0 && p[j - 1].id > t.id; j--) p[j] = p[j - 1];
+        p[j] = t;
+    }
+    return B->a->create_leaf(p, n, B->a->user);
+}
+
+static void *build_set(build *B, const set *s, unsigned depth);
+
+static int task_push(build *B, const set *s, unsigned depth, void *node, unsigned k) {
+    if (B->task_count == B->task_cap) {
+        size_t cap = B->task_cap ? 2 * B->task_cap : 64;
+        task *t = realloc(B->tasks, cap * sizeof *t);
+        if (!t) return -1;
+        B->tasks = t, B->task_cap = cap;
+    }
+    B->tasks[B->task_count++] = (task){*s, depth, k, node};
+    return 0;
+}
+
+/* A node over children[0 .. count): each built now, or deferred. */
+static void *make_node(build *B, set *children, unsigned count, unsigned depth) {
+    void *node = B->a->create_node(B->a->user);
+    if (!node) return NULL;
+    for (unsigned k = 0; k < count; k++) {
+        const set *c = &children[k];
+        if (c->end - c->begin <= B->defer_max) {
+            if (task_push(B, c, depth + 1, node, k) != 0) return NULL;
+            continue;
+        }
+        void *child = build_set(B, c, depth + 1);
+        if (!child) return NULL;
+        float lo[4], hi[4];
+        _mm_storeu_ps(lo, c->geom.lo);
+        _mm_storeu_ps(hi, c->geom.hi);
+        B->a->set_child(node, k, child, lo, hi, B->a->user);
+    }
+    return node;
+}
+
+/* A set too deep for the SAH: cut by index into `width` parts a level. */
+static void *build_large(build *B, const set *s, unsigned depth) {
+    size_t n = s->end - s->begin;
+    if (n <= B->a->leaf_max) return make_leaf(B, s);
+    set children[8];
+    unsigned count = B->a->width;
+    size_t per = (n + count - 1) / count;
+    if (per < B->a->leaf_max) per = B->a->leaf_max;
+    unsigned c = 0;
+    for (size_t b = s->begin; b < s->end; b += per, c++) {
+        children[c] = set_new(b, b + per < s->end ? b + per : s->end);
+        for (size_t i = children[c].begin; i < children[c].end; i++) set_grow(&children[c], &B->prims[i]);
+    }
+    void *node = B->a->create_node(B->a->user);
+    if (!node) return NULL;
+    for (unsigned k = 0; k < c; k++) {
+        void *child = build_large(B, &children[k], depth + 1);
+        if (!child) return NULL;
+        float lo[4], hi[4];
+        _mm_storeu_ps(lo, children[k].geom.lo);
+        _mm_storeu_ps(hi, children[k].geom.hi);
+        B->a->set_child(node, k, child, lo, hi, B->a->user);
+    }
+    return node;
+}
+
+/* The subtree of s, whose root is at `depth`: a leaf, or a node whose
+ * children come from splitting s and then, while there is room, the
+ * splittable child with the largest box (Embree's generic builder). */
+static void *build_set(build *B, const set *s, unsigned depth) {
+    const sah_args *a = B->a;
+    size_t n = s->end - s->begin;
+    if (atomic_load_explicit(&B->failed, memory_order_relaxed)) return NULL;
+    if (n > 4096 && a->cancelled && a->cancelled(a->user)) return atomic_store(&B->failed, 1), NULL;
+    if (n <= a->leaf_min) return make_leaf(B, s);
+    if (depth + LARGE_LEAF_LEVELS >= a->max_depth) return build_large(B, s, depth);
+    split sp = find_split(B, s);
+    if (n <= a->leaf_max) {
+        float area = half_area(&s->geom);
+        float leaf_cost = a->isect_cost * area * blocks(a, n);
+        float split_cost = a->trav_cost * area + a->isect_cost * sp.cost;
+        if (leaf_cost <= split_cost) return make_leaf(B, s);
+    }
+    set children[8];
+    partition(B, s, &sp, &children[0], &children[1]);
+    unsigned count = 2;
+    while (count < a->width) {
+        int pick = -1;
+        float pick_area = -INFINITY;
+        for (unsigned k = 0; k < count; k++) {
+            if (children[k].end - children[k].begin <= a->leaf_min) continue;
+            float area = half_area(&children[k].geom);
+            if (area > pick_area) pick = (int)k, pick_area = area;
+        }
+        if (pick < 0) break;
+        set whole = children[pick];
+        split csp = find_split(B, &whole);
+        partition(B, &whole, &csp, &children[pick], &children[count]);
+        count++;
+    }
+    return make_node(B, children, count, depth);
+}
+
+/* par_run's body: each thread takes deferred sets, largest first, until
+ * none are left. */
+static void run_tasks(void *ctx, size_t begin, size_t end, int part) {
+    build *B = ctx;
+    (void)begin, (void)end, (void)part;
+    for (;;) {
+        size_t i = atomic_fetch_add(&B->next_task, 1);
+        if (i >= B->task_count) return;
+        task *t = &B->tasks[i];
+        void *child = build_set(B, &t->s, t->depth);
+        if (!child) {
+            atomic_store(&B->failed, 1);
+            return;
+        }
+        float lo[4], hi[4];
+        _mm_storeu_ps(lo, t->s.geom.lo);
+        _mm_storeu_ps(hi, t->s.geom.hi);
+        B->a->set_child(t->node, t->k, child, lo, hi, B->a->user);
+    }
+}
+
+static int task_larger(const void *x, const void *y) {
+    const task *a = x, *b = y;
+    size_t na = a->s.end - a->s.begin, nb = b->s.end - b->s.begin;
+    if (na != nb) return na > nb ? -1 : 1;
+    return a->s.begin < b->s.begin ? -1 : 1; /* ranges are disjoint */
+}
+
+/* The whole set's boxes, every thread a range. */
+typedef struct {
+    const sah_prim *p;
+    set part[PAR_MAX_PARTS];
+} par_bounds;
+
+static void bounds_part(void *ctx, size_t begin, size_t end, int part) {
+    par_bounds *P = ctx;
+    set s = set_new(begin, end);
+    for (size_t i = begin; i < end; i++) set_grow(&s, &P->p[i]);
+    P->part[part] = s;
+}
+
+int sah_build_threads(size_t n) { return par_parts(n, DEFER_MIN); }
+
+void *sah_build(const sah_args *a, sah_prim *prims, size_t n) {
+    build B = {.a = a, .prims = prims};
+    B.threads = B.bin_threads = sah_build_threads(n);
+    par_bounds *P = malloc(sizeof *P);
+    if (!P) return NULL;
+    P->p = prims;
+    par_run(n, B.threads, bounds_part, P);
+    set root = set_new(0, n);
+    for (int k = 0; k < B.threads; k++) box_merge(&root.geom, &P->part[k].geom), box_merge(&root.cent, &P->part[k].cent);
+    free(P);
+    if (B.threads > 1 && n / (2 * (size_t)B.threads) >= DEFER_MIN) B.defer_max = n / (2 * (size_t)B.threads);
+    void *ref = build_set(&B, &root, 0);
+    if (ref && B.task_count) {
+        /* The deferred sets' own subtrees are built where they are taken:
+         * nothing more is deferred, no set is binned by several threads. */
+        B.defer_max = 0, B.bin_threads = 1;
+        qsort(B.tasks, B.task_count, sizeof *B.tasks, task_larger);
+        par_run((size_t)B.threads, B.threads, run_tasks, &B);
+    }
+    free(B.tasks);
+    if (atomic_load(&B.failed)) return NULL;
+    return ref;
+}
