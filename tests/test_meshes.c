@@ -586,7 +586,6 @@ TEST(mesh_obj_bad_input_names_file_and_line) {
         {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/x 2 3\n", "bad.obj:4: face corner's texture index is missing"},
         {"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf 1/1/1/1 2 3\n", "bad.obj:6: face corner is not of the form"},
         {"v 0 0 0\nv nan 0 0\n", "bad.obj:2: vertex coordinate is not finite"},
-        {"v 0 0 0\nv 0 -2e30 0\n", "bad.obj:2: vertex coordinate -2e+30 is beyond +-1e+30"},
         {"v 0 0 0\nvn 0 inf 1\n", "bad.obj:2: normal is not finite"},
         {"v 0 0 0\nvn 0 1\n", "bad.obj:2: normal needs three numbers"},
         {"vt 1e300\n", "bad.obj:1: texture coordinate is not finite"},

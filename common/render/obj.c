@@ -150,11 +150,6 @@ static int read_vertex(obj_reader *r, const char *s) {
         p[i] = parse_double(s, &end);
         if (end == s) return obj_fail(r, "vertex needs three numbers");
         if (!isfinite(p[i])) return obj_fail(r, "vertex coordinate is not finite");
-        if (fabs(p[i]) > OBJ_COORD_MAX) {
-            char what[96];
-            snprintf(what, sizeof what, "vertex coordinate %g is beyond +-%g", p[i], OBJ_COORD_MAX);
-            return obj_fail(r, what);
-        }
         s = end;
     }
     obj_mesh *m = r->m;

@@ -9,11 +9,6 @@
 #include <stddef.h>
 #include <stdint.h>
 
-/* A vertex coordinate beyond +-OBJ_COORD_MAX is refused: the bound a
- * scene's own coordinates have (scene_load.c), past which a renderer's float
- * arithmetic overflows and the mesh would render black. */
-#define OBJ_COORD_MAX 1e30
-
 #define OBJ_NONE UINT32_MAX /* a corner without a normal or texture coordinate */
 
 typedef struct {
