@@ -112,6 +112,14 @@ TEST(gltf_bad_files_are_refused_naming_the_fault) {
         CHECK(err[0] && strstr(err, cases[i].want), "case %zu: want an error with \"%s\", got \"%s\"", i,
               cases[i].want, err);
     }
+    /* A model whose face reaches beyond the scene's bound (SCENE_COORD_MAX)
+     * is refused naming the mesh, axis and coordinate, not called "not
+     * finite". */
+    static const char far_obj[] = "v 0 0 0\nv 1 0 0\nv 0 3e31 0\nf 1 2 3\n";
+    write_bytes("far.obj", far_obj, sizeof far_obj - 1);
+    const char *far_err = load_error(util_temp_path("far.obj"));
+    CHECK(strstr(far_err, "a face's vertex lies at y = 3e+31, beyond +-1e+30 (after the file's transforms)"),
+          "a model with a vertex at 3e31: got \"%s\"", far_err);
     /* A data: URI whose header (before the comma) Assimp 5.2 would misread,
      * leaking inside it (found by fuzz_gltf; import.c check_data_uris):
      * read up to 126 characters, refused from 127 naming the field. */

@@ -659,6 +659,35 @@ TEST(mesh_unused_vertices_change_nothing) {
     scene_free(s[1]);
 }
 
+/* A face whose vertex lies beyond the scene's bound (SCENE_COORD_MAX),
+ * in the file or once scaled and moved, is refused naming the shape's file,
+ * the axis and the coordinate (it rendered black before); a vertex no face
+ * uses is not (mesh_unused_vertices_change_nothing). */
+TEST(mesh_faces_beyond_the_scene_bound_are_refused) {
+    static const struct {
+        const char *obj, *shape, *want;
+    } cases[] = {
+        {"v 0 0 0\nv 1 0 0\nv 0 -2e30 0\nf 1 2 3\n", "", "far.obj: a face's vertex lies at y = -2e+30, beyond +-1e+30"},
+        {"v 0 0 0\nv 1 0 0\nv 0 0 1e25\nf 1 2 3\n", ", \"scale\": 1e6",
+         "far.obj: a face's vertex lies at z = 1e+31, beyond +-1e+30 (after the shape's scale and translate)"},
+        {"v 0 0 0\nv 1e25 0 0\nv 0 1 0\nf 1 2 3\n", ", \"translate\": [1e30, 0, 0]",
+         "far.obj: a face's vertex lies at x = 1.00001e+30"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        util_write_temp("far.obj", cases[i].obj);
+        char json[1024], err[512] = "";
+        snprintf(json, sizeof json,
+                 "{\"camera\": {\"type\": \"perspective\", \"position\": [0, 0, -3], \"look_at\": [0, 0, 0], "
+                 "\"fov\": 40}, \"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo\": [0.5, 0.5, 0.5]}}, "
+                 "\"shapes\": [{\"type\": \"mesh\", \"file\": \"far.obj\", \"material\": \"m\"%s}]}",
+                 cases[i].shape);
+        scene *s = scene_load(util_write_temp("far.json", json), NULL, err, sizeof err);
+        CHECK(!s && strstr(err, "shapes[0].file: ") && strstr(err, cases[i].want), "case %zu: got \"%s\", want \"%s\"",
+              i, s ? "a scene" : err, cases[i].want);
+        scene_free(s);
+    }
+}
+
 /* vn and vt reach the scene: unit normals and uvs with per-corner indices
  * (a quad's fan shares corner 1); a mesh without them leaves its triangles
  * SCENE_NONE, and a scene with none has NULL arrays. */

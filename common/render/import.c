@@ -998,8 +998,12 @@ static int add_faces(importer *im, const struct aiMesh *mesh, const double M[12]
             double *o = &m->positions[9 * t + 3 * k];
             for (int r = 0; r < 3; r++) o[r] = M[4 * r] * p[0] + M[4 * r + 1] * p[1] + M[4 * r + 2] * p[2] + M[4 * r + 3];
             user_point(im->opt, o);
-            for (int r = 0; r < 3; r++)
-                if (!isfinite(o[r]) || fabs(o[r]) > 1e30) return fail(im, "mesh \"%s\": a vertex is not finite", mesh->mName.data);
+            for (int r = 0; r < 3; r++) {
+                if (!isfinite(o[r])) return fail(im, "mesh \"%s\": a vertex is not finite", mesh->mName.data);
+                if (fabs(o[r]) > SCENE_COORD_MAX)
+                    return fail(im, "mesh \"%s\": a face's vertex lies at %c = %g, beyond +-%g (after the file's "
+                                "transforms)", mesh->mName.data, "xyz"[r], o[r], SCENE_COORD_MAX);
+            }
             if (vn) {
                 if (vertex_normal(im, mesh, vi, N, det, vn)) return -1;
                 if (vn[vi] == NORMAL_BAD) m->flags[t] &= (uint8_t)~1u;

@@ -90,6 +90,11 @@ typedef struct {
     vec3 v0, v1, v2;
 } triangle;
 
+/* The bound on any coordinate of a scene (its JSON numbers, the vertices
+ * of its meshes' faces): past it a renderer's float arithmetic overflows
+ * and the geometry would render black. */
+#define SCENE_COORD_MAX 1e30
+
 #define SCENE_NONE UINT32_MAX /* no per-corner attribute (scene.triangle_vertex_normals, triangle_uvs) */
 
 typedef struct {

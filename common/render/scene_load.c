@@ -32,7 +32,7 @@
 #define MAX_RESOLUTION LIMIT_SIDE
 #define MAX_SPP LIMIT_SPP
 #define MAX_DEPTH LIMIT_DEPTH
-#define BIG 1e30 /* bound for coordinates: anything larger is surely a mistake */
+#define BIG SCENE_COORD_MAX /* bound for coordinates: anything larger is surely a mistake */
 #define MESH_SCALE_MAX 1e6 /* a mesh scaled by 1e30 rendered black: float intersection maths overflows */
 
 typedef struct {
@@ -779,7 +779,7 @@ static int add_mesh_triangles_with_attributes(mesh_add *A) {
     return rc ? -1 : 0;
 }
 
-static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat, int em) {
+static int add_mesh_shape(loader *L, const cJSON *sh, const char *where, uint32_t mat, int em) {
     static const double zero[3] = {0, 0, 0};
     const char *file;
     double scale, translate[3], smooth;
@@ -829,6 +829,19 @@ static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat
         keep_triangle(L, (uint32_t)(base + idx[0]), (uint32_t)(base + idx[1]), (uint32_t)(base + idx[2]), mat, em);
         if (add_triangle_attributes(L, &m, t, before)) return jf_fail(&L->j, where, NULL, "out of memory");
     }
+    return 0;
+}
+
+/* A mesh shape: its triangles added (add_mesh_shape), then refused if a
+ * face reaches beyond +-BIG after the shape's scale and translate (a vertex
+ * no face uses does not count). Returns 0, or -1 with the error set. */
+static int load_mesh(loader *L, const cJSON *sh, const char *where, uint32_t mat, int em) {
+    if (add_mesh_shape(L, sh, where, mat, em)) return -1;
+    for (int a = 0; a < 3; a++) /* the shapes before passed this, so any excess is this mesh's */
+        if (L->tri_lo[a] < -BIG || L->tri_hi[a] > BIG)
+            return jf_fail(&L->j, where, "file", "%s: a face's vertex lies at %c = %g, beyond +-%g (after the shape's "
+                           "scale and translate)", cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(sh, "file")),
+                           "xyz"[a], L->tri_lo[a] < -BIG ? L->tri_lo[a] : L->tri_hi[a], BIG);
     return 0;
 }
 
