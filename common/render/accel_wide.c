@@ -122,6 +122,13 @@ typedef struct {
     int threads;             /* the SAH build's (build_sah) */
 } build_ctx;
 
+/* Whether the scene's cancel callback says stop (noted in b->cancelled). */
+static int build_cancelled(build_ctx *b) {
+    if (!scene_is_cancelled(b->s)) return 0;
+    atomic_store(&b->cancelled, 1);
+    return 1;
+}
+
 /* Embree's progress monitor: false stops the Morton build (rtcBuildBVH
  * then returns NULL) once the scene's cancel callback says so. Embree
  * calls it seldom: a cancel took 0.2-0.9 s to take effect in its
@@ -130,11 +137,8 @@ typedef struct {
  * cb_create_node is no quicker way out: Embree's builder source passes the
  * node to setNodeBounds unchecked.) */
 static bool cb_progress(void *user, double done) {
-    build_ctx *b = user;
     (void)done;
-    if (!scene_is_cancelled(b->s)) return true;
-    atomic_store(&b->cancelled, 1);
-    return false;
+    return !build_cancelled(user);
 }
 
 static void *cb_create_node(RTCThreadLocalAllocator alloc, unsigned int child_count, void *user) {
@@ -160,14 +164,17 @@ static void cb_set_children(void *node, void **children, unsigned int count, voi
     for (unsigned k = 0; k < count && k < NODE_W; k++) n->child[k] = (uintptr_t)children[k];
 }
 
+/* Child k's box into n's rows (wide_node). */
+static void node_set_box(wide_node *n, unsigned k, const float lo[3], const float hi[3]) {
+    for (int a = 0; a < 3; a++) n->box[2 * a][k] = lo[a], n->box[2 * a + 1][k] = hi[a];
+}
+
 static void cb_set_bounds(void *node, const struct RTCBounds **bounds, unsigned int count, void *user) {
-    wide_node *n = node;
     (void)user;
     for (unsigned k = 0; k < count && k < NODE_W; k++) {
         const struct RTCBounds *b = bounds[k];
-        n->box[0][k] = b->lower_x, n->box[1][k] = b->upper_x;
-        n->box[2][k] = b->lower_y, n->box[3][k] = b->upper_y;
-        n->box[4][k] = b->lower_z, n->box[5][k] = b->upper_z;
+        node_set_box(node, k, (const float[3]){b->lower_x, b->lower_y, b->lower_z},
+                     (const float[3]){b->upper_x, b->upper_y, b->upper_z});
     }
 }
 
@@ -230,9 +237,7 @@ static void sah_set_child(void *node, unsigned k, void *child, const float lo[3]
     wide_node *n = node;
     (void)user;
     n->child[k] = (uintptr_t)child;
-    n->box[0][k] = lo[0], n->box[1][k] = hi[0];
-    n->box[2][k] = lo[1], n->box[3][k] = hi[1];
-    n->box[4][k] = lo[2], n->box[5][k] = hi[2];
+    node_set_box(n, k, lo, hi);
 }
 
 static void *sah_create_leaf(const sah_prim *prims, size_t count, void *user) {
@@ -241,12 +246,7 @@ static void *sah_create_leaf(const sah_prim *prims, size_t count, void *user) {
     return make_leaf(user, ids, count);
 }
 
-static int sah_cancelled(void *user) {
-    build_ctx *b = user;
-    if (!scene_is_cancelled(b->s)) return 0;
-    atomic_store(&b->cancelled, 1);
-    return 1;
-}
+static int sah_cancelled(void *user) { return build_cancelled(user); }
 
 /* The build primitives: every primitive's padded box. Returns NULL when
  * out of memory; the caller frees. */

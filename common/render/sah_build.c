@@ -303,6 +303,14 @@ static int task_push(build *B, const set *s, unsigned depth, void *node, unsigne
     return 0;
 }
 
+/* Make child (the subtree of set c) child k of node, with c's box. */
+static void attach(build *B, void *node, unsigned k, void *child, const set *c) {
+    float lo[4], hi[4];
+    _mm_storeu_ps(lo, c->geom.lo);
+    _mm_storeu_ps(hi, c->geom.hi);
+    B->a->set_child(node, k, child, lo, hi, B->a->user);
+}
+
 /* A node over children[0 .. count): each built now, or deferred. */
 static void *make_node(build *B, set *children, unsigned count, unsigned depth) {
     void *node = B->a->create_node(B->a->user);
@@ -315,10 +323,7 @@ static void *make_node(build *B, set *children, unsigned count, unsigned depth) 
         }
         void *child = build_set(B, c, depth + 1);
         if (!child) return NULL;
-        float lo[4], hi[4];
-        _mm_storeu_ps(lo, c->geom.lo);
-        _mm_storeu_ps(hi, c->geom.hi);
-        B->a->set_child(node, k, child, lo, hi, B->a->user);
+        attach(B, node, k, child, c);
     }
     return node;
 }
@@ -341,10 +346,7 @@ static void *build_large(build *B, const set *s, unsigned depth) {
     for (unsigned k = 0; k < c; k++) {
         void *child = build_large(B, &children[k], depth + 1);
         if (!child) return NULL;
-        float lo[4], hi[4];
-        _mm_storeu_ps(lo, children[k].geom.lo);
-        _mm_storeu_ps(hi, children[k].geom.hi);
-        B->a->set_child(node, k, child, lo, hi, B->a->user);
+        attach(B, node, k, child, &children[k]);
     }
     return node;
 }
@@ -400,10 +402,7 @@ static void run_tasks(void *ctx, size_t begin, size_t end, int part) {
             atomic_store(&B->failed, 1);
             return;
         }
-        float lo[4], hi[4];
-        _mm_storeu_ps(lo, t->s.geom.lo);
-        _mm_storeu_ps(hi, t->s.geom.hi);
-        B->a->set_child(t->node, t->k, child, lo, hi, B->a->user);
+        attach(B, t->node, t->k, child, &t->s);
     }
 }
 
