@@ -252,11 +252,19 @@ TEST(sah_build_trees_hold_every_primitive_once) {
     build_and_check("geometric, depth 14", GEOMETRIC, 4000, 3, 4, 14, NULL);
 }
 
-/* The same tree, bit for bit, on 1, 2 and 3 threads: above the size where
- * a set is binned by every thread and the subtrees go to the threads. */
+/* The same tree, bit for bit, on 1, 2 and 3 threads (above the size where
+ * a set is binned by every thread and the subtrees go to the threads), and
+ * with the SSE binning instead of AVX2's (TESSERA_NO_AVX2; the same on a
+ * CPU without AVX2). */
 TEST(sah_build_same_tree_with_any_threads) {
-    bytes ref = {0};
+    bytes ref = {0}, sse = {0};
     build_and_check("graded, 1 thread", GRADED, 300000, 8, 8, 40, &ref);
+    setenv("TESSERA_NO_AVX2", "1", 1);
+    build_and_check("graded, SSE binning", GRADED, 300000, 8, 8, 40, &sse);
+    unsetenv("TESSERA_NO_AVX2");
+    CHECK(ref.len > 0 && sse.len == ref.len && memcmp(ref.b, sse.b, ref.len) == 0,
+          "the SSE binning built a different tree from the AVX2 one's (%zu against %zu bytes)", sse.len, ref.len);
+    free(sse.b);
     static const char *threads[] = {"2", "3"};
     for (size_t i = 0; i < 2; i++) {
         bytes other = {0};
