@@ -27,8 +27,9 @@
 #include <stddef.h>
 #include <stdint.h>
 
-/* One primitive's box and id: 32 bytes, the lower corner then the upper,
- * 16-byte aligned rows (the builder loads each as one SSE register). */
+/* One primitive's box and id: 32 bytes, the lower corner then the upper
+ * (the builder loads each row as one SSE register, or the whole as one AVX
+ * register): an array of them must be 32-byte aligned. */
 typedef struct {
     float lo[3];
     uint32_t id;
@@ -61,8 +62,8 @@ typedef struct {
  * (TESSERA_LOAD_THREADS), fewer for small builds. */
 int sah_build_threads(size_t n);
 
-/* Build over prims[0 .. n) (n >= 1; every box finite, lo <= hi), which the
- * build reorders. Returns the root's reference (a node, or a leaf when n is
+/* Build over prims[0 .. n) (n >= 1; 32-byte aligned; every box finite,
+ * lo <= hi), which the build reorders. Returns the root's reference (a node, or a leaf when n is
  * small), or NULL when a callback returned NULL or the build was cancelled;
  * what the callbacks made belongs to the caller either way. */
 void *sah_build(const sah_args *a, sah_prim *prims, size_t n);
