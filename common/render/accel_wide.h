@@ -54,7 +54,7 @@ typedef struct {
 
 /* From this many primitives the tree is built by Embree's Morton-code
  * builder (RTC_BUILD_QUALITY_LOW) instead of the binned SAH: at 10.5M
- * triangles it builds in 1.7-2.5 s instead of 4.2-4.3 s (Tessera's SAH;
+ * triangles it builds in 1.7-2.5 s instead of 3.5-3.8 s (Tessera's SAH;
  * Embree's generic SAH took 5.0 s, Embree's own scene, which auto picked
  * there before, 3.5 s) and renders as fast as Embree's, for about 1.6x
  * Embree's peak memory (docs/meshes.md). Below,

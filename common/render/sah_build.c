@@ -62,7 +62,6 @@ typedef struct {
     unsigned pos;
     float cost;
     bin_map map;
-    float ofs, scale, top; /* the map's, on axis */
 } split;
 
 /* A set left for the threads: it becomes child k of node. */
@@ -150,10 +149,9 @@ static void bins_merge(bins *b, const bins *o, unsigned nbins) {
         for (unsigned i = 0; i < nbins; i++) box_merge(&b->box[a][i], &o->box[a][i]), b->count[a][i] += o->count[a][i];
 }
 
-/* Bin p[begin .. end) into b (cleared first). About 40 instructions per
- * primitive, which bound it: two or four sets of bins for alternate
- * primitives (so that a bin's update need not wait on the last) were no
- * faster (docs/meshes.md). */
+/* Bin p[begin .. end) into b (cleared first). Two or four sets of bins
+ * for alternate primitives (so that a bin's update need not wait on the
+ * last) were no faster (docs/meshes.md). */
 static void bin_range_sse(const sah_prim *p, size_t begin, size_t end, const bin_map *m, bins *b) {
     bins_clear(b, m->nbins);
     for (size_t i = begin; i < end; i++) bin_one(b, prim_lo(&p[i]), prim_hi(&p[i]), m);
@@ -163,7 +161,8 @@ static void bin_range_sse(const sah_prim *p, size_t begin, size_t end, const bin
 /* bin_range_sse with AVX2: a bin's box is one 8-lane register, the lower
  * corner negated (lanes 0-2) beside the upper (lanes 4-6), so one maximum
  * updates both; the bin indices are bin_of's. The same bins exactly
- * (negation is exact): 25-35% less time per primitive. */
+ * (negation is exact): 7.5-10.7 against 11.2-14.5 ns per primitive
+ * (docs/meshes.md). */
 typedef struct {
     __m256 box[3][SAH_BINS];
     uint32_t count[3][SAH_BINS];
@@ -263,22 +262,32 @@ static split find_split(build *B, const set *s) {
             if (cost < best.cost) best.cost = cost, best.axis = a, best.pos = i;
         }
     }
-    if (best.axis >= 0) {
-        float o[4];
-        _mm_storeu_ps(o, m->ofs);
-        best.ofs = o[best.axis], best.scale = sc[best.axis], best.top = (float)(m->nbins - 1);
-    }
     return best;
 }
 
-/* Whether p's centre is below sp's plane: bin_of's operations on sp's
+/* A split's plane on its axis alone: the map's offset, scale and top bin
+ * there, and the first bin on the right. */
+typedef struct {
+    int axis;
+    float ofs, scale, top;
+    int pos;
+} plane;
+
+static plane plane_of(const split *sp) {
+    float o[4], sc[4];
+    _mm_storeu_ps(o, sp->map.ofs);
+    _mm_storeu_ps(sc, sp->map.scale);
+    return (plane){sp->axis, o[sp->axis], sc[sp->axis], (float)(sp->map.nbins - 1), (int)sp->pos};
+}
+
+/* Whether p's centre is below the plane: bin_of's operations on the plane's
  * axis alone, so the same bin as binning gave it. */
-static inline int goes_left(const split *sp, const sah_prim *p) {
-    int a = sp->axis;
-    float pos = (p->lo[a] + p->hi[a] - sp->ofs) * sp->scale;
+static inline int goes_left(const plane *pl, const sah_prim *p) {
+    int a = pl->axis;
+    float pos = (p->lo[a] + p->hi[a] - pl->ofs) * pl->scale;
     pos = pos > 0.0f ? pos : 0.0f;
-    pos = pos < sp->top ? pos : sp->top;
-    return (int)pos < (int)sp->pos;
+    pos = pos < pl->top ? pos : pl->top;
+    return (int)pos < pl->pos;
 }
 
 static inline void set_grow(set *s, const sah_prim *p) {
@@ -302,9 +311,10 @@ static void partition(build *B, const set *s, const split *sp, set *l, set *r) {
     }
     size_t i = s->begin, j = s->end;
     set L = set_new(0, 0), R = set_new(0, 0);
+    plane pl = plane_of(sp);
     for (;;) {
-        while (i < j && goes_left(sp, &p[i])) set_grow(&L, &p[i]), i++;
-        while (i < j && !goes_left(sp, &p[j - 1])) set_grow(&R, &p[j - 1]), j--;
+        while (i < j && goes_left(&pl, &p[i])) set_grow(&L, &p[i]), i++;
+        while (i < j && !goes_left(&pl, &p[j - 1])) set_grow(&R, &p[j - 1]), j--;
         if (i >= j) break;
         sah_prim t = p[i];
         p[i] = p[j - 1], p[j - 1] = t;

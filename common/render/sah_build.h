@@ -11,9 +11,10 @@
  * children; a set of `leaf_min` primitives or fewer is a leaf, and so is one
  * of `leaf_max` or fewer whose leaf cost is no more than its best split's.
  * Costs count primitives in blocks of `block` (a leaf test handles a block
- * at once). Why Tessera's own: it builds the same tree as fast to render
- * (the same node and leaf counts within a few) in 25-35% less time on 2
- * cores (2.6M triangles: 0.83-1.08 s against 1.08-1.48 s), without
+ * at once). Why Tessera's own: it builds a tree as fast to render (at 2.6M
+ * triangles the node and leaf counts within 1 of Embree's) in less time on
+ * 2 cores (2.6M triangles: 0.83-1.08 s against 1.08-1.48 s, before the
+ * AVX2 binning), without
  * Embree's buffers (a 2.6M-triangle run's system time 0.3 s instead of
  * 1.2 s), the same tree on any number of threads, and it stops within
  * 0.03 s when cancelled instead of 0.2-0.9 s (docs/meshes.md).
