@@ -332,9 +332,9 @@ static void print_wide_stats(const accel_wide_stats *ws) {
     else
         snprintf(how, sizeof how, "Embree's %s build, device \"%s\"", ws->builder, ws->config);
     fprintf(stderr, "intersector: wide (%d-wide BVH, Tessera's %s walk and tests; %s), %zu nodes, %zu leaves, "
-            "%.1f KiB, peak %.1f KiB while building, built in %.3f ms\n", ws->node_width, ws->walk_isa, how,
-            ws->node_count, ws->leaf_count, (double)ws->memory_bytes / 1024.0, (double)ws->peak_bytes / 1024.0,
-            ws->build_seconds * 1e3);
+            "%.1f KiB%s, peak %.1f KiB while building, built in %.3f ms\n", ws->node_width, ws->walk_isa, how,
+            ws->node_count, ws->leaf_count, (double)ws->memory_bytes / 1024.0,
+            ws->huge_pages ? " on huge pages" : "", (double)ws->peak_bytes / 1024.0, ws->build_seconds * 1e3);
 }
 
 static void print_scene_info(const scene *s) {

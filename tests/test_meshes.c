@@ -393,6 +393,35 @@ TEST(mesh_wide_morton_build_matches_bvh) {
     }
 }
 
+/* The wide tree asks for huge pages when the SAH builds it, and when the
+ * Morton builder does only for a render of at least n / 4 samples
+ * (accel_wide.c, tree_on_huge_pages): a one-pixel preview of a large mesh
+ * is not worth the huge pages' first touch. */
+TEST(mesh_wide_tree_huge_pages_follow_the_samples) {
+    char err[512];
+    scene *s = scene_load(ICO_SCENE, NULL, err, sizeof err);
+    CHECK(s != NULL, "%s", err);
+    if (!s) return;
+    size_t n = (size_t)s->triangle_count + s->sphere_count;
+    static const struct {
+        const char *builder;
+        int width, height, spp, huge;
+    } cases[] = {{"morton", 1, 1, 1, 0}, {"sah", 1, 1, 1, 1}, {"morton", 64, 64, 64, 1}, {"sah", 64, 64, 64, 1}};
+    CHECK(n >= 8 && 64u * 64u * 64u >= n / 4, "%zu primitives: the cases need at least 8 and at most 2^20", n);
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        s->settings.width = cases[k].width, s->settings.height = cases[k].height, s->settings.spp = cases[k].spp;
+        setenv("TESSERA_WIDE_BUILDER", cases[k].builder, 1);
+        accel *wide = accel_build_err(s, ACCEL_WIDE, err, sizeof err);
+        unsetenv("TESSERA_WIDE_BUILDER");
+        accel_wide_stats st = {0};
+        CHECK(wide && accel_get_wide_stats(wide, &st) == 0, "%s build: %s", cases[k].builder, err);
+        CHECK(st.huge_pages == cases[k].huge, "%s build of %zu primitives for %dx%dx%d: huge_pages %d, want %d",
+              cases[k].builder, n, cases[k].width, cases[k].height, cases[k].spp, st.huge_pages, cases[k].huge);
+        accel_free(wide);
+    }
+    scene_free(s);
+}
+
 /* Every Embree kernel this CPU can run, forced, and every build quality:
  * the same answers as the BVH (the tests at the leaves are Tessera's;
  * Embree's arithmetic and tree only order them). */
