@@ -86,16 +86,14 @@ typedef WIDE_LEAF(4) wide_leaf4;
 typedef WIDE_LEAF(8) wide_leaf8;
 
 /* The tree's memory (bump_arena.h): chunks handed out to the builder's
- * threads by an atomic bump pointer. A tree built by the SAH (below
- * ACCEL_WIDE_MORTON_MIN_PRIMITIVES) asks for transparent huge pages: in
- * Embree's own thread-local blocks, of 4 KiB pages, a walk's step at 655k
- * triangles touched a page the TLB did not hold (render time -3% at 655k,
- * none at 2.6M: docs/meshes.md). A Morton-built tree, whose build the run
- * waits for, does so only for a render of at least a quarter as many
- * samples as primitives (tree_on_huge_pages): at 10.5M triangles huge
- * pages cost the build 0.3-0.5 s (fresh huge pages are slow to get on a
- * VM, and the kernel compacts for them) and save 13% of the render's
- * time, so they pay from about 2M samples. */
+ * threads by an atomic bump pointer, on transparent huge pages for a
+ * render of at least a quarter as many samples as primitives
+ * (tree_on_huge_pages). A walk's step then finds its page in the TLB:
+ * render time -3% at 655k triangles (against Embree's thread-local
+ * blocks of 4 KiB pages), -13% at 10.5M (docs/meshes.md). But fresh huge
+ * pages are slow to get on a VM (and the kernel compacts for them): at
+ * 10.5M they cost the build 0.3-0.5 s, at 2.6M 0.1-0.2 s, which a preview
+ * of a few samples would not win back. */
 #define ARENA_CHUNK_MIN ((size_t)4 << 20)
 #define ARENA_CHUNK_MAX ((size_t)128 << 20)
 
@@ -352,13 +350,12 @@ static void *build_morton(accel_wide *w, build_ctx *b, size_t n, size_t *peak) {
     return root;
 }
 
-/* Whether the tree of n primitives asks for huge pages (above): always
- * when the SAH builds it, when Embree's Morton builder does only if the
- * render's samples (width x height x spp of s's settings) are at least
- * n / 4. */
-static int tree_on_huge_pages(const scene *s, size_t n, int morton) {
+/* Whether the tree of s's n primitives asks for huge pages (above): when
+ * the render's samples (width x height x spp of s's settings) are at
+ * least n / 4. */
+static int tree_on_huge_pages(const scene *s, size_t n) {
     uint64_t samples = (uint64_t)s->settings.width * (uint64_t)s->settings.height * (uint64_t)s->settings.spp;
-    return !morton || samples >= n / 4;
+    return samples >= n / 4;
 }
 
 accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
@@ -381,7 +378,7 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
      * primitives), 4 to 128 MiB. */
     size_t chunk = n / 8 * (sizeof(wide_node) + sizeof(wide_leaf8)) / 10;
     chunk = chunk < ARENA_CHUNK_MIN ? ARENA_CHUNK_MIN : chunk > ARENA_CHUNK_MAX ? ARENA_CHUNK_MAX : chunk;
-    w->stats.huge_pages = tree_on_huge_pages(s, n, morton);
+    w->stats.huge_pages = tree_on_huge_pages(s, n);
     if (!(w->arena = bump_arena_new(chunk, w->stats.huge_pages))) {
         snprintf(err, err_len, "out of memory");
         accel_wide_free(w);
