@@ -832,6 +832,103 @@ TEST(mesh_worker_refuses_a_scene_it_cannot_hold) {
     scene_bundle_free(&b);
 }
 
+/* Bundle `path` and check its estimate: want_tris triangles, and exactly
+ * the bundle's bytes + extra + want_tris * per_tri. */
+static void check_estimate(const char *path, uint64_t want_tris, uint64_t per_tri, uint64_t extra) {
+    scene_bundle b;
+    char err[256];
+    CHECK(scene_bundle_read(path, &b, err, sizeof err) == 0, "%s", err);
+    uint64_t files = 0, tris = 0, bytes = scene_memory_estimate(&b, &tris);
+    for (size_t i = 0; i < b.count; i++) files += b.files[i].len;
+    CHECK(tris == want_tris && bytes == files + extra + want_tris * per_tri,
+          "%s: %llu triangles, %llu bytes; want %llu and %llu", path, (unsigned long long)tris,
+          (unsigned long long)bytes, (unsigned long long)want_tris,
+          (unsigned long long)(files + extra + want_tris * per_tri));
+    scene_bundle_free(&b);
+}
+
+/* Models count in the memory estimate (scene_memory.h): a glTF's
+ * primitives times the nodes naming their mesh, at the imported rate (mode
+ * 4 count / 3, strips and fans count - 2, lines nothing), PNG and JPEG
+ * textures at 4 bytes per texel (bundle files, as a glTF's PNG here and an
+ * MTL's JPEG, and a binary glTF's images in its BIN chunk);
+ * a mesh OBJ at the mesh rate, the same OBJ imported at the imported rate.
+ * A worker too small for a model gives its tile back naming the figures.
+ * (Before, a model counted only its file's bytes: a worker took a 1.3M
+ * triangle .glb of 36 MB that peaks at 410 MB.) */
+TEST(mesh_memory_estimate_counts_models_and_textures) {
+    /* suzanne.glb: mesh 0 (15,744 triangles) and mesh 1 (2), a node each */
+    check_estimate("scenes/gltf/suzanne.glb", 15746, SCENE_MEMORY_BYTES_PER_IMPORTED_TRIANGLE, 0);
+    /* arrow-plane.gltf: 2 triangles and arrow.png, 64 x 64 */
+    check_estimate("scenes/gltf/arrow-plane.gltf", 2, SCENE_MEMORY_BYTES_PER_IMPORTED_TRIANGLE, 64 * 64 * 4);
+    /* mesh 0 named by three nodes (one of them nested), mesh 1 by one:
+     * 3 x (9 / 3 + (9 - 2) + 0) + (6 - 2) */
+    const char *gltf = util_write_temp("counted.gltf",
+        "{\"asset\": {\"version\": \"2.0\"}, \"scenes\": [{\"nodes\": [0, 1, 2, 3]}],"
+        " \"nodes\": [{\"mesh\": 0}, {\"mesh\": 0, \"children\": [4]}, {\"mesh\": 1}, {}, {\"mesh\": 0}],"
+        " \"meshes\": [{\"primitives\": [{\"attributes\": {\"POSITION\": 0}, \"indices\": 1},"
+        " {\"attributes\": {\"POSITION\": 0}, \"mode\": 5}, {\"attributes\": {\"POSITION\": 0}, \"mode\": 1}]},"
+        " {\"primitives\": [{\"attributes\": {\"POSITION\": 2}, \"mode\": 6}]}],"
+        " \"accessors\": [{\"count\": 9}, {\"count\": 9}, {\"count\": 6}]}");
+    CHECK(gltf != NULL, "temp file not written");
+    if (gltf) check_estimate(gltf, 3 * (3 + 7) + 4, SCENE_MEMORY_BYTES_PER_IMPORTED_TRIANGLE, 0);
+    /* One OBJ, as a mesh and as an import */
+    const char *obj = util_write_temp("counted.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 4 3\nf 1 2 3\n");
+    char json[512];
+    snprintf(json, sizeof json,
+             "{\"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo\": [0.5, 0.5, 0.5]}},"
+             " \"shapes\": [{\"type\": \"mesh\", \"file\": \"counted.obj\", \"material\": \"m\"}]}");
+    const char *as_mesh = util_write_temp("counted-mesh.json", json); /* util's buffer: used before the next */
+    CHECK(obj && as_mesh, "temp files not written");
+    if (obj && as_mesh) check_estimate(as_mesh, 3, SCENE_MEMORY_BYTES_PER_TRIANGLE, 0);
+    const char *as_model = util_write_temp("counted-model.json", "{\"import\": {\"file\": \"counted.obj\"}}");
+    CHECK(as_model != NULL, "temp file not written");
+    if (as_model) check_estimate(as_model, 3, SCENE_MEMORY_BYTES_PER_IMPORTED_TRIANGLE, 0);
+    /* A binary glTF holding arrow.png (64 x 64) in its BIN chunk */
+    static uint8_t glb[4096];
+    FILE *png = fopen("scenes/gltf/arrow.png", "rb");
+    size_t png_len = png ? fread(glb + 2048, 1, 2048, png) : 0;
+    if (png) fclose(png);
+    char gj[512];
+    int jl = snprintf(gj, sizeof gj,
+                      "{\"asset\": {\"version\": \"2.0\"}, \"images\": [{\"bufferView\": 0, \"mimeType\": "
+                      "\"image/png\"}], \"bufferViews\": [{\"buffer\": 0, \"byteLength\": %zu}], \"buffers\": "
+                      "[{\"byteLength\": %zu}]}",
+                      png_len, png_len);
+    while (jl % 4) gj[jl++] = ' ';
+    size_t bl = (png_len + 3) / 4 * 4, total = 12 + 8 + (size_t)jl + 8 + bl;
+    const uint32_t head[5] = {0x46546C67u, 2, (uint32_t)total, (uint32_t)jl, 0x4E4F534Au},
+                   bin_head[2] = {(uint32_t)bl, 0x004E4942u};
+    memmove(glb + 20 + jl + 8, glb + 2048, png_len);
+    memset(glb + 20 + jl + 8 + png_len, 0, bl - png_len);
+    memcpy(glb, head, sizeof head);
+    memcpy(glb + 20, gj, (size_t)jl);
+    memcpy(glb + 20 + jl, bin_head, sizeof bin_head);
+    FILE *gf = png_len > 24 ? fopen(util_temp_path("image.glb"), "wb") : NULL;
+    int written = gf && fwrite(glb, 1, total, gf) == total;
+    if (gf) written &= fclose(gf) == 0;
+    CHECK(written, "image.glb not written (arrow.png: %zu bytes)", png_len);
+    if (written) check_estimate(util_temp_path("image.glb"), 0, SCENE_MEMORY_BYTES_PER_IMPORTED_TRIANGLE, 64 * 64 * 4);
+    /* A JPEG texture (map_Kd of an imported OBJ), 40 x 24 */
+    char cmd[2048], out[16384];
+    snprintf(cmd, sizeof cmd, "%s render scenes/cornell-box.json --workers 0 --width 40 --height 24 --spp 1 -o %s",
+             harness_tessera(), util_temp_path("counted.jpg"));
+    CHECK(util_run(cmd, out, sizeof out) == 0, "%s: %s", cmd, out);
+    const char *mtl = util_write_temp("counted.mtl", "newmtl a\nmap_Kd counted.jpg\n");
+    const char *tobj = util_write_temp("textured.obj", "mtllib counted.mtl\nusemtl a\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
+                                                         "vt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n");
+    const char *tscene = util_write_temp("textured.json", "{\"import\": {\"file\": \"textured.obj\"}}");
+    CHECK(mtl && tobj && tscene, "temp files not written");
+    if (tscene) check_estimate(tscene, 1, SCENE_MEMORY_BYTES_PER_IMPORTED_TRIANGLE, 40 * 24 * 4);
+    snprintf(cmd, sizeof cmd,
+             "TESSERA_MEMORY_AVAILABLE_MB=0 timeout 120 %s render scenes/gltf/suzanne.glb --workers 1 --width 8 "
+             "--height 8 --worker-timeout 30 --no-progress -o %s",
+             harness_tessera(), util_temp_path("refused-model.pfm"));
+    int rc = util_run(cmd, out, sizeof out);
+    CHECK(rc != 0 && strstr(out, "cannot hold the scene: loading 15746 triangles needs about 7 MiB, only 0 MiB"),
+          "%s (%d): %s", cmd, rc, out);
+}
+
 /* The floor of the light-leak tests: one-sided, its vertex normals leaning
  * 60 degrees towards +x. */
 #define TILTED_FLOOR_OBJ "v -2 0 -2\nv 2 0 -2\nv 2 0 2\nv -2 0 2\nvn 0.866 0.5 0\nf 1//1 4//1 3//1 2//1\n"

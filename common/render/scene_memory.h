@@ -21,9 +21,23 @@
  * 1554 MB.) */
 #define SCENE_MEMORY_BYTES_PER_TRIANGLE 256
 
-/* Estimated peak bytes to load bundle b: its own size plus
- * SCENE_MEMORY_BYTES_PER_TRIANGLE per triangle its OBJ faces make (counted
- * from the text, fan-triangulated). Can't fail. */
+/* The same for a triangle of a model the importer reads (glTF, or an OBJ
+ * named by "import" or a "model" shape: render/import.h). Assimp keeps a
+ * vertex per corner and the importer its own copies: measured (one-pixel
+ * `--workers 0` runs of an icosphere written as .glb, 328k against 1.31M
+ * triangles, the slope of peak RSS) 221 B per triangle with positions
+ * only, 290 B with normals and texture coordinates; 448 keeps a margin of
+ * about 1.5. */
+#define SCENE_MEMORY_BYTES_PER_IMPORTED_TRIANGLE 448
+
+/* Estimated peak bytes to load bundle b: its own size, plus
+ * SCENE_MEMORY_BYTES_PER_TRIANGLE per triangle its meshes' OBJ faces make
+ * (counted from the text, fan-triangulated, times the scene's uses of the
+ * file), SCENE_MEMORY_BYTES_PER_IMPORTED_TRIANGLE per triangle of its
+ * models (a glTF's primitives times the nodes naming their mesh; a model
+ * OBJ's faces), and 4 bytes per texel of its PNG and JPEG textures (bundle
+ * files and a binary glTF's images, from their headers). *triangles gets
+ * the triangles counted. Can't fail. */
 uint64_t scene_memory_estimate(const scene_bundle *b, uint64_t *triangles);
 
 /* Bytes this process may still allocate: the smaller of the host's
