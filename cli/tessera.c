@@ -25,6 +25,7 @@
 #include "render/render.h"
 #include "render/model_files.h"
 #include "render/scene.h"
+#include "render/scene_memory.h"
 #include "version.h"
 #include "cli_util.h"
 #include "client.h"
@@ -500,19 +501,26 @@ static int save_samples_aov(const render_args *a, const scene *s, const float *s
  * encoder's copy (membudget_job_bytes) and the per-pixel sample counts of
  * an adaptive render, against --max-memory or the default budget
  * (membudget.h). Returns 0, or 1 (printed). */
-static int render_fits_memory(const render_args *a, const scene *s) {
-    char how[160] = "--max-memory", need_s[32], budget_s[32];
+/* Whether the frame (and, rendering in this process, the scene: scene_bytes,
+ * scene_memory.h's estimate of its load and build for its `triangles`; 0
+ * on a farm, whose workers check their own) fits --max-memory or its
+ * default. Returns 0, or 1 after saying why not with the figures. */
+static int render_fits_memory(const render_args *a, const scene *s, uint64_t scene_bytes, uint64_t triangles) {
+    char how[160] = "--max-memory", need_s[32], budget_s[32], what[160] = "";
     uint64_t budget = a->max_memory ? a->max_memory : membudget_default(how, sizeof how);
     uint64_t px = (uint64_t)s->settings.width * (uint64_t)s->settings.height;
-    uint64_t need = membudget_job_bytes(s->settings.width, s->settings.height, 0, 0) +
+    uint64_t need = membudget_job_bytes(s->settings.width, s->settings.height, 0, scene_bytes) +
                     (a->ro.noise_threshold > 0 ? px * sizeof(float) : 0);
     if (need <= budget) return 0;
     membudget_format(need, need_s, sizeof need_s);
     membudget_format(budget, budget_s, sizeof budget_s);
-    fprintf(stderr, "tessera: a %dx%d frame needs %s (with the saved image's copy), --max-memory is %s%s%s%s; render a "
-            "smaller frame or raise "
-            "--max-memory\n", s->settings.width, s->settings.height, need_s, budget_s, a->max_memory ? "" : " (",
-            a->max_memory ? "" : how, a->max_memory ? "" : ")");
+    if (triangles)
+        snprintf(what, sizeof what, " and the scene's %llu triangles (their load and build, estimated) need",
+                 (unsigned long long)triangles);
+    fprintf(stderr, "tessera: a %dx%d frame%s %s (with the saved image's copy), --max-memory is %s%s%s%s; render "
+            "a smaller frame or raise --max-memory\n", s->settings.width, s->settings.height,
+            triangles ? what : " needs", need_s, budget_s, a->max_memory ? "" : " (", a->max_memory ? "" : how,
+            a->max_memory ? "" : ")");
     return 1;
 }
 
@@ -537,6 +545,7 @@ static int cmd_render(int argc, char **argv) {
         if (a.camera) scene_bundle_free(&b);
         return 1;
     }
+    uint64_t scene_tris = 0, scene_bytes = scene_memory_estimate(&b, &scene_tris);
     a.ov.no_accel = 1; /* the workers build their own; this process, below, if it renders */
     scene *s = scene_load_bundle(&b, &a.ov, err, sizeof err);
     if (!s) {
@@ -563,7 +572,10 @@ static int cmd_render(int argc, char **argv) {
                     "is loaded once, not again by a worker)\n", s->triangle_count + s->sphere_count, a.threads);
     }
     int farm_mode = a.listen || a.workers > 0;
-    if (!farm_mode) {
+    /* Rendering here: the frame and the scene's build must fit, checked
+     * before the build (the load's peak) rather than found by the kernel. */
+    if (!farm_mode && render_fits_memory(&a, s, scene_bytes, scene_tris)) rc = -1;
+    if (!farm_mode && rc == 0) {
         scene_bundle_free(&b); /* the scene has what it needs: the mesh files' text goes before the build */
         if (scene_build_accel(s, err, sizeof err)) {
             fprintf(stderr, "tessera: %s\n", err);
@@ -572,7 +584,7 @@ static int cmd_render(int argc, char **argv) {
     }
     if (a.verbose) print_scene_info(s);
     image img = {0};
-    if (rc == 0) rc = render_fits_memory(&a, s);
+    if (rc == 0 && farm_mode) rc = render_fits_memory(&a, s, 0, 0);
     if (rc == 0 && image_alloc(&img, s->settings.width, s->settings.height)) {
         fprintf(stderr, "tessera: out of memory for a %dx%d image\n", s->settings.width, s->settings.height);
         rc = -1;

@@ -11,6 +11,7 @@
 #include <pthread.h>
 #include <stdint.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "render/accel.h"
 #include "render/bump_arena.h"
@@ -830,6 +831,42 @@ TEST(mesh_worker_refuses_a_scene_it_cannot_hold) {
     CHECK(tris == 2560 && bytes > 2560 * SCENE_MEMORY_BYTES_PER_TRIANGLE, "estimate: %llu triangles, %llu bytes",
           (unsigned long long)tris, (unsigned long long)bytes);
     scene_bundle_free(&b);
+}
+
+/* Rendering in this process, the scene's estimated load and build count
+ * against --max-memory with the frame, checked before the build: a scene
+ * too big is refused with the figures, not killed by the kernel halfway. */
+TEST(mesh_render_in_process_refuses_a_scene_over_max_memory) {
+    /* a grid of 50 x 50 quads: 5000 triangles, 1.2 MiB at 256 B each */
+    static char obj[200000];
+    size_t len = 0;
+    for (int y = 0; y <= 50; y++)
+        for (int x = 0; x <= 50; x++) len += (size_t)snprintf(obj + len, sizeof obj - len, "v %d %d 0\n", x, y);
+    for (int y = 0; y < 50; y++)
+        for (int x = 0; x < 50; x++)
+            len += (size_t)snprintf(obj + len, sizeof obj - len, "f %d %d %d %d\n", y * 51 + x + 1, y * 51 + x + 2,
+                                    (y + 1) * 51 + x + 2, (y + 1) * 51 + x + 1);
+    CHECK(len < sizeof obj - 1 && util_write_temp("grid.obj", obj), "grid.obj not written");
+    const char *scene = util_write_temp("grid.json",
+        "{\"camera\": {\"type\": \"perspective\", \"position\": [25, 25, -60], \"look_at\": [25, 25, 0], \"fov\": 40},"
+        " \"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo\": [0.5, 0.5, 0.5]}},"
+        " \"shapes\": [{\"type\": \"mesh\", \"file\": \"grid.obj\", \"material\": \"m\"}],"
+        " \"lights\": [{\"type\": \"point\", \"position\": [25, 25, -30], \"intensity\": [100, 100, 100]}]}");
+    char cmd[2048], out[8192], scene_path[512];
+    snprintf(scene_path, sizeof scene_path, "%s", scene ? scene : "");
+    const char *img = util_temp_path("over-budget.pfm");
+    unlink(img);
+    snprintf(cmd, sizeof cmd, "%s render %s --workers 0 --width 8 --height 8 --max-memory 1M -o %s",
+             harness_tessera(), scene_path, img);
+    int rc = util_run(cmd, out, sizeof out);
+    struct stat st;
+    CHECK(rc != 0 && strstr(out, "the scene's 5000 triangles (their load and build, estimated) need") &&
+              strstr(out, "--max-memory is 1.0 MiB") && stat(img, &st) != 0,
+          "%s (%d): %s", cmd, rc, out);
+    snprintf(cmd, sizeof cmd, "%s render %s --workers 0 --width 8 --height 8 --max-memory 64M -o %s",
+             harness_tessera(), scene_path, img);
+    rc = util_run(cmd, out, sizeof out);
+    CHECK(rc == 0 && stat(img, &st) == 0, "%s (%d): %s", cmd, rc, out);
 }
 
 /* Bundle `path` and check its estimate: want_tris triangles, and exactly
