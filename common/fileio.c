@@ -9,7 +9,6 @@
 #include <string.h>
 #include <sys/stat.h>
 
-#include "memhint.h"
 #include <unistd.h>
 
 /* Read exactly n bytes from fd into buf. Returns 0, or an errno value (EIO
@@ -53,11 +52,14 @@ long long file_read_with(const char *path, size_t max_len, file_alloc_cb alloc, 
     return ok ? (long long)n : -1;
 }
 
-/* file_read_all's room: the length and a NUL, on huge pages where it pays. */
+/* file_read_all's room: the length and a NUL. On ordinary pages, not
+ * huge ones: a file's text is read once, front to back, and on a VM that
+ * hands freed memory back to its host fresh huge pages are slow to get
+ * (ico9's 217 MB OBJ read in 0.42-0.51 s into huge pages against
+ * 0.10-0.14 s, a scan of it 0.016 s either way: docs/meshes.md). */
 static void *alloc_plain(size_t len, void *ctx) {
     char **out = ctx;
     *out = malloc(len + 1);
-    if (*out) memhint_huge(*out, len + 1);
     return *out;
 }
 

@@ -249,16 +249,29 @@ static void *sah_create_leaf(const sah_prim *prims, size_t count, void *user) {
 
 static int sah_cancelled(void *user) { return build_cancelled(user); }
 
-/* The build primitives: every primitive's padded box. Returns NULL when
- * out of memory; the caller frees. */
+typedef struct {
+    const scene *s;
+    struct RTCBuildPrimitive *p;
+} morton_boxes;
+
+static void make_morton_boxes(void *ctx, size_t begin, size_t end, int part) {
+    morton_boxes *B = ctx;
+    (void)part;
+    for (size_t i = begin; i < end; i++) {
+        float lo[3], hi[3];
+        accel_padded_box(B->s, (uint32_t)i, lo, hi);
+        B->p[i] = (struct RTCBuildPrimitive){lo[0], lo[1], lo[2], 0, hi[0], hi[1], hi[2], (unsigned)i};
+    }
+}
+
+/* The build primitives: every primitive's padded box, made by par.h's
+ * threads (at 10.5M triangles 0.4 s on one thread, most of it the first
+ * touch of 336 MB). Returns NULL when out of memory; the caller frees. */
 static struct RTCBuildPrimitive *build_primitives(const scene *s, size_t n) {
     struct RTCBuildPrimitive *p = aligned_alloc(32, (n * sizeof *p + 31) / 32 * 32);
     if (!p) return NULL;
-    for (size_t i = 0; i < n; i++) {
-        float lo[3], hi[3];
-        accel_padded_box(s, (uint32_t)i, lo, hi);
-        p[i] = (struct RTCBuildPrimitive){lo[0], lo[1], lo[2], 0, hi[0], hi[1], hi[2], (unsigned)i};
-    }
+    morton_boxes boxes = {s, p};
+    par_run(n, par_parts(n, 1 << 14), make_morton_boxes, &boxes);
     return p;
 }
 

@@ -11,7 +11,6 @@
 #include <sys/stat.h>
 
 #include "fileio.h"
-#include "memhint.h"
 #include "model_files.h"
 
 #define BUNDLE_SCENE_MAX (64u << 20)
@@ -254,9 +253,8 @@ uint8_t *scene_bundle_serialise(const scene_bundle *b, size_t *len) {
         count++;
         if (n > SCENE_BUNDLE_MAX_BYTES) return NULL;
     }
-    uint8_t *buf = malloc(n), *p = buf;
+    uint8_t *buf = malloc(n), *p = buf; /* ordinary pages, as file_read_all's (fileio.c) */
     if (!buf) return NULL;
-    memhint_huge(buf, n);
     put_u32(p, (uint32_t)count);
     p += 4;
     for (size_t i = 0; i < b->count; i++) {
@@ -276,9 +274,8 @@ uint8_t *scene_bundle_serialise(const scene_bundle *b, size_t *len) {
 
 /* Copy len bytes at p into a new NUL-terminated string, or NULL. */
 static char *dup_bytes(const uint8_t *p, size_t len) {
-    char *s = malloc(len + 1);
+    char *s = malloc(len + 1); /* ordinary pages, as file_read_all's (fileio.c) */
     if (!s) return NULL;
-    memhint_huge(s, len + 1);
     memcpy(s, p, len);
     s[len] = '\0';
     return s;
