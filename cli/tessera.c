@@ -545,7 +545,6 @@ static int cmd_render(int argc, char **argv) {
         if (a.camera) scene_bundle_free(&b);
         return 1;
     }
-    uint64_t scene_tris = 0, scene_bytes = scene_memory_estimate(&b, &scene_tris);
     a.ov.no_accel = 1; /* the workers build their own; this process, below, if it renders */
     scene *s = scene_load_bundle(&b, &a.ov, err, sizeof err);
     if (!s) {
@@ -574,6 +573,7 @@ static int cmd_render(int argc, char **argv) {
     int farm_mode = a.listen || a.workers > 0;
     /* Rendering here: the frame and the scene's build must fit, checked
      * before the build (the load's peak) rather than found by the kernel. */
+    uint64_t scene_tris = 0, scene_bytes = farm_mode ? 0 : scene_memory_estimate_loaded(&b, s->triangle_count, &scene_tris);
     if (!farm_mode && render_fits_memory(&a, s, scene_bytes, scene_tris)) rc = -1;
     if (!farm_mode && rc == 0) {
         scene_bundle_free(&b); /* the scene has what it needs: the mesh files' text goes before the build */

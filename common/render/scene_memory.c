@@ -176,8 +176,11 @@ static uint64_t count_uses(const char *scene_text, const char *name) {
     return uses ? uses : 1;
 }
 
-uint64_t scene_memory_estimate(const scene_bundle *b, uint64_t *triangles) {
-    uint64_t bytes = 0, meshed = 0, imported = 0;
+/* The estimate's parts: returns the bytes of b's files and textures, and
+ * adds to *meshed and *imported the triangles of its meshes and models;
+ * with scan_meshes 0 the meshes' OBJ texts are not read (*meshed stays). */
+static uint64_t estimate_parts(const scene_bundle *b, int scan_meshes, uint64_t *meshed, uint64_t *imported) {
+    uint64_t bytes = 0;
     const char *scene_text = b->count ? b->files[0].data : NULL;
     cJSON *root = scene_text ? cJSON_ParseWithLength(scene_text, b->files[0].len) : NULL;
     for (size_t i = 0; i < b->count; i++) {
@@ -188,17 +191,34 @@ uint64_t scene_memory_estimate(const scene_bundle *b, uint64_t *triangles) {
         model_kind k = model_kind_of(f->name);
         uint64_t tex = texture_bytes((const uint8_t *)f->data, f->len);
         if (k == MODEL_GLTF || k == MODEL_GLB) {
-            imported += uses * count_model_triangles(f->name, f->data, f->len, &tex);
+            *imported += uses * count_model_triangles(f->name, f->data, f->len, &tex);
         } else if (!tex && k != MODEL_MTL) { /* an OBJ text, whatever its name */
-            uint64_t t = uses * count_obj_triangles(f->data, f->len);
-            if (named_as_model(root, f->name)) imported += t;
-            else meshed += t;
+            int as_model = named_as_model(root, f->name);
+            uint64_t t = as_model || scan_meshes ? uses * count_obj_triangles(f->data, f->len) : 0;
+            if (as_model) *imported += t;
+            else *meshed += t;
         }
         bytes += tex;
     }
     cJSON_Delete(root);
-    if (triangles) *triangles = meshed + imported;
+    return bytes;
+}
+
+static uint64_t estimate_total(uint64_t bytes, uint64_t meshed, uint64_t imported) {
     return bytes + meshed * SCENE_MEMORY_BYTES_PER_TRIANGLE + imported * SCENE_MEMORY_BYTES_PER_IMPORTED_TRIANGLE;
+}
+
+uint64_t scene_memory_estimate(const scene_bundle *b, uint64_t *triangles) {
+    uint64_t meshed = 0, imported = 0, bytes = estimate_parts(b, 1, &meshed, &imported);
+    if (triangles) *triangles = meshed + imported;
+    return estimate_total(bytes, meshed, imported);
+}
+
+uint64_t scene_memory_estimate_loaded(const scene_bundle *b, uint64_t loaded, uint64_t *triangles) {
+    uint64_t meshed = 0, imported = 0, bytes = estimate_parts(b, 0, &meshed, &imported);
+    meshed = loaded > imported ? loaded - imported : 0;
+    if (triangles) *triangles = meshed + imported;
+    return estimate_total(bytes, meshed, imported);
 }
 
 /* A number from a file holding one ("max" reads as UINT64_MAX). */
