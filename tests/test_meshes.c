@@ -833,6 +833,47 @@ TEST(mesh_worker_refuses_a_scene_it_cannot_hold) {
     scene_bundle_free(&b);
 }
 
+/* The estimate counts a mesh's faces on every core (ranges of at least 1
+ * MiB, each counting the lines that start in it): the same count with 1,
+ * 2, 3 and 7 threads over a 9 MB text whose faces, comments and blank
+ * lines fall across the ranges' bounds. */
+TEST(mesh_memory_estimate_counts_faces_in_parallel) {
+    size_t cap = 10u << 20, len = 0;
+    char *obj = malloc(cap + 1);
+    CHECK(obj != NULL, "out of memory");
+    if (!obj) return;
+    uint64_t want = 0;
+    uint64_t x = 7;
+    while (len < 9u << 20) {
+        x = rng_mix64(x);
+        uint32_t k = (uint32_t)(x % 6), n;
+        if (k == 0) n = (uint32_t)snprintf(obj + len, cap - len, "# f 1 2 3 a comment\n");
+        else if (k == 1) n = (uint32_t)snprintf(obj + len, cap - len, "\n");
+        else if (k == 2) n = (uint32_t)snprintf(obj + len, cap - len, "v 0.5 1.25 -3\n");
+        else {
+            uint32_t corners = 3 + (uint32_t)(x >> 32) % 5; /* 3 to 7: corners - 2 triangles */
+            n = (uint32_t)snprintf(obj + len, cap - len, "%sf", k == 3 ? "  " : "");
+            for (uint32_t c = 0; c < corners; c++) n += (uint32_t)snprintf(obj + len + n, cap - len - n, " %u/1", c + 1);
+            n += (uint32_t)snprintf(obj + len + n, cap - len - n, "\n");
+            want += corners - 2;
+        }
+        len += n;
+    }
+    scene_bundle_file files[2] = {{(char *)"big.json", (char *)"{\"shapes\": [{\"file\": \"big.obj\"}]}", 34, NULL, 0},
+                                  {(char *)"big.obj", obj, len, NULL, 0}};
+    scene_bundle b = {files, 2};
+    static const char *const threads[] = {"1", "2", "3", "7"};
+    for (size_t t = 0; t < sizeof threads / sizeof threads[0]; t++) {
+        setenv("TESSERA_LOAD_THREADS", threads[t], 1);
+        uint64_t tris = 0;
+        scene_memory_estimate(&b, &tris);
+        CHECK(tris == want, "%s threads: %llu triangles counted, want %llu", threads[t], (unsigned long long)tris,
+              (unsigned long long)want);
+    }
+    unsetenv("TESSERA_LOAD_THREADS");
+    free(obj);
+}
+
 /* Rendering in this process, the scene's estimated load and build count
  * against --max-memory with the frame, checked before the build: a scene
  * too big is refused with the figures, not killed by the kernel halfway. */

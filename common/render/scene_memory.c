@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "model_files.h"
+#include "par.h"
 #include "texture.h"
 
 /* Triangles the `f` lines of an OBJ text make (corners - 2 each). */
@@ -30,6 +31,44 @@ static uint64_t count_obj_triangles(const char *s, size_t len) {
         const char *nl = memchr(s, '\n', (size_t)(end - s));
         s = nl ? nl + 1 : end;
     }
+    return tris;
+}
+
+/* count_obj_triangles over a text in ranges (par.h): each range counts the
+ * lines that start in it, so the sum is the whole text's count. */
+typedef struct {
+    const char *s;
+    size_t len;
+    uint64_t tris[PAR_MAX_PARTS];
+} obj_count;
+
+/* The first line start at or after offset at of the text (len if none). */
+static size_t line_start(const char *s, size_t len, size_t at) {
+    if (at == 0 || at >= len) return at >= len ? len : 0;
+    const char *nl = memchr(s + at - 1, '\n', len - (at - 1));
+    return nl ? (size_t)(nl - s) + 1 : len;
+}
+
+static void count_range(void *ctx, size_t begin, size_t end, int part) {
+    obj_count *C = ctx;
+    size_t b = line_start(C->s, C->len, begin), e = line_start(C->s, C->len, end);
+    C->tris[part] = b < e ? count_obj_triangles(C->s + b, e - b) : 0;
+}
+
+/* count_obj_triangles on every core, in ranges of at least 1 MiB: a
+ * worker checks a scene before it loads it, and at 10.5M triangles the
+ * whole estimate took 0.143 s on one thread, 0.098 s on two (ico9.json's
+ * bundle, 3 runs each). */
+static uint64_t count_obj_triangles_par(const char *s, size_t len) {
+    obj_count *C = malloc(sizeof *C);
+    if (!C) return count_obj_triangles(s, len);
+    C->s = s;
+    C->len = len;
+    int parts = par_parts(len, (size_t)1 << 20);
+    par_run(len, parts, count_range, C);
+    uint64_t tris = 0;
+    for (int k = 0; k < parts; k++) tris += C->tris[k];
+    free(C);
     return tris;
 }
 
@@ -194,7 +233,7 @@ static uint64_t estimate_parts(const scene_bundle *b, int scan_meshes, uint64_t 
             *imported += uses * count_model_triangles(f->name, f->data, f->len, &tex);
         } else if (!tex && k != MODEL_MTL) { /* an OBJ text, whatever its name */
             int as_model = named_as_model(root, f->name);
-            uint64_t t = as_model || scan_meshes ? uses * count_obj_triangles(f->data, f->len) : 0;
+            uint64_t t = as_model || scan_meshes ? uses * count_obj_triangles_par(f->data, f->len) : 0;
             if (as_model) *imported += t;
             else *meshed += t;
         }
