@@ -837,7 +837,7 @@ TEST(mesh_worker_refuses_a_scene_it_cannot_hold) {
  * MiB, each counting the lines that start in it): the same count with 1,
  * 2, 3 and 7 threads over a 9 MB text whose faces, comments and blank
  * lines fall across the ranges' bounds. */
-TEST(mesh_memory_estimate_counts_faces_in_parallel) {
+TEST(mesh_memory_estimate_counts_faces_on_any_threads) {
     size_t cap = 10u << 20, len = 0;
     char *obj = malloc(cap + 1);
     CHECK(obj != NULL, "out of memory");
