@@ -249,29 +249,33 @@ static void *sah_create_leaf(const sah_prim *prims, size_t count, void *user) {
 
 static int sah_cancelled(void *user) { return build_cancelled(user); }
 
+/* Every primitive's padded box, into the SAH's records or Embree's (one of
+ * the two set), made by par.h's threads: at 10.5M triangles 0.4 s on one
+ * thread, most of it the first touch of 336 MB. */
 typedef struct {
     const scene *s;
-    struct RTCBuildPrimitive *p;
-} morton_boxes;
+    sah_prim *sah;
+    struct RTCBuildPrimitive *rtc;
+} prim_boxes;
 
-static void make_morton_boxes(void *ctx, size_t begin, size_t end, int part) {
-    morton_boxes *B = ctx;
+static void make_boxes(void *ctx, size_t begin, size_t end, int part) {
+    prim_boxes *B = ctx;
     (void)part;
     for (size_t i = begin; i < end; i++) {
         float lo[3], hi[3];
         accel_padded_box(B->s, (uint32_t)i, lo, hi);
-        B->p[i] = (struct RTCBuildPrimitive){lo[0], lo[1], lo[2], 0, hi[0], hi[1], hi[2], (unsigned)i};
+        if (B->sah) B->sah[i] = (sah_prim){{lo[0], lo[1], lo[2]}, (uint32_t)i, {hi[0], hi[1], hi[2]}, 0};
+        else B->rtc[i] = (struct RTCBuildPrimitive){lo[0], lo[1], lo[2], 0, hi[0], hi[1], hi[2], (unsigned)i};
     }
 }
 
-/* The build primitives: every primitive's padded box, made by par.h's
- * threads (at 10.5M triangles 0.4 s on one thread, most of it the first
- * touch of 336 MB). Returns NULL when out of memory; the caller frees. */
+/* Embree's build primitives for s's n primitives. Returns NULL when out
+ * of memory; the caller frees. */
 static struct RTCBuildPrimitive *build_primitives(const scene *s, size_t n) {
     struct RTCBuildPrimitive *p = aligned_alloc(32, (n * sizeof *p + 31) / 32 * 32);
     if (!p) return NULL;
-    morton_boxes boxes = {s, p};
-    par_run(n, par_parts(n, 1 << 14), make_morton_boxes, &boxes);
+    prim_boxes boxes = {s, NULL, p};
+    par_run(n, par_parts(n, 1 << 14), make_boxes, &boxes);
     return p;
 }
 
@@ -294,26 +298,11 @@ static unsigned leaf_min(unsigned leaf_lanes) { return leaf_lanes == 8 ? 8 : 3; 
 
 /* Tessera's binned SAH (sah_build.h) over b's scene: the root, or NULL
  * when out of memory or cancelled (b->cancelled says which). */
-typedef struct {
-    const scene *s;
-    sah_prim *p;
-} sah_boxes;
-
-static void make_sah_boxes(void *ctx, size_t begin, size_t end, int part) {
-    sah_boxes *B = ctx;
-    (void)part;
-    for (size_t i = begin; i < end; i++) {
-        float lo[3], hi[3];
-        accel_padded_box(B->s, (uint32_t)i, lo, hi);
-        B->p[i] = (sah_prim){{lo[0], lo[1], lo[2]}, (uint32_t)i, {hi[0], hi[1], hi[2]}, 0};
-    }
-}
-
 static void *build_sah(build_ctx *b, size_t n, size_t *peak) {
     sah_prim *p = aligned_alloc(32, (n * sizeof *p + 31) / 32 * 32);
     if (!p) return NULL;
-    sah_boxes boxes = {b->s, p};
-    par_run(n, par_parts(n, 1 << 14), make_sah_boxes, &boxes);
+    prim_boxes boxes = {b->s, p, NULL};
+    par_run(n, par_parts(n, 1 << 14), make_boxes, &boxes);
     sah_args args = {.width = NODE_W, .leaf_min = leaf_min(b->leaf_lanes), .leaf_max = b->leaf_lanes,
                      .block = b->leaf_lanes, .max_depth = WIDE_MAX_DEPTH, .trav_cost = 1.0f, .isect_cost = 1.0f,
                      .create_node = sah_create_node, .set_child = sah_set_child, .create_leaf = sah_create_leaf,
