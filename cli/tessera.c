@@ -497,14 +497,13 @@ static int save_samples_aov(const render_args *a, const scene *s, const float *s
     return rc ? -1 : 0;
 }
 
-/* Refuse up front a frame this process cannot hold: its frame, the image
- * encoder's copy (membudget_job_bytes) and the per-pixel sample counts of
- * an adaptive render, against --max-memory or the default budget
- * (membudget.h). Returns 0, or 1 (printed). */
-/* Whether the frame (and, rendering in this process, the scene: scene_bytes,
- * scene_memory.h's estimate of its load and build for its `triangles`; 0
- * on a farm, whose workers check their own) fits --max-memory or its
- * default. Returns 0, or 1 after saying why not with the figures. */
+/* Refuse up front a render this process cannot hold: its frame, the image
+ * encoder's copy (membudget_job_bytes), the per-pixel sample counts of an
+ * adaptive render and, rendering here, the scene (scene_bytes:
+ * scene_memory.h's estimate of the load and build of its `triangles`; 0
+ * on a farm, whose workers check their own), against --max-memory or the
+ * default budget (membudget.h). Returns 0, or 1 (printed, with the
+ * figures). */
 static int render_fits_memory(const render_args *a, const scene *s, uint64_t scene_bytes, uint64_t triangles) {
     char how[160] = "--max-memory", need_s[32], budget_s[32], what[160] = "";
     uint64_t budget = a->max_memory ? a->max_memory : membudget_default(how, sizeof how);
