@@ -275,7 +275,7 @@ static struct RTCBuildPrimitive *build_primitives(const scene *s, size_t n) {
     struct RTCBuildPrimitive *p = aligned_alloc(32, (n * sizeof *p + 31) / 32 * 32);
     if (!p) return NULL;
     prim_boxes boxes = {s, NULL, p};
-    par_run(n, par_parts(n, 1 << 14), make_boxes, &boxes);
+    par_run(n, par_parts_touch(n, 1 << 14), make_boxes, &boxes);
     return p;
 }
 
@@ -302,7 +302,7 @@ static void *build_sah(build_ctx *b, size_t n, size_t *peak) {
     sah_prim *p = aligned_alloc(32, (n * sizeof *p + 31) / 32 * 32);
     if (!p) return NULL;
     prim_boxes boxes = {b->s, p, NULL};
-    par_run(n, par_parts(n, 1 << 14), make_boxes, &boxes);
+    par_run(n, par_parts_touch(n, 1 << 14), make_boxes, &boxes);
     sah_args args = {.width = NODE_W, .leaf_min = leaf_min(b->leaf_lanes), .leaf_max = b->leaf_lanes,
                      .block = b->leaf_lanes, .max_depth = WIDE_MAX_DEPTH, .trav_cost = 1.0f, .isect_cost = 1.0f,
                      .create_node = sah_create_node, .set_child = sah_set_child, .create_leaf = sah_create_leaf,

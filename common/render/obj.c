@@ -494,7 +494,7 @@ int obj_parse_spans(const char *buf, size_t len, const char *name, int parts, ob
 }
 
 int obj_parse(const char *buf, size_t len, const char *name, obj_mesh *out, char *err, size_t err_len) {
-    int parts = par_parts(len, OBJ_SPAN_MIN);
+    int parts = par_parts_touch(len, OBJ_SPAN_MIN);
     if (parts > 1 && obj_parse_spans(buf, len, name, parts, out) == 0) return 0;
     return parse_serial(buf, len, name, out, err, err_len);
 }

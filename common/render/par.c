@@ -32,6 +32,13 @@ int par_parts(size_t n, size_t min_per_part) {
     return (size_t)cores < most ? (int)cores : most > 1 ? (int)most : 1;
 }
 
+int par_parts_touch(size_t n, size_t min_per_part) {
+    long ranges = par_cores() * PAR_TOUCH_PER_CORE;
+    if (ranges > PAR_MAX_PARTS) ranges = PAR_MAX_PARTS;
+    size_t most = min_per_part ? n / min_per_part : n;
+    return (size_t)ranges < most ? (int)ranges : most > 1 ? (int)most : 1;
+}
+
 void par_range(size_t n, int parts, int part, size_t *begin, size_t *end) {
     *begin = n / (size_t)parts * (size_t)part + n % (size_t)parts * (size_t)part / (size_t)parts;
     *end = n / (size_t)parts * (size_t)(part + 1) + n % (size_t)parts * (size_t)(part + 1) / (size_t)parts;

@@ -20,6 +20,16 @@ typedef void (*par_fn)(void *ctx, size_t begin, size_t end, int part);
  * no range shorter than min_per_part elements, and at least 1. */
 int par_parts(size_t n, size_t min_per_part);
 
+/* par_parts for a loop that writes memory touched for the first time (the
+ * loader's parse and records, the builders' boxes): up to
+ * PAR_TOUCH_PER_CORE ranges per core, so that while one range's thread
+ * waits for fresh pages another runs. On a VM whose host takes freed pages
+ * back, a first touch can stall a thread for milliseconds: a one-pixel
+ * 10.5M-triangle run took 2.34-2.42 s with 8 ranges on 2 cores against
+ * 2.51-3.58 s with 2 (5 alternations; docs/meshes.md). */
+#define PAR_TOUCH_PER_CORE 4
+int par_parts_touch(size_t n, size_t min_per_part);
+
 /* Range `part` of `parts` over [0, n): [n part / parts, n (part + 1) / parts). */
 void par_range(size_t n, int parts, int part, size_t *begin, size_t *end);
 

@@ -687,7 +687,7 @@ static void mesh_add_triangles(void *ctx, size_t b, size_t e, int part) {
  * the previous range's when triangles were skipped). */
 static void add_mesh_triangles(mesh_add *A) {
     loader *L = A->L;
-    int parts = par_parts(A->m->triangle_count, 1 << 14);
+    int parts = par_parts_touch(A->m->triangle_count, 1 << 14);
     par_run(A->m->triangle_count, parts, mesh_add_triangles, A);
     size_t kept = 0;
     for (int k = 0; k < parts; k++) {
@@ -810,7 +810,7 @@ static int add_mesh_shape(loader *L, const cJSON *sh, const char *where, uint32_
         return jf_fail(&L->j, where, NULL, "out of memory (%zu triangles)", L->tri_count + m.triangle_count);
     mesh_add A = {.L = L, .m = &m, .scale = scale, .translate = {translate[0], translate[1], translate[2]}, .w = w,
                   .out = L->tris + L->tri_count, .base = (uint32_t)L->wv_count, .mat = mat, .emitter = em};
-    par_run(m.vertex_count, par_parts(m.vertex_count, 1 << 14), mesh_add_vertices, &A); /* once per vertex */
+    par_run(m.vertex_count, par_parts_touch(m.vertex_count, 1 << 14), mesh_add_vertices, &A); /* once per vertex */
     size_t base = L->wv_count;
     L->wv_count += m.vertex_count;
     if (!m.normal_indices && !m.uv_indices) {
@@ -1111,7 +1111,7 @@ static int assemble(loader *L) {
     memset(&s->triangles[L->tri_count], 0, sizeof(triangle));
     memset(&s->triangle_info[L->tri_count], 0, sizeof(prim_info));
     memset(&s->triangle_normals[L->tri_count], 0, sizeof(vec3));
-    par_run(L->tri_count, par_parts(L->tri_count, 1 << 14), assemble_triangles, L);
+    par_run(L->tri_count, par_parts_touch(L->tri_count, 1 << 14), assemble_triangles, L);
     free(L->wv); /* not needed past here: the scene's peak memory is the intersector's build */
     L->wv = NULL;
     for (size_t i = 0; i < L->sphere_count; i++) {
