@@ -26,17 +26,18 @@ static long par_cores(void) {
     return cores < 1 ? 1 : cores > PAR_MAX_PARTS ? PAR_MAX_PARTS : cores;
 }
 
-int par_parts(size_t n, size_t min_per_part) {
-    long cores = par_cores();
+/* `ranges` (1 to PAR_MAX_PARTS), but none shorter than min_per_part
+ * elements of n, and at least 1. */
+static int parts_within(long ranges, size_t n, size_t min_per_part) {
     size_t most = min_per_part ? n / min_per_part : n;
-    return (size_t)cores < most ? (int)cores : most > 1 ? (int)most : 1;
+    return (size_t)ranges < most ? (int)ranges : most > 1 ? (int)most : 1;
 }
+
+int par_parts(size_t n, size_t min_per_part) { return parts_within(par_cores(), n, min_per_part); }
 
 int par_parts_touch(size_t n, size_t min_per_part) {
     long ranges = par_cores() * PAR_TOUCH_PER_CORE;
-    if (ranges > PAR_MAX_PARTS) ranges = PAR_MAX_PARTS;
-    size_t most = min_per_part ? n / min_per_part : n;
-    return (size_t)ranges < most ? (int)ranges : most > 1 ? (int)most : 1;
+    return parts_within(ranges < PAR_MAX_PARTS ? ranges : PAR_MAX_PARTS, n, min_per_part);
 }
 
 void par_range(size_t n, int parts, int part, size_t *begin, size_t *end) {

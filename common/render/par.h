@@ -25,8 +25,8 @@ int par_parts(size_t n, size_t min_per_part);
  * PAR_TOUCH_PER_CORE ranges per core, so that while one range's thread
  * waits for fresh pages another runs. On a VM whose host takes freed pages
  * back, a first touch can stall a thread for milliseconds: a one-pixel
- * 10.5M-triangle run took 2.34-2.42 s with 8 ranges on 2 cores against
- * 2.51-3.58 s with 2 (5 alternations; docs/meshes.md). */
+ * 10.5M-triangle run took 2.33-2.52 s with these loops in 8 ranges on 2
+ * cores against 2.51-4.19 s in 2 (5 alternations; docs/meshes.md). */
 #define PAR_TOUCH_PER_CORE 4
 int par_parts_touch(size_t n, size_t min_per_part);
 
