@@ -1,10 +1,16 @@
 /* memhint.h - hints to the kernel about big buffers (no effect on results).
  *
- * A buffer of hundreds of megabytes that is about to be written once, in
- * order, costs one page fault (and one cleared page) per 4 KiB; asking for
- * transparent huge pages makes that one fault per 2 MiB where the kernel
- * allows it (/sys/kernel/mm/transparent_hugepage/enabled: always or
- * madvise). Elsewhere, or for small buffers, nothing happens. */
+ * Transparent huge pages (where /sys/kernel/mm/transparent_hugepage/enabled
+ * is always or madvise; elsewhere, or for small buffers, nothing happens)
+ * put a buffer in fewer TLB entries and fault it in once per 2 MiB instead
+ * of per 4 KiB. Only the wide BVH's arena asks for them, and only for a
+ * render long enough to win back their cost (accel_wide.c). The loader's
+ * arrays, written once and read a few times, do not: on a VM that hands
+ * freed memory back to its host, fresh huge pages are slow to get (a 512 MB
+ * buffer's first touch 1.18-1.29 s against 0.20-0.23 s on 4 KiB pages,
+ * 2026-11-28), and with the hints on the OBJ parse, the loader's pools and
+ * the scene's triangle records a 10.5M-triangle render at 256x256x16 took
+ * 3.98-4.23 s against 3.55-3.98 s without (docs/meshes.md). */
 #ifndef TESSERA_MEMHINT_H
 #define TESSERA_MEMHINT_H
 

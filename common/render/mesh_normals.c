@@ -9,7 +9,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "memhint.h"
 #include "par.h"
 
 /* Unnormalised face normal of triangle t (length = twice its area). */
@@ -84,12 +83,6 @@ int mesh_normals_from_faces(obj_mesh *m, double max_angle_deg) {
         free(fn), free(start), free(faces), free(normals), free(nidx), free(fill);
         return -1;
     }
-    /* Written once, never grown: huge pages make a first touch one fault
-     * per 2 MiB (memhint.h). */
-    memhint_huge(fn, 3 * sizeof(double) * T);
-    memhint_huge(faces, sizeof(uint32_t) * 3 * T);
-    memhint_huge(normals, 3 * sizeof(float) * 3 * T);
-    memhint_huge(nidx, sizeof(uint32_t) * 3 * T);
     smooth_job J = {m, cos_max, fn, start, faces, normals, nidx};
     int parts = par_parts(T, 1 << 14);
     par_run(T, parts, face_normals, &J);

@@ -21,7 +21,6 @@
 #include <string.h>
 
 #include "fileio.h"
-#include "memhint.h"
 #include "par.h"
 
 #define OBJ_MAX_FILE (1u << 30) /* 1 GiB of text */
@@ -443,16 +442,13 @@ static int join_spans(obj_spans *S, int parts, obj_mesh *out) {
     return rc ? -1 : 0;
 }
 
-/* Allocate out's arrays for the counted records (the big ones on huge
- * pages: they are written once, in full). Returns 0 or -1. */
+/* Allocate out's arrays for the counted records. Returns 0 or -1. */
 static int alloc_counted(obj_mesh *out, size_t v, size_t vn, size_t vt, size_t tris) {
     out->positions = malloc((3 * v + 1) * sizeof(double));
     out->indices = malloc((3 * tris + 1) * sizeof(uint32_t));
     out->normals = vn ? malloc(3 * vn * sizeof(float)) : NULL;
     out->uvs = vt ? malloc(2 * vt * sizeof(float)) : NULL;
     if (!out->positions || !out->indices || (vn && !out->normals) || (vt && !out->uvs)) return -1;
-    memhint_huge(out->positions, 3 * v * sizeof(double));
-    memhint_huge(out->indices, 3 * tris * sizeof(uint32_t));
     return 0;
 }
 

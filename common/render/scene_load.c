@@ -26,7 +26,6 @@
 #include "scene_bundle.h"
 #include "scene.h"
 #include "limit.h"
-#include "memhint.h"
 #include "texture.h"
 
 #define MAX_RESOLUTION LIMIT_SIDE
@@ -310,7 +309,6 @@ static double *reserve_vertices(loader *L, size_t n) {
         size_t cap = n > 3 ? L->wv_count + n : L->wv_cap ? 2 * L->wv_cap : 256;
         double *p = realloc(L->wv, 3 * cap * sizeof *p);
         if (!p) return NULL;
-        memhint_huge(p, 3 * cap * sizeof *p);
         L->wv = p;
         L->wv_cap = cap;
     }
@@ -365,7 +363,6 @@ static int reserve_triangles(loader *L, size_t n) {
     size_t cap = n > 1 ? L->tri_count + n : L->tri_cap ? 2 * L->tri_cap : 64;
     tri_r *p = realloc(L->tris, cap * sizeof *p);
     if (!p) return -1;
-    memhint_huge(p, cap * sizeof *p);
     L->tris = p;
     L->tri_cap = cap;
     return 0;
@@ -599,8 +596,8 @@ static void free_parsed(loader *L) {
  * first named; a failure is kept for its shape to report, after whatever
  * comes before it) and make room for all the vertices and triangles the
  * shapes will add, so that the pool and the records are allocated once:
- * growing them took a copy, and on huge pages a slow one (0.3 s at 2.6M
- * triangles, 3.6 s at 10.5M). Room is only a hint: when it cannot be made,
+ * growing them took a copy, a slow one on the huge pages they were then on
+ * (0.3 s at 2.6M triangles, 3.6 s at 10.5M). Room is only a hint: when it cannot be made,
  * the shapes make theirs, and report their errors, as they go. The parsed
  * files are alive together until their shapes take them. */
 static void plan_shapes(loader *L, const cJSON *shapes) {
@@ -1105,9 +1102,6 @@ static int assemble(loader *L) {
     s->sphere_info = calloc(L->sphere_count + 1, sizeof(prim_info));
     if (!s->triangles || !s->triangle_info || !s->triangle_normals || !s->spheres || !s->sphere_info)
         return jf_fail(&L->j, "shapes", NULL, "out of memory");
-    memhint_huge(s->triangles, (L->tri_count + 1) * sizeof(triangle));
-    memhint_huge(s->triangle_info, (L->tri_count + 1) * sizeof(prim_info));
-    memhint_huge(s->triangle_normals, (L->tri_count + 1) * sizeof(vec3));
     memset(&s->triangles[L->tri_count], 0, sizeof(triangle));
     memset(&s->triangle_info[L->tri_count], 0, sizeof(prim_info));
     memset(&s->triangle_normals[L->tri_count], 0, sizeof(vec3));
