@@ -3,14 +3,15 @@
  * Transparent huge pages (where /sys/kernel/mm/transparent_hugepage/enabled
  * is always or madvise; elsewhere, or for small buffers, nothing happens)
  * put a buffer in fewer TLB entries and fault it in once per 2 MiB instead
- * of per 4 KiB. Only the wide BVH's arena asks for them, and only for a
- * render long enough to win back their cost (accel_wide.c). The loader's
- * arrays, written once and read a few times, do not: on a VM that hands
- * freed memory back to its host, fresh huge pages are slow to get (a 512 MB
- * buffer's first touch 1.18-1.29 s against 0.20-0.23 s on 4 KiB pages,
- * 2026-11-28), and with the hints on the OBJ parse, the loader's pools and
- * the scene's triangle records a 10.5M-triangle render at 256x256x16 took
- * 3.98-4.23 s against 3.55-3.98 s without (docs/meshes.md). */
+ * of per 4 KiB. On a VM that hands freed memory back to its host, fresh
+ * huge pages are slow to get (a 512 MB buffer's first touch 1.18-1.29 s
+ * against 0.20-0.23 s on 4 KiB pages, 2026-11-28), so only what a render
+ * reads at random asks for them, the wide BVH's arena and the triangle
+ * records, and only for a render long enough to win that back
+ * (scene_render_is_long in render/scene.h). The loader's temporaries,
+ * written once and read a few times, never do: with them on huge pages
+ * too, a 10.5M-triangle render at 256x256x16 took 3.98-4.23 s against
+ * 3.55-3.98 s without (docs/meshes.md). */
 #ifndef TESSERA_MEMHINT_H
 #define TESSERA_MEMHINT_H
 

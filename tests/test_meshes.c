@@ -422,6 +422,28 @@ TEST(mesh_wide_tree_huge_pages_follow_the_samples) {
     scene_free(s);
 }
 
+/* The triangle records follow the same rule as the tree (scene.h,
+ * scene_render_is_long): huge pages for a render of at least n / 4
+ * samples, ordinary ones for a preview, whose load would only pay their
+ * first touch. */
+TEST(mesh_triangle_records_huge_pages_follow_the_samples) {
+    static const struct {
+        int width, height, spp, huge;
+    } cases[] = {{1, 1, 1, 0}, {64, 64, 64, 1}, {16, 16, 1, 0}, {32, 32, 1, 1}};
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        char err[512];
+        scene_overrides ov = {.width = cases[k].width, .height = cases[k].height, .spp = cases[k].spp, .max_depth = -1};
+        scene *s = scene_load(ICO_SCENE, &ov, err, sizeof err);
+        CHECK(s != NULL, "%s", err);
+        if (!s) return;
+        size_t n = (size_t)s->triangle_count + s->sphere_count;
+        CHECK(n / 4 > 16 * 16 && n / 4 <= 32 * 32, "%zu primitives: the cases want n / 4 in (256, 1024]", n);
+        CHECK(s->triangles_on_huge_pages == cases[k].huge, "%dx%dx%d over %zu primitives: on huge pages %d, want %d",
+              cases[k].width, cases[k].height, cases[k].spp, n, s->triangles_on_huge_pages, cases[k].huge);
+        scene_free(s);
+    }
+}
+
 /* Every Embree kernel this CPU can run, forced, and every build quality:
  * the same answers as the BVH (the tests at the leaves are Tessera's;
  * Embree's arithmetic and tree only order them). */

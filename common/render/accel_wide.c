@@ -88,7 +88,7 @@ typedef WIDE_LEAF(8) wide_leaf8;
 /* The tree's memory (bump_arena.h): chunks handed out to the builder's
  * threads by an atomic bump pointer, on transparent huge pages for a
  * render of at least a quarter as many samples as primitives
- * (tree_on_huge_pages). A walk's step then finds its page in the TLB:
+ * (scene_render_is_long in scene.h). A walk's step then finds its page in the TLB:
  * render time -3% at 655k triangles (against Embree's thread-local
  * blocks of 4 KiB pages), -13% at 10.5M (docs/meshes.md). But fresh huge
  * pages are slow to get on a VM (and the kernel compacts for them): at
@@ -352,14 +352,6 @@ static void *build_morton(accel_wide *w, build_ctx *b, size_t n, size_t *peak) {
     return root;
 }
 
-/* Whether the tree of s's n primitives asks for huge pages (above): when
- * the render's samples (width x height x spp of s's settings) are at
- * least n / 4. */
-static int tree_on_huge_pages(const scene *s, size_t n) {
-    uint64_t samples = (uint64_t)s->settings.width * (uint64_t)s->settings.height * (uint64_t)s->settings.spp;
-    return samples >= n / 4;
-}
-
 accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
     struct timespec t0 = elapsed_mark();
     accel_wide *w = calloc(1, sizeof *w);
@@ -380,7 +372,7 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
      * primitives), 4 to 128 MiB. */
     size_t chunk = n / 8 * (sizeof(wide_node) + sizeof(wide_leaf8)) / 10;
     chunk = chunk < ARENA_CHUNK_MIN ? ARENA_CHUNK_MIN : chunk > ARENA_CHUNK_MAX ? ARENA_CHUNK_MAX : chunk;
-    w->stats.huge_pages = tree_on_huge_pages(s, n);
+    w->stats.huge_pages = scene_render_is_long(s, n);
     if (!(w->arena = bump_arena_new(chunk, w->stats.huge_pages))) {
         snprintf(err, err_len, "out of memory");
         accel_wide_free(w);

@@ -158,6 +158,7 @@ typedef struct scene {
     vec3 *triangle_normals; /* unit geometric normals, (v1 - v0) x (v2 - v0) */
     prim_info *triangle_info;
     uint32_t triangle_count;
+    int triangles_on_huge_pages; /* the three arrays above asked for them (scene_render_is_long) */
 
     sphere *spheres;
     prim_info *sphere_info;
@@ -249,6 +250,17 @@ void scene_free(scene *s);
 /* The names of the FEATURE_* bits set in features, space-separated, into
  * buf (always NUL-terminated). Can't fail; truncates to len. */
 void scene_feature_names(uint32_t features, char *buf, size_t len);
+
+/* Whether s's render (width x height x spp of its settings) is long enough
+ * for the arrays it reads at random, the wide tree and the triangle
+ * records, to win back the first touch of fresh huge pages: at least
+ * prims / 4 samples. Fresh huge pages cost this VM 6 times a 4 KiB page's
+ * first touch, and a walk or a hit's shading finds them in the TLB:
+ * docs/meshes.md, "Memory". */
+static inline int scene_render_is_long(const scene *s, size_t prims) {
+    uint64_t samples = (uint64_t)s->settings.width * (uint64_t)s->settings.height * (uint64_t)s->settings.spp;
+    return samples >= prims / 4;
+}
 
 /* Index of the first primitive id that is a sphere: ids below are triangles. */
 static inline uint32_t scene_sphere_base(const scene *s) { return s->triangle_count; }

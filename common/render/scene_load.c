@@ -19,6 +19,7 @@
 #include "accel.h"
 #include "import.h"
 #include "json_field.h"
+#include "memhint.h"
 #include "mesh_normals.h"
 #include "name_index.h"
 #include "obj.h"
@@ -1102,6 +1103,16 @@ static int assemble(loader *L) {
     s->sphere_info = calloc(L->sphere_count + 1, sizeof(prim_info));
     if (!s->triangles || !s->triangle_info || !s->triangle_normals || !s->spheres || !s->sphere_info)
         return jf_fail(&L->j, "shapes", NULL, "out of memory");
+    /* The records a hit's shading reads, on huge pages for a long render
+     * only (scene_render_is_long): at 655k triangles and 128x128x64 on 4
+     * KiB pages the render took 3.8% more CPU, and at 10.5M a one-pixel
+     * run paid 0.3-0.5 s for their first touch. */
+    s->triangles_on_huge_pages = scene_render_is_long(s, L->tri_count + L->sphere_count);
+    if (s->triangles_on_huge_pages) {
+        memhint_huge(s->triangles, (L->tri_count + 1) * sizeof(triangle));
+        memhint_huge(s->triangle_info, (L->tri_count + 1) * sizeof(prim_info));
+        memhint_huge(s->triangle_normals, (L->tri_count + 1) * sizeof(vec3));
+    }
     memset(&s->triangles[L->tri_count], 0, sizeof(triangle));
     memset(&s->triangle_info[L->tri_count], 0, sizeof(prim_info));
     memset(&s->triangle_normals[L->tri_count], 0, sizeof(vec3));
