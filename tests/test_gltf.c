@@ -13,6 +13,7 @@
 
 #include "image/image_codecs.h"
 #include "render/import.h"
+#include "render/model_files.h"
 #include "render/punctual.h"
 #include "render/scene.h"
 #include "render/texture.h"
@@ -513,6 +514,33 @@ TEST(gltf_alpha_mask_cuts_out) {
     double masked = quad_green_mean("MASK"), opaque = quad_green_mean("OPAQUE");
     CHECK(fabs(masked - 1.0) < 1e-6, "MASK with alpha 0: the sky (1) everywhere, got %g", masked);
     CHECK(opaque < 0.5, "OPAQUE: the red quad covers the view, green %g", opaque);
+}
+
+/* model_references' collect callback: the names, space-separated. */
+static int collect_ref(void *ctx, const char *name) {
+    char *out = ctx;
+    size_t n = strlen(out);
+    snprintf(out + n, 1024 - n, "%s%s", n ? " " : "", name);
+    return 0;
+}
+
+/* An OBJ's mtllib lines and an MTL's map_Kd lines, found wherever they are
+ * (indented by spaces or tabs, last line without a newline), and nothing
+ * else: not a keyword inside a line, after a comment mark, or run into
+ * the next word; an OBJ line's letters m that are not a keyword's are
+ * skipped (model_files.c scans for the letter, not every line). */
+TEST(model_references_find_every_keyword_line) {
+    static const char obj[] = "# mtllib commented.mtl\nmtllib a.mtl b.mtl\nv 1 2 3\nusemtl mtllib\n"
+                              "mtllibx not.mtl\n \t mtllib\tc.mtl\r\nvm mtllib no.mtl\nmtllib\nf 1 2 3\n"
+                              "m\nmtllib d/e.mtl";
+    char got[1024] = "";
+    CHECK(model_references("dir/m.obj", obj, sizeof obj - 1, collect_ref, got) == 0, "OBJ scan failed");
+    CHECK(strcmp(got, "dir/a.mtl dir/b.mtl dir/c.mtl dir/d/e.mtl") == 0, "OBJ references: \"%s\"", got);
+    static const char mtl[] = "newmtl x\nmap_Kd -s 1 1 1 tex.png\n  map_Kd\tother.png\nmap_Ka no.png\n"
+                              "Kd 1 1 1 map_Kd no2.png\nmap_Kd last.png";
+    got[0] = 0;
+    CHECK(model_references("m.mtl", mtl, sizeof mtl - 1, collect_ref, got) == 0, "MTL scan failed");
+    CHECK(strcmp(got, "tex.png other.png last.png") == 0, "MTL references: \"%s\"", got);
 }
 
 /* tessera render room.obj: an OBJ alone, with its MTL's Ke as the light (so

@@ -2,12 +2,15 @@
  * faces in every corner form): errors are reported, indices stay in range;
  * and the text parsed in 2 and 3 spans (obj_parse_spans, what a big text
  * gets on several cores; here on one thread) is refused whenever the one
- * pass refuses it, and when accepted is the one pass's mesh, bit for bit. */
+ * pass refuses it, and when accepted is the one pass's mesh, bit for bit.
+ * The same bytes are also scanned for the files they reference, as an OBJ
+ * (mtllib) and as an MTL (map_Kd): model_files.c's scan by letter. */
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "render/model_files.h"
 #include "render/obj.h"
 
 /* Whether n elements of `size` bytes at a and b are equal (NULL only equals NULL). */
@@ -36,7 +39,16 @@ int LLVMFuzzerInitialize(int *argc, char ***argv) {
     return 0;
 }
 
+/* model_references' callback: every name it reports is a joined path. */
+static int check_ref(void *ctx, const char *name) {
+    (void)ctx;
+    if (!name[0]) abort();
+    return 0;
+}
+
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
+    model_references("dir/fuzz.obj", (const char *)data, size, check_ref, NULL);
+    model_references("dir/fuzz.mtl", (const char *)data, size, check_ref, NULL);
     obj_mesh m, spans;
     char err[512];
     int one = obj_parse((const char *)data, size, "fuzz.obj", &m, err, sizeof err);
