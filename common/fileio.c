@@ -4,6 +4,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <libgen.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -11,18 +12,67 @@
 
 #include <unistd.h>
 
-/* Read exactly n bytes from fd into buf. Returns 0, or an errno value (EIO
- * for a file that ended early). */
-static int read_exactly(int fd, char *buf, size_t n) {
+/* Read exactly n bytes from fd at offset off into buf. Returns 0, or an
+ * errno value (EIO for a file that ended early). */
+static int read_exactly(int fd, char *buf, size_t n, off_t off) {
     while (n > 0) {
-        ssize_t r = read(fd, buf, n);
+        ssize_t r = pread(fd, buf, n, off);
         if (r < 0 && errno == EINTR) continue;
         if (r < 0) return errno;
         if (r == 0) return EIO;
         buf += r;
+        off += r;
         n -= (size_t)r;
     }
     return 0;
+}
+
+/* A big file is read in up to READ_PARTS ranges of at least READ_PART_MIN
+ * bytes, one per core, on threads of their own: the copy out of the page
+ * cache into fresh memory runs at one core's speed (ico9's 217 MB OBJ:
+ * 0.14-0.17 s on one thread, 0.07-0.09 s on two; a scratch program, 3
+ * alternations, 2026-11-28). The bytes are the same either way. */
+#define READ_PARTS 4
+#define READ_PART_MIN ((size_t)32 << 20)
+
+typedef struct {
+    int fd;
+    char *buf;
+    size_t off, n;
+    int err; /* read_exactly's result */
+} read_part;
+
+static void *read_part_run(void *arg) {
+    read_part *p = arg;
+    p->err = read_exactly(p->fd, p->buf + p->off, p->n, (off_t)p->off);
+    return NULL;
+}
+
+/* Read n bytes of fd from its start into buf, in parts on threads when n
+ * is big (above). Returns 0 or the first part's errno value (EIO: the file
+ * ended early). A thread that cannot start leaves its part to this one. */
+static int read_whole(int fd, char *buf, size_t n) {
+    long cores = sysconf(_SC_NPROCESSORS_ONLN);
+    size_t parts = n / READ_PART_MIN;
+    if (cores > 0 && parts > (size_t)cores) parts = (size_t)cores;
+    if (parts > READ_PARTS) parts = READ_PARTS;
+    if (parts < 2) return read_exactly(fd, buf, n, 0);
+    read_part part[READ_PARTS];
+    pthread_t thread[READ_PARTS];
+    int started[READ_PARTS] = {0};
+    for (size_t i = 0; i < parts; i++) {
+        size_t lo = n / parts * i, hi = i + 1 == parts ? n : n / parts * (i + 1);
+        part[i] = (read_part){fd, buf, lo, hi - lo, 0};
+        if (i > 0) started[i] = pthread_create(&thread[i], NULL, read_part_run, &part[i]) == 0;
+    }
+    read_part_run(&part[0]);
+    int e = part[0].err;
+    for (size_t i = 1; i < parts; i++) {
+        if (started[i]) pthread_join(thread[i], NULL);
+        else read_part_run(&part[i]);
+        if (!e) e = part[i].err;
+    }
+    return e;
 }
 
 long long file_read_with(const char *path, size_t max_len, file_alloc_cb alloc, void *ctx, char *err, size_t err_len) {
@@ -44,7 +94,7 @@ long long file_read_with(const char *path, size_t max_len, file_alloc_cb alloc, 
                  max_len);
     else if (n = (size_t)st.st_size, !(buf = alloc(n, ctx)))
         snprintf(err, err_len, "%s: out of memory reading %zu bytes", path, n);
-    else if ((e = read_exactly(fd, buf, n)) != 0)
+    else if ((e = read_whole(fd, buf, n)) != 0)
         snprintf(err, err_len, "%s: read error: %s", path, e == EIO ? "the file ended early" : strerror(e));
     else
         ok = 1;

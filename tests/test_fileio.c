@@ -78,3 +78,28 @@ TEST(fileio_read_with_reads_into_the_callers_room) {
               strstr(err, "not a regular file"),
           "a folder: %s", err);
 }
+
+/* A file big enough to be read in parts on threads (fileio.c, READ_PART_MIN:
+ * 32 MiB a part, so 3 parts here on 3 cores or more, 2 on 2): every byte
+ * where it belongs, the length exact, the NUL after it. A part put at the
+ * wrong offset, or one left unread, changes the pattern. */
+TEST(fileio_reads_a_big_file_in_parts_on_threads) {
+    size_t n = ((size_t)96 << 20) + 7;
+    unsigned char *pattern = malloc(n);
+    CHECK(pattern != NULL, "out of memory");
+    if (!pattern) return;
+    for (size_t i = 0; i < n; i++) pattern[i] = (unsigned char)((i * 2654435761u) >> 24 ^ i >> 20);
+    const char *path = util_temp_path("big.bin");
+    char err[700];
+    CHECK(file_write_atomic(path, pattern, n, err, sizeof err) == 0, "write: %s", err);
+    size_t len = 0;
+    char *text = file_read_all(path, n, &len, err, sizeof err);
+    CHECK(text != NULL, "read: %s", err);
+    if (text) {
+        CHECK(len == n && memcmp(text, pattern, n) == 0 && text[n] == '\0', "read %zu bytes of %zu, %s", len, n,
+              len == n && memcmp(text, pattern, n) == 0 ? "no NUL after them" : "not the bytes written");
+        free(text);
+    }
+    remove(path);
+    free(pattern);
+}
