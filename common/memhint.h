@@ -9,9 +9,9 @@
  * reads at random asks for them, the wide BVH's arena and the triangle
  * records, and only for a render long enough to win that back
  * (scene_render_is_long in render/scene.h). The loader's temporaries,
- * written once and read a few times, never do: with them on huge pages
- * too, a 10.5M-triangle render at 256x256x16 took 3.98-4.23 s against
- * 3.55-3.98 s without (docs/meshes.md). */
+ * written once and read a few times, never do: with every loader array on
+ * huge pages (the records too) a 10.5M-triangle render at 256x256x16 took
+ * 3.98-4.23 s against 3.55-3.98 s with none (docs/meshes.md). */
 #ifndef TESSERA_MEMHINT_H
 #define TESSERA_MEMHINT_H
 

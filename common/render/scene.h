@@ -256,7 +256,7 @@ void scene_feature_names(uint32_t features, char *buf, size_t len);
  * records, to win back the first touch of fresh huge pages: at least
  * prims / 4 samples. Fresh huge pages cost this VM 6 times a 4 KiB page's
  * first touch, and a walk or a hit's shading finds them in the TLB:
- * docs/meshes.md, "Memory". */
+ * docs/meshes.md, "The goal, per size" (seventeenth session). */
 static inline int scene_render_is_long(const scene *s, size_t prims) {
     uint64_t samples = (uint64_t)s->settings.width * (uint64_t)s->settings.height * (uint64_t)s->settings.spp;
     return samples >= prims / 4;
