@@ -21,16 +21,46 @@ static inline void render_pixel_start(const scene *s, const integrator_options *
     sampler_pixel_start(px, opt->sampler, rs->seed, (uint64_t)y * (uint64_t)rs->width + (uint64_t)x);
 }
 
-/* Radiance of sample i of pixel (x, y), whose sampler seeds px holds: the
- * camera ray through the sample's jittered position, traced. */
-static inline vec3 render_sample(const scene *s, const integrator_options *opt, int x, int y, uint32_t i,
-                                 sampler_pixel *px, trace_stats *stats) {
+/* Sample i of pixel (x, y), whose sampler seeds px holds, ready to trace:
+ * its sampler stream and the camera ray through its jittered position. */
+typedef struct {
+    sampler_stream rng;
+    ray r;
+} camera_sample;
+
+static inline void render_camera_sample(const scene *s, int x, int y, uint32_t i, sampler_pixel *px,
+                                        camera_sample *out) {
     const render_settings *rs = &s->settings;
-    sampler_stream rng = sampler_start_pixel(px, i);
+    out->rng = sampler_start_pixel(px, i);
     float u, v;
-    sampler_get_2d(&rng, 0, &u, &v);
-    ray r = {s->cam.position, camera_direction(&s->cam, rs->width, rs->height, x, y, u, v), PRIM_NONE};
-    return integrator_radiance(s, opt, &r, &rng, stats);
+    sampler_get_2d(&out->rng, 0, &u, &v);
+    out->r = (ray){s->cam.position, camera_direction(&s->cam, rs->width, rs->height, x, y, u, v), PRIM_NONE};
+}
+
+/* Add the radiances of samples first to first + count - 1 of pixel (x, y)
+ * to sum[0..2], in order, and those from sample `split` on also to
+ * late[0..2] when late is not NULL. Each sample's camera ray is made
+ * before the sample ahead of it is traced, so that a path starts without
+ * waiting on its ray's scramble, division and square root. */
+static inline void render_pixel_samples(const scene *s, const integrator_options *opt, int x, int y, uint32_t first,
+                                        uint32_t count, trace_stats *stats, double *sum, double *late,
+                                        uint32_t split) {
+    sampler_pixel px;
+    render_pixel_start(s, opt, x, y, &px);
+    camera_sample cam[2]; /* sample i's in cam[i & 1] */
+    if (count) render_camera_sample(s, x, y, first, &px, &cam[first & 1]);
+    for (uint32_t i = first; i < first + count; i++) {
+        if (i + 1 < first + count) render_camera_sample(s, x, y, i + 1, &px, &cam[(i + 1) & 1]);
+        vec3 L = integrator_radiance(s, opt, &cam[i & 1].r, &cam[i & 1].rng, stats);
+        sum[0] += L.x;
+        sum[1] += L.y;
+        sum[2] += L.z;
+        if (late && i >= split) {
+            late[0] += L.x;
+            late[1] += L.y;
+            late[2] += L.z;
+        }
+    }
 }
 
 void render_tile(const scene *s, const integrator_options *opt, const tile_rect *tile, uint32_t first,
@@ -39,14 +69,7 @@ void render_tile(const scene *s, const integrator_options *opt, const tile_rect 
     for (int y = tile->y0; y < tile->y1; y++) {
         for (int x = tile->x0; x < tile->x1; x++) {
             double *sum = accum + 3 * ((size_t)(y - tile->y0) * (size_t)tw + (size_t)(x - tile->x0));
-            sampler_pixel px;
-            render_pixel_start(s, opt, x, y, &px);
-            for (uint32_t i = first; i < first + count; i++) {
-                vec3 L = render_sample(s, opt, x, y, i, &px, stats);
-                sum[0] += L.x;
-                sum[1] += L.y;
-                sum[2] += L.z;
-            }
+            render_pixel_samples(s, opt, x, y, first, count, stats, sum, NULL, 0);
         }
     }
 }
@@ -59,20 +82,8 @@ int render_tile_sums(const scene *s, const integrator_options *opt, const tile_r
         for (int x = tile->x0; x < tile->x1; x++) {
             size_t k = (size_t)(y - tile->y0) * (size_t)tw + (size_t)(x - tile->x0);
             double sum[ADAPTIVE_CHANNELS] = {0};
-            uint32_t split = ADAPTIVE_SPLIT(first, count);
-            sampler_pixel px;
-            render_pixel_start(s, opt, x, y, &px);
-            for (uint32_t i = first; mask[k] && i < first + count; i++) {
-                vec3 L = render_sample(s, opt, x, y, i, &px, stats);
-                sum[0] += L.x;
-                sum[1] += L.y;
-                sum[2] += L.z;
-                if (i >= split) {
-                    sum[3] += L.x;
-                    sum[4] += L.y;
-                    sum[5] += L.z;
-                }
-            }
+            if (mask[k])
+                render_pixel_samples(s, opt, x, y, first, count, stats, sum, sum + 3, ADAPTIVE_SPLIT(first, count));
             for (int c = 0; c < ADAPTIVE_CHANNELS; c++) out[ADAPTIVE_CHANNELS * k + (size_t)c] = (float)sum[c];
         }
     }
