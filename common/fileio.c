@@ -4,13 +4,14 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <libgen.h>
-#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 
 #include <unistd.h>
+
+#include "par.h"
 
 /* Read exactly n bytes from fd at offset off into buf. Returns 0, or an
  * errno value (EIO for a file that ended early). */
@@ -27,52 +28,33 @@ static int read_exactly(int fd, char *buf, size_t n, off_t off) {
     return 0;
 }
 
-/* A big file is read in up to READ_PARTS ranges of at least READ_PART_MIN
- * bytes, one per core, on threads of their own: the copy out of the page
- * cache into fresh memory runs at one core's speed (ico9's 217 MB OBJ:
- * 0.14-0.17 s on one thread, 0.07-0.09 s on two; a scratch program, 3
- * alternations, 2026-11-28). The bytes are the same either way. */
-#define READ_PARTS 4
+/* A big file is read in ranges of at least READ_PART_MIN bytes, one per
+ * core (par.h), each by its own pread: the copy out of the page cache into
+ * fresh memory runs at one core's speed (ico9's 217 MB OBJ: 0.14-0.17 s on
+ * one thread, 0.07-0.09 s on two; a scratch program, 3 alternations,
+ * 2026-11-28). The bytes are the same either way. */
 #define READ_PART_MIN ((size_t)32 << 20)
 
 typedef struct {
     int fd;
     char *buf;
-    size_t off, n;
-    int err; /* read_exactly's result */
-} read_part;
+    int err[PAR_MAX_PARTS]; /* each range's read_exactly result */
+} read_ranges;
 
-static void *read_part_run(void *arg) {
-    read_part *p = arg;
-    p->err = read_exactly(p->fd, p->buf + p->off, p->n, (off_t)p->off);
-    return NULL;
+static void read_range(void *ctx, size_t begin, size_t end, int part) {
+    read_ranges *R = ctx;
+    R->err[part] = read_exactly(R->fd, R->buf + begin, end - begin, (off_t)begin);
 }
 
-/* Read n bytes of fd from its start into buf, in parts on threads when n
- * is big (above). Returns 0 or the first part's errno value (EIO: the file
- * ended early). A thread that cannot start leaves its part to this one. */
+/* Read n bytes of fd from its start into buf. Returns 0 or the first
+ * range's errno value (EIO: the file ended early). */
 static int read_whole(int fd, char *buf, size_t n) {
-    long cores = sysconf(_SC_NPROCESSORS_ONLN);
-    size_t parts = n / READ_PART_MIN;
-    if (cores > 0 && parts > (size_t)cores) parts = (size_t)cores;
-    if (parts > READ_PARTS) parts = READ_PARTS;
-    if (parts < 2) return read_exactly(fd, buf, n, 0);
-    read_part part[READ_PARTS];
-    pthread_t thread[READ_PARTS];
-    int started[READ_PARTS] = {0};
-    for (size_t i = 0; i < parts; i++) {
-        size_t lo = n / parts * i, hi = i + 1 == parts ? n : n / parts * (i + 1);
-        part[i] = (read_part){fd, buf, lo, hi - lo, 0};
-        if (i > 0) started[i] = pthread_create(&thread[i], NULL, read_part_run, &part[i]) == 0;
-    }
-    read_part_run(&part[0]);
-    int e = part[0].err;
-    for (size_t i = 1; i < parts; i++) {
-        if (started[i]) pthread_join(thread[i], NULL);
-        else read_part_run(&part[i]);
-        if (!e) e = part[i].err;
-    }
-    return e;
+    read_ranges R = {fd, buf, {0}};
+    int parts = par_parts(n, READ_PART_MIN);
+    par_run(n, parts, read_range, &R);
+    for (int k = 0; k < parts; k++)
+        if (R.err[k]) return R.err[k];
+    return 0;
 }
 
 long long file_read_with(const char *path, size_t max_len, file_alloc_cb alloc, void *ctx, char *err, size_t err_len) {

@@ -9,7 +9,7 @@
 #   render       -> base                 (scene, shapes, accel, materials, lights, cameras, integrator)
 #   image        -> base                 (codecs, tone mapping, comparison)
 #   net          -> base                 (frames, messages, connections, auth)
-#   base         -> (nothing)            (common/*.h: vectors, JSON, files, args, logging, limits)
+#   base         -> (nothing)            (common/*.h: vectors, JSON, files, threads over ranges, args, logging, limits)
 # A quoted include names its layer by its first folder ("render/scene.h"); a
 # plain name is the including file's sibling if one exists, else a base header.
 # Usage: layers.sh [ROOT] (default: this checkout). Prints each crossing as

@@ -79,10 +79,11 @@ TEST(fileio_read_with_reads_into_the_callers_room) {
           "a folder: %s", err);
 }
 
-/* A file big enough to be read in parts on threads (fileio.c, READ_PART_MIN:
- * 32 MiB a part, so 3 parts here on 3 cores or more, 2 on 2): every byte
- * where it belongs, the length exact, the NUL after it. A part put at the
- * wrong offset, or one left unread, changes the pattern. */
+/* A file big enough to be read in ranges on threads (fileio.c,
+ * READ_PART_MIN: 32 MiB a range, so 3 here), read with 1, 2 and 3 threads
+ * (TESSERA_LOAD_THREADS, par.h): every byte where it belongs, the length
+ * exact, the NUL after it. A range put at the wrong offset, or one left
+ * unread, changes the pattern. */
 TEST(fileio_reads_a_big_file_in_parts_on_threads) {
     size_t n = ((size_t)96 << 20) + 7;
     unsigned char *pattern = malloc(n);
@@ -92,14 +93,18 @@ TEST(fileio_reads_a_big_file_in_parts_on_threads) {
     const char *path = util_temp_path("big.bin");
     char err[700];
     CHECK(file_write_atomic(path, pattern, n, err, sizeof err) == 0, "write: %s", err);
-    size_t len = 0;
-    char *text = file_read_all(path, n, &len, err, sizeof err);
-    CHECK(text != NULL, "read: %s", err);
-    if (text) {
-        CHECK(len == n && memcmp(text, pattern, n) == 0 && text[n] == '\0', "read %zu bytes of %zu, %s", len, n,
-              len == n && memcmp(text, pattern, n) == 0 ? "no NUL after them" : "not the bytes written");
+    static const char *const threads[] = {"1", "2", "3"};
+    for (size_t t = 0; t < sizeof threads / sizeof threads[0]; t++) {
+        setenv("TESSERA_LOAD_THREADS", threads[t], 1);
+        size_t len = 0;
+        char *text = file_read_all(path, n, &len, err, sizeof err);
+        CHECK(text != NULL, "%s threads: read: %s", threads[t], err);
+        if (!text) continue;
+        CHECK(len == n && memcmp(text, pattern, n) == 0 && text[n] == '\0', "%s threads: read %zu bytes of %zu, %s",
+              threads[t], len, n, len == n && memcmp(text, pattern, n) == 0 ? "no NUL after them" : "not the bytes written");
         free(text);
     }
+    unsetenv("TESSERA_LOAD_THREADS");
     remove(path);
     free(pattern);
 }

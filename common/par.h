@@ -1,8 +1,8 @@
 /* par.h - a loop over [0, n) split into contiguous ranges, one thread each.
  *
- * For the loader's per-vertex and per-triangle loops (and sah_build.c's
- * binning and subtrees): every range writes
- * only its own elements (and its own slot of a per-range result the caller
+ * For the loader's per-vertex and per-triangle loops, fileio.c's reads of
+ * big files and sah_build.c's binning and subtrees: every range writes only
+ * its own elements (and its own slot of a per-range result the caller
  * merges in range order), so the result is the same bytes whatever the
  * number of ranges. */
 #ifndef TESSERA_PAR_H
