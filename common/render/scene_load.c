@@ -1105,8 +1105,8 @@ static int assemble(loader *L) {
         return jf_fail(&L->j, "shapes", NULL, "out of memory");
     /* The records a hit's shading reads, on huge pages for a long render
      * only (scene_render_is_long): at 655k triangles and 128x128x64 on 4
-     * KiB pages the render took 3.8% more CPU, and at 10.5M a one-pixel
-     * run paid 0.3-0.5 s for their first touch. */
+     * KiB pages the render took 3.8% more CPU, and at 10.5M and 256x256x16
+     * on huge pages 3.74-4.17 s against 3.28-3.43 s (docs/meshes.md). */
     s->triangles_on_huge_pages = scene_render_is_long(s, L->tri_count + L->sphere_count);
     if (s->triangles_on_huge_pages) {
         memhint_huge(s->triangles, (L->tri_count + 1) * sizeof(triangle));
