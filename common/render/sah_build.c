@@ -298,23 +298,14 @@ static inline void set_grow(set *s, const sah_prim *p) {
 
 static set set_new(size_t begin, size_t end) { return (set){begin, end, box_empty(), box_empty()}; }
 
-/* Split s in two, in place: by sp's plane, or (no plane) at the middle of
- * the range. Both sides get their boxes. */
-static void partition(build *B, const set *s, const split *sp, set *l, set *r) {
-    sah_prim *p = B->prims;
-    if (sp->axis < 0) {
-        size_t mid = s->begin + (s->end - s->begin) / 2;
-        *l = set_new(s->begin, mid), *r = set_new(mid, s->end);
-        for (size_t i = l->begin; i < l->end; i++) set_grow(l, &p[i]);
-        for (size_t i = r->begin; i < r->end; i++) set_grow(r, &p[i]);
-        return;
-    }
-    size_t i = s->begin, j = s->end;
+/* Split p[begin .. end) in place by pl: the left side's primitives first,
+ * into *l and *r with their boxes. */
+static void partition_range(sah_prim *p, size_t begin, size_t end, const plane *pl, set *l, set *r) {
+    size_t i = begin, j = end;
     set L = set_new(0, 0), R = set_new(0, 0);
-    plane pl = plane_of(sp);
     for (;;) {
-        while (i < j && goes_left(&pl, &p[i])) set_grow(&L, &p[i]), i++;
-        while (i < j && !goes_left(&pl, &p[j - 1])) set_grow(&R, &p[j - 1]), j--;
+        while (i < j && goes_left(pl, &p[i])) set_grow(&L, &p[i]), i++;
+        while (i < j && !goes_left(pl, &p[j - 1])) set_grow(&R, &p[j - 1]), j--;
         if (i >= j) break;
         sah_prim t = p[i];
         p[i] = p[j - 1], p[j - 1] = t;
@@ -322,8 +313,130 @@ static void partition(build *B, const set *s, const split *sp, set *l, set *r) {
         i++, j--;
     }
     *l = L, *r = R;
-    l->begin = s->begin, l->end = i;
-    r->begin = i, r->end = s->end;
+    l->begin = begin, l->end = i;
+    r->begin = i, r->end = end;
+}
+
+/* A large set's partition in chunks of PAR_SPLIT_CHUNK primitives, a
+ * number fixed by the set's size alone, so the order it leaves (which a
+ * middle split and build_large read) is the same on any number of
+ * threads: each chunk is partitioned in place (by par.h's threads when the
+ * build bins on several), then the right-side primitives in the final left
+ * range are swapped, k-th with k-th in chunk order, with the left-side ones
+ * in the final right range. */
+#define PAR_SPLIT_CHUNK ((size_t)1 << 16)
+#define PAR_SPLIT_MAX_CHUNKS 1024 /* larger sets take larger chunks */
+
+typedef struct {
+    sah_prim *p;
+    size_t begin, end, chunk, chunks;
+    plane pl;
+    set side[PAR_SPLIT_MAX_CHUNKS][2];
+    /* The swaps: the misplaced right-side runs (in the final left range)
+     * and left-side runs (in the final right range), in chunk order. */
+    size_t run_r[PAR_SPLIT_MAX_CHUNKS][2], run_l[PAR_SPLIT_MAX_CHUNKS][2];
+    size_t runs_r, runs_l, swaps;
+} par_split;
+
+static void split_chunks(void *ctx, size_t begin, size_t end, int part) {
+    par_split *P = ctx;
+    (void)part;
+    for (size_t c = begin; c < end; c++) {
+        size_t b = P->begin + c * P->chunk, e = b + P->chunk < P->end ? b + P->chunk : P->end;
+        partition_range(P->p, b, e, &P->pl, &P->side[c][0], &P->side[c][1]);
+    }
+}
+
+/* The position of the k-th element of runs[0 .. count). */
+static size_t run_at(size_t (*runs)[2], size_t count, size_t k) {
+    for (size_t i = 0; i < count; i++) {
+        size_t len = runs[i][1] - runs[i][0];
+        if (k < len) return runs[i][0] + k;
+        k -= len;
+    }
+    return runs[count - 1][1]; /* not reached: k < the runs' total */
+}
+
+static void split_swaps(void *ctx, size_t begin, size_t end, int part) {
+    par_split *P = ctx;
+    (void)part;
+    if (begin >= end) return;
+    size_t i = run_at(P->run_r, P->runs_r, begin), j = run_at(P->run_l, P->runs_l, begin);
+    size_t ri = 0, lj = 0; /* the runs holding i and j */
+    while (!(i >= P->run_r[ri][0] && i < P->run_r[ri][1])) ri++;
+    while (!(j >= P->run_l[lj][0] && j < P->run_l[lj][1])) lj++;
+    for (size_t k = begin; k < end; k++) {
+        sah_prim t = P->p[i];
+        P->p[i] = P->p[j], P->p[j] = t;
+        if (++i == P->run_r[ri][1] && ri + 1 < P->runs_r) i = P->run_r[++ri][0];
+        if (++j == P->run_l[lj][1] && lj + 1 < P->runs_l) j = P->run_l[++lj][0];
+    }
+}
+
+/* partition's plane split of a large set s (PAR_BIN_MIN primitives or
+ * more). Returns -1 when out of memory (nothing moved). */
+static int partition_chunks(build *B, const set *s, const plane *pl, set *l, set *r) {
+    par_split *P = malloc(sizeof *P);
+    if (!P) return -1;
+    size_t n = s->end - s->begin;
+    P->p = B->prims, P->begin = s->begin, P->end = s->end, P->pl = *pl;
+    P->chunk = PAR_SPLIT_CHUNK;
+    while ((n + P->chunk - 1) / P->chunk > PAR_SPLIT_MAX_CHUNKS) P->chunk *= 2;
+    P->chunks = (n + P->chunk - 1) / P->chunk;
+    int parts = B->bin_threads < PAR_MAX_PARTS ? B->bin_threads : PAR_MAX_PARTS;
+    if (parts > 1) par_run(P->chunks, parts, split_chunks, P);
+    else split_chunks(P, 0, P->chunks, 0);
+    set L = set_new(0, 0), R = set_new(0, 0);
+    size_t lefts = 0;
+    for (size_t c = 0; c < P->chunks; c++) {
+        box_merge(&L.geom, &P->side[c][0].geom), box_merge(&L.cent, &P->side[c][0].cent);
+        box_merge(&R.geom, &P->side[c][1].geom), box_merge(&R.cent, &P->side[c][1].cent);
+        lefts += P->side[c][0].end - P->side[c][0].begin;
+    }
+    size_t mid = s->begin + lefts;
+    P->runs_r = P->runs_l = P->swaps = 0;
+    for (size_t c = 0; c < P->chunks; c++) {
+        const set *cl = &P->side[c][0], *cr = &P->side[c][1];
+        if (cr->begin < mid && cr->begin < cr->end) { /* right-side primitives left of mid */
+            size_t e = cr->end < mid ? cr->end : mid;
+            P->run_r[P->runs_r][0] = cr->begin, P->run_r[P->runs_r][1] = e, P->runs_r++;
+            P->swaps += e - cr->begin;
+        }
+        if (cl->end > mid && cl->begin < cl->end) { /* left-side primitives right of mid */
+            size_t b = cl->begin > mid ? cl->begin : mid;
+            P->run_l[P->runs_l][0] = b, P->run_l[P->runs_l][1] = cl->end, P->runs_l++;
+        }
+    }
+    if (P->swaps) {
+        if (parts > 1) par_run(P->swaps, parts, split_swaps, P);
+        else split_swaps(P, 0, P->swaps, 0);
+    }
+    free(P);
+    *l = L, *r = R;
+    l->begin = s->begin, l->end = mid;
+    r->begin = mid, r->end = s->end;
+    return 0;
+}
+
+/* Split s in two, in place: by sp's plane, or (no plane) at the middle of
+ * the range. Both sides get their boxes. A set of PAR_BIN_MIN primitives
+ * or more is split in chunks (partition_chunks), on every thread while
+ * the top of the tree is built: at 2.6M triangles one core idled through
+ * the top's partitions (a perf timeline, docs/meshes.md). Returns -1 when
+ * out of memory. */
+static int partition(build *B, const set *s, const split *sp, set *l, set *r) {
+    sah_prim *p = B->prims;
+    if (sp->axis < 0) {
+        size_t mid = s->begin + (s->end - s->begin) / 2;
+        *l = set_new(s->begin, mid), *r = set_new(mid, s->end);
+        for (size_t i = l->begin; i < l->end; i++) set_grow(l, &p[i]);
+        for (size_t i = r->begin; i < r->end; i++) set_grow(r, &p[i]);
+        return 0;
+    }
+    plane pl = plane_of(sp);
+    if (s->end - s->begin >= PAR_BIN_MIN) return partition_chunks(B, s, &pl, l, r);
+    partition_range(p, s->begin, s->end, &pl, l, r);
+    return 0;
 }
 
 /* A leaf of s's primitives, in order of id. */
@@ -418,7 +531,7 @@ static void *build_set(build *B, const set *s, unsigned depth) {
         if (leaf_cost <= split_cost) return make_leaf(B, s);
     }
     set children[8];
-    partition(B, s, &sp, &children[0], &children[1]);
+    if (partition(B, s, &sp, &children[0], &children[1]) != 0) return atomic_store(&B->failed, 1), NULL;
     unsigned count = 2;
     while (count < a->width) {
         int pick = -1;
@@ -431,7 +544,8 @@ static void *build_set(build *B, const set *s, unsigned depth) {
         if (pick < 0) break;
         set whole = children[pick];
         split csp = find_split(B, &whole);
-        partition(B, &whole, &csp, &children[pick], &children[count]);
+        if (partition(B, &whole, &csp, &children[pick], &children[count]) != 0)
+            return atomic_store(&B->failed, 1), NULL;
         count++;
     }
     return make_node(B, children, count, depth);
