@@ -33,6 +33,7 @@
 #include "coordinator/service.h"
 #include "coordinator/membudget.h"
 #include "limit.h"
+#include "memhint.h"
 
 /* From this many primitives the default local farm gives way to rendering
  * in this process with a thread per core (bench/meshes.sh: at 655k
@@ -338,6 +339,16 @@ static void print_wide_stats(const accel_wide_stats *ws) {
             ws->huge_pages ? " on huge pages" : "", (double)ws->peak_bytes / 1024.0, ws->build_seconds * 1e3);
 }
 
+/* -v's line for the page probe (memhint.h), when a big buffer made it run. */
+static void print_page_probe(void) {
+    double small, huge;
+    memhint_probe_ms(&small, &huge);
+    if (small < 0.0 && huge < 0.0) return;
+    fprintf(stderr, "pages: a first touch of %zu MiB took %.1f ms on 4 KiB pages, %.1f ms on huge pages: big buffers "
+            "%s\n", MEMHINT_PROBE_BYTES >> 20, small, huge,
+            memhint_huge_is_cheap() ? "on huge pages" : "on huge pages only for a long render");
+}
+
 static void print_scene_info(const scene *s) {
     bvh_stats bs;
     accel_embree_stats es;
@@ -351,7 +362,7 @@ static void print_scene_info(const scene *s) {
     if (!s->accel)
         fprintf(stderr, "intersector: built by each worker (their \"scene ... loaded\" lines below name it)\n");
     else if (accel_get_wide_stats(s->accel, &ws) == 0)
-        print_wide_stats(&ws);
+        print_wide_stats(&ws), print_page_probe();
     else if (accel_get_embree_stats(s->accel, &es) == 0)
         fprintf(stderr, "intersector: embree (Tessera's tests at the leaves; device \"%s\"), %.1f KiB, peak %.1f KiB "
                 "while building, built in %.3f ms\n", es.config, (double)es.final_bytes / 1024.0,

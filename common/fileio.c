@@ -11,6 +11,7 @@
 
 #include <unistd.h>
 
+#include "memhint.h"
 #include "par.h"
 
 /* Read exactly n bytes from fd at offset off into buf. Returns 0, or an
@@ -84,14 +85,16 @@ long long file_read_with(const char *path, size_t max_len, file_alloc_cb alloc, 
     return ok ? (long long)n : -1;
 }
 
-/* file_read_all's room: the length and a NUL. On ordinary pages, not
- * huge ones: a file's text is read once, front to back, and on a VM that
- * hands freed memory back to its host fresh huge pages are slow to get
- * (ico9's 217 MB OBJ read in 0.42-0.51 s into huge pages against
- * 0.10-0.14 s, a scan of it 0.016 s either way: docs/meshes.md). */
+/* file_read_all's room: the length and a NUL. On huge pages only where
+ * they are cheaper to fault in (memhint_fresh): a file's text is read
+ * once, front to back, and on a VM that hands freed memory back to its
+ * host fresh huge pages are slow to get (ico9's 217 MB OBJ read in
+ * 0.42-0.51 s into huge pages against 0.10-0.14 s, a scan of it 0.016 s
+ * either way: docs/meshes.md). */
 static void *alloc_plain(size_t len, void *ctx) {
     char **out = ctx;
     *out = malloc(len + 1);
+    memhint_fresh(*out, len + 1);
     return *out;
 }
 

@@ -20,6 +20,7 @@
 #include "render/render.h"
 #include "render/scene.h"
 #include "harness.h"
+#include "memhint.h"
 #include "render/mesh_normals.h"
 #include "render/scene_memory.h"
 #include "util.h"
@@ -442,6 +443,94 @@ TEST(mesh_triangle_records_huge_pages_follow_the_samples) {
               cases[k].width, cases[k].height, cases[k].spp, n, s->triangles_on_huge_pages, cases[k].huge);
         scene_free(s);
     }
+}
+
+/* The page probe (memhint.c): its answer is its rule applied to its own
+ * figures, and TESSERA_HUGE_PAGES overrides it both ways; a buffer under
+ * MEMHINT_MIN_BYTES never asks. */
+TEST(memhint_probe_follows_its_figures_and_the_environment_overrides) {
+    setenv("TESSERA_HUGE_PAGES", "1", 1);
+    CHECK(memhint_huge_is_cheap() == 1, "TESSERA_HUGE_PAGES=1: not cheap");
+    CHECK(memhint_fresh_wants_huge(MEMHINT_MIN_BYTES) == 1, "forced: a buffer of MEMHINT_MIN_BYTES does not ask");
+    CHECK(memhint_fresh_wants_huge(MEMHINT_MIN_BYTES - 1) == 0, "a buffer under MEMHINT_MIN_BYTES asks");
+    setenv("TESSERA_HUGE_PAGES", "0", 1);
+    CHECK(memhint_huge_is_cheap() == 0 && memhint_fresh_wants_huge((size_t)1 << 30) == 0,
+          "TESSERA_HUGE_PAGES=0: huge pages still asked for");
+    unsetenv("TESSERA_HUGE_PAGES");
+    int cheap = memhint_huge_is_cheap();
+    double small, huge;
+    memhint_probe_ms(&small, &huge);
+    CHECK(small >= 0.0 && huge >= 0.0 && isfinite(small) && isfinite(huge), "probe figures %g and %g ms", small,
+          huge);
+    CHECK(cheap == (huge < 0.75 * small), "probe: %g ms on 4 KiB pages, %g on huge ones, answered %d", small, huge,
+          cheap);
+    CHECK(memhint_huge_is_cheap() == cheap, "a second call answered differently");
+}
+
+/* A grid of 2 * side^2 triangles in the plane y = 0 over [0, 500]^2 as
+ * OBJ text (malloc'd, the caller frees). */
+static char *grid_obj(int side) {
+    size_t cap = (size_t)(side + 1) * (side + 1) * 40 + (size_t)side * side * 2 * 40, len = 0;
+    char *t = malloc(cap);
+    if (!t) return NULL;
+    for (int z = 0; z <= side; z++)
+        for (int x = 0; x <= side; x++)
+            len += (size_t)snprintf(t + len, cap - len, "v %.4f 0 %.4f\n", 500.0 * x / side, 500.0 * z / side);
+    for (int z = 0; z < side; z++)
+        for (int x = 0; x < side; x++) {
+            int a = z * (side + 1) + x + 1, b = a + 1, c = a + side + 1, d = c + 1;
+            len += (size_t)snprintf(t + len, cap - len, "f %d %d %d\nf %d %d %d\n", a, c, b, b, c, d);
+        }
+    return t;
+}
+
+/* A one-pixel render of a mesh whose records pass MEMHINT_MIN_BYTES: its
+ * records and tree on huge pages when they are the cheaper ones to fault
+ * in (forced), on ordinary pages when not (forced), and the picture the
+ * same either way. */
+TEST(mesh_big_buffers_take_huge_pages_where_they_are_cheaper) {
+    char err[512];
+    char *obj = grid_obj(256);
+    CHECK(obj != NULL, "out of memory");
+    if (!obj) return;
+    const char *obj_path = util_write_temp("pages-grid.obj", obj);
+    free(obj);
+    CHECK(obj_path != NULL, "cannot write grid.obj");
+    if (!obj_path) return;
+    char json[1024];
+    snprintf(json, sizeof json,
+             "{\"render\": {\"width\": 8, \"height\": 8, \"spp\": 2, \"max_depth\": 4, \"seed\": 1},"
+             " \"camera\": {\"type\": \"perspective\", \"position\": [250, 400, -300], \"look_at\": [250, 0, 250],"
+             " \"up\": [0, 1, 0], \"fov\": 50},"
+             " \"materials\": {\"white\": {\"type\": \"diffuse\", \"albedo\": [0.7, 0.7, 0.7]}},"
+             " \"shapes\": [{\"type\": \"mesh\", \"file\": \"%s\", \"material\": \"white\"},"
+             " {\"type\": \"sphere\", \"center\": [250, 300, 250], \"radius\": 50, \"emission\": [5, 5, 5]}]}",
+             obj_path);
+    const char *scene_path = util_write_temp("pages-grid.json", json);
+    float *img[2] = {NULL, NULL};
+    for (int cheap = 0; cheap < 2; cheap++) {
+        setenv("TESSERA_HUGE_PAGES", cheap ? "1" : "0", 1);
+        scene_overrides ov = {.width = 1, .height = 1, .spp = 1, .max_depth = -1};
+        scene *s = scene_load(scene_path, &ov, err, sizeof err);
+        CHECK(s != NULL, "%s", err);
+        if (!s) break;
+        CHECK((size_t)s->triangle_count * sizeof(triangle) >= MEMHINT_MIN_BYTES, "%u triangles: too few",
+              s->triangle_count);
+        CHECK(s->triangles_on_huge_pages == cheap, "huge pages cheaper %d: records on huge pages %d", cheap,
+              s->triangles_on_huge_pages);
+        accel *wide = accel_build_err(s, ACCEL_WIDE, err, sizeof err);
+        accel_wide_stats st = {0};
+        CHECK(wide && accel_get_wide_stats(wide, &st) == 0, "wide build: %s", err);
+        CHECK(st.huge_pages == cheap, "huge pages cheaper %d: tree on huge pages %d", cheap, st.huge_pages);
+        accel_free(wide);
+        trace_stats ts = {0};
+        img[cheap] = util_render(s, 1, 8, 1, &ts);
+        scene_free(s);
+    }
+    unsetenv("TESSERA_HUGE_PAGES");
+    CHECK(img[0] && img[1] && memcmp(img[0], img[1], 3 * sizeof(float)) == 0, "the pixel differs with the pages");
+    free(img[0]);
+    free(img[1]);
 }
 
 /* Every Embree kernel this CPU can run, forced, and every build quality:

@@ -34,6 +34,7 @@
 #include <string.h>
 #include "bump_arena.h"
 #include "elapsed.h"
+#include "memhint.h"
 #include "par.h"
 #include "sah_build.h"
 
@@ -88,12 +89,15 @@ typedef WIDE_LEAF(8) wide_leaf8;
 /* The tree's memory (bump_arena.h): chunks handed out to the builder's
  * threads by an atomic bump pointer, on transparent huge pages for a
  * render of at least a quarter as many samples as primitives
- * (scene_render_is_long in scene.h). A walk's step then finds its page in the TLB:
+ * (scene_render_is_long in scene.h), or where they are cheaper to fault
+ * in (memhint_fresh_wants_huge). A walk's step then finds its page in the TLB:
  * render time -3% at 655k triangles (against Embree's thread-local
  * blocks of 4 KiB pages), -13% at 10.5M (docs/meshes.md). But fresh huge
  * pages are slow to get on a VM (and the kernel compacts for them): at
  * 10.5M they cost the build 0.3-0.5 s, at 2.6M 0.1-0.2 s, which a preview
- * of a few samples would not win back. */
+ * of a few samples would not win back. Where 4 KiB faults are the dear
+ * ones, a one-pixel 2.6M render took 1.02-1.12 s against 2.01-2.29 s
+ * with every big buffer on huge pages (docs/meshes.md). */
 #define ARENA_CHUNK_MIN ((size_t)4 << 20)
 #define ARENA_CHUNK_MAX ((size_t)128 << 20)
 
@@ -273,6 +277,7 @@ static void make_boxes(void *ctx, size_t begin, size_t end, int part) {
  * of memory; the caller frees. */
 static struct RTCBuildPrimitive *build_primitives(const scene *s, size_t n) {
     struct RTCBuildPrimitive *p = aligned_alloc(32, (n * sizeof *p + 31) / 32 * 32);
+    memhint_fresh(p, n * sizeof *p);
     if (!p) return NULL;
     prim_boxes boxes = {s, NULL, p};
     par_run(n, par_parts_touch(n, 1 << 14), make_boxes, &boxes);
@@ -300,6 +305,7 @@ static unsigned leaf_min(unsigned leaf_lanes) { return leaf_lanes == 8 ? 8 : 3; 
  * when out of memory or cancelled (b->cancelled says which). */
 static void *build_sah(build_ctx *b, size_t n, size_t *peak) {
     sah_prim *p = aligned_alloc(32, (n * sizeof *p + 31) / 32 * 32);
+    memhint_fresh(p, n * sizeof *p);
     if (!p) return NULL;
     prim_boxes boxes = {b->s, p, NULL};
     par_run(n, par_parts_touch(n, 1 << 14), make_boxes, &boxes);
@@ -370,9 +376,9 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
     if (n == 0) return w; /* nothing to hit: root 0 */
     /* Chunks of about a tenth of the tree (a node and a leaf per 8
      * primitives), 4 to 128 MiB. */
-    size_t chunk = n / 8 * (sizeof(wide_node) + sizeof(wide_leaf8)) / 10;
+    size_t tree = n / 8 * (sizeof(wide_node) + sizeof(wide_leaf8)), chunk = tree / 10;
     chunk = chunk < ARENA_CHUNK_MIN ? ARENA_CHUNK_MIN : chunk > ARENA_CHUNK_MAX ? ARENA_CHUNK_MAX : chunk;
-    w->stats.huge_pages = scene_render_is_long(s, n);
+    w->stats.huge_pages = scene_render_is_long(s, n) || memhint_fresh_wants_huge(tree);
     if (!(w->arena = bump_arena_new(chunk, w->stats.huge_pages))) {
         snprintf(err, err_len, "out of memory");
         accel_wide_free(w);

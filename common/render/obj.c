@@ -21,6 +21,7 @@
 #include <string.h>
 
 #include "fileio.h"
+#include "memhint.h"
 #include "par.h"
 
 #define OBJ_MAX_FILE (1u << 30) /* 1 GiB of text */
@@ -448,6 +449,10 @@ static int alloc_counted(obj_mesh *out, size_t v, size_t vn, size_t vt, size_t t
     out->indices = malloc((3 * tris + 1) * sizeof(uint32_t));
     out->normals = vn ? malloc(3 * vn * sizeof(float)) : NULL;
     out->uvs = vt ? malloc(2 * vt * sizeof(float)) : NULL;
+    memhint_fresh(out->positions, (3 * v + 1) * sizeof(double));
+    memhint_fresh(out->indices, (3 * tris + 1) * sizeof(uint32_t));
+    if (out->normals) memhint_fresh(out->normals, 3 * vn * sizeof(float));
+    if (out->uvs) memhint_fresh(out->uvs, 2 * vt * sizeof(float));
     if (!out->positions || !out->indices || (vn && !out->normals) || (vt && !out->uvs)) return -1;
     return 0;
 }

@@ -312,6 +312,7 @@ static double *reserve_vertices(loader *L, size_t n) {
         if (!p) return NULL;
         L->wv = p;
         L->wv_cap = cap;
+        memhint_fresh(p, 3 * cap * sizeof *p);
     }
     return L->wv + 3 * L->wv_count;
 }
@@ -366,6 +367,7 @@ static int reserve_triangles(loader *L, size_t n) {
     if (!p) return -1;
     L->tris = p;
     L->tri_cap = cap;
+    memhint_fresh(p, cap * sizeof *p);
     return 0;
 }
 
@@ -761,6 +763,7 @@ static int add_mesh_triangles_with_attributes(mesh_add *A) {
     loader *L = A->L;
     A->first = L->tri_count;
     A->src = malloc((A->m->triangle_count + 1) * sizeof *A->src);
+    memhint_fresh(A->src, (A->m->triangle_count + 1) * sizeof *A->src);
     if (!A->src) return -1;
     add_mesh_triangles(A);
     size_t kept = L->tri_count - A->first;
@@ -1104,10 +1107,13 @@ static int assemble(loader *L) {
     if (!s->triangles || !s->triangle_info || !s->triangle_normals || !s->spheres || !s->sphere_info)
         return jf_fail(&L->j, "shapes", NULL, "out of memory");
     /* The records a hit's shading reads, on huge pages for a long render
-     * only (scene_render_is_long): at 655k triangles and 128x128x64 on 4
+     * (scene_render_is_long) or where they are cheaper to fault in
+     * (memhint_fresh_wants_huge): at 655k triangles and 128x128x64 on 4
      * KiB pages the render took 3.8% more CPU, and at 10.5M and 256x256x16
-     * on huge pages 3.74-4.17 s against 3.28-3.43 s (docs/meshes.md). */
-    s->triangles_on_huge_pages = scene_render_is_long(s, L->tri_count + L->sphere_count);
+     * on huge pages 3.74-4.17 s against 3.28-3.43 s on a host where they
+     * are dearer (docs/meshes.md). */
+    s->triangles_on_huge_pages = scene_render_is_long(s, L->tri_count + L->sphere_count) ||
+                                 memhint_fresh_wants_huge((L->tri_count + 1) * sizeof(triangle));
     if (s->triangles_on_huge_pages) {
         memhint_huge(s->triangles, (L->tri_count + 1) * sizeof(triangle));
         memhint_huge(s->triangle_info, (L->tri_count + 1) * sizeof(prim_info));
