@@ -37,35 +37,6 @@ static inline void memhint_huge(void *p, size_t bytes) {
 #else
     (void)p;
     (void)bytes;
-/* Whether fresh huge pages are cheaper to fault in here than 4 KiB ones:
- * the first call (thread-safe) times a first touch of MEMHINT_PROBE_BYTES
- * each way in fresh mappings, about 2-20 ms, and the answer is kept for
- * the process. TESSERA_HUGE_PAGES=1 or 0 in the environment decides
- * instead (looked up on every call; tests). Huge pages count as cheaper
- * when their touch took under 3/4 of the other's. Can't fail: a probe
- * that cannot map says no. */
-#define MEMHINT_PROBE_BYTES ((size_t)4 << 20)
-int memhint_huge_is_cheap(void);
-
-/* The probe's figures, in milliseconds (each -1 when it could not map, or
- * both -1 when the probe has not run: the environment decided, or nobody
- * asked). */
-void memhint_probe_ms(double *small_pages, double *huge_pages);
-
-/* Whether a buffer of `bytes` that no long render reads at random should
- * still ask for huge pages: one big enough for a hint (MEMHINT_MIN_BYTES)
- * on a host where they are cheaper to fault in. Probes on first need only:
- * small buffers never pay for the probe. */
-static inline int memhint_fresh_wants_huge(size_t bytes) {
-    return bytes >= MEMHINT_MIN_BYTES && memhint_huge_is_cheap();
-}
-
-/* A big buffer about to be written for the first time: huge pages for it
- * where memhint_fresh_wants_huge says so. Can't fail; p may be NULL. */
-static inline void memhint_fresh(void *p, size_t bytes) {
-    if (p && memhint_fresh_wants_huge(bytes)) memhint_huge(p, bytes);
-}
-
 #endif
 }
 
