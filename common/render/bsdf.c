@@ -116,7 +116,9 @@ static inline __attribute__((always_inline)) int sample_lambert_phong(material_k
     out->wi = wi;
     out->pdf = pdf;
     out->is_delta = 0;
-    out->weight = vec3_scale(f, wi.z / pdf);
+    /* Lambert: f cos / pdf = (kd / pi) cos / (cos / pi) = kd, without the
+     * division and its rounding. */
+    out->weight = kind == MATERIAL_DIFFUSE ? m->kd : vec3_scale(f, wi.z / pdf);
     return 1;
 }
 
