@@ -17,4 +17,20 @@
  * Can't fail. */
 vec3 camera_direction(const camera *c, int width, int height, int x, int y, float u, float v);
 
+/* What camera_direction computes once per image size: the perspective
+ * camera's film-to-screen factors (2 / W, 2 / H, tan(fov / 2) with and
+ * without the aspect ratio), so that a ray costs no division but its
+ * normalisation. Plain struct, filled by camera_raster_init. */
+typedef struct {
+    const camera *c;
+    int width, height;
+    float two_over_w, two_over_h, tan_x, tan_y;
+} camera_raster;
+
+/* Fill r for c (not copied: it must outlive r) at width x height. Can't fail. */
+void camera_raster_init(camera_raster *r, const camera *c, int width, int height);
+
+/* camera_direction(r->c, r->width, r->height, x, y, u, v), bit for bit. */
+vec3 camera_raster_direction(const camera_raster *r, int x, int y, float u, float v);
+
 #endif

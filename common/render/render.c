@@ -28,13 +28,12 @@ typedef struct {
     ray r;
 } camera_sample;
 
-static inline void render_camera_sample(const scene *s, int x, int y, uint32_t i, sampler_pixel *px,
-                                        camera_sample *out) {
-    const render_settings *rs = &s->settings;
+static inline void render_camera_sample(const scene *s, const camera_raster *cr, int x, int y, uint32_t i,
+                                        sampler_pixel *px, camera_sample *out) {
     out->rng = sampler_start_pixel(px, i);
     float u, v;
     sampler_get_2d(&out->rng, 0, &u, &v);
-    out->r = (ray){s->cam.position, camera_direction(&s->cam, rs->width, rs->height, x, y, u, v), PRIM_NONE};
+    out->r = (ray){s->cam.position, camera_raster_direction(cr, x, y, u, v), PRIM_NONE};
 }
 
 /* Add the radiances of samples first to first + count - 1 of pixel (x, y)
@@ -42,15 +41,16 @@ static inline void render_camera_sample(const scene *s, int x, int y, uint32_t i
  * late[0..2] when late is not NULL. Each sample's camera ray is made
  * before the sample ahead of it is traced, so that a path starts without
  * waiting on its ray's scramble, division and square root. */
-static inline void render_pixel_samples(const scene *s, const integrator_options *opt, int x, int y, uint32_t first,
+static inline void render_pixel_samples(const scene *s, const integrator_options *opt, const camera_raster *cr,
+                                        int x, int y, uint32_t first,
                                         uint32_t count, trace_stats *stats, double *sum, double *late,
                                         uint32_t split) {
     sampler_pixel px;
     render_pixel_start(s, opt, x, y, &px);
     camera_sample cam[2]; /* sample i's in cam[i & 1] */
-    if (count) render_camera_sample(s, x, y, first, &px, &cam[first & 1]);
+    if (count) render_camera_sample(s, cr, x, y, first, &px, &cam[first & 1]);
     for (uint32_t i = first; i < first + count; i++) {
-        if (i + 1 < first + count) render_camera_sample(s, x, y, i + 1, &px, &cam[(i + 1) & 1]);
+        if (i + 1 < first + count) render_camera_sample(s, cr, x, y, i + 1, &px, &cam[(i + 1) & 1]);
         vec3 L = integrator_radiance(s, opt, &cam[i & 1].r, &cam[i & 1].rng, stats);
         sum[0] += L.x;
         sum[1] += L.y;
@@ -66,10 +66,12 @@ static inline void render_pixel_samples(const scene *s, const integrator_options
 void render_tile(const scene *s, const integrator_options *opt, const tile_rect *tile, uint32_t first,
                  uint32_t count, double *accum, trace_stats *stats) {
     int tw = tile_width(tile);
+    camera_raster cr;
+    camera_raster_init(&cr, &s->cam, s->settings.width, s->settings.height);
     for (int y = tile->y0; y < tile->y1; y++) {
         for (int x = tile->x0; x < tile->x1; x++) {
             double *sum = accum + 3 * ((size_t)(y - tile->y0) * (size_t)tw + (size_t)(x - tile->x0));
-            render_pixel_samples(s, opt, x, y, first, count, stats, sum, NULL, 0);
+            render_pixel_samples(s, opt, &cr, x, y, first, count, stats, sum, NULL, 0);
         }
     }
 }
@@ -77,13 +79,16 @@ void render_tile(const scene *s, const integrator_options *opt, const tile_rect 
 int render_tile_sums(const scene *s, const integrator_options *opt, const tile_rect *tile, uint32_t first,
                      uint32_t count, const uint8_t *mask, float *out, trace_stats *stats, const atomic_int *cancel) {
     int tw = tile_width(tile);
+    camera_raster cr;
+    camera_raster_init(&cr, &s->cam, s->settings.width, s->settings.height);
     for (int y = tile->y0; y < tile->y1; y++) {
         if (cancel && atomic_load_explicit(cancel, memory_order_relaxed)) return -1;
         for (int x = tile->x0; x < tile->x1; x++) {
             size_t k = (size_t)(y - tile->y0) * (size_t)tw + (size_t)(x - tile->x0);
             double sum[ADAPTIVE_CHANNELS] = {0};
             if (mask[k])
-                render_pixel_samples(s, opt, x, y, first, count, stats, sum, sum + 3, ADAPTIVE_SPLIT(first, count));
+                render_pixel_samples(s, opt, &cr, x, y, first, count, stats, sum, sum + 3,
+                                     ADAPTIVE_SPLIT(first, count));
             for (int c = 0; c < ADAPTIVE_CHANNELS; c++) out[ADAPTIVE_CHANNELS * k + (size_t)c] = (float)sum[c];
         }
     }
