@@ -341,7 +341,7 @@ TEST(bsdf_eval_pdf_matches_eval_and_pdf) {
 /* The cosine warp's sin and cos (warp_sincos_quarter) against double
  * precision over [-pi/4, pi/4], 2^20 + 1 points with the ends: within 2
  * ulp of the float nearest the true value, and the warp's directions of
- * unit length within 4e-7 (a coefficient off in its fourth digit fails both). */
+ * unit length within 4e-7 (a coefficient off in its fourth digit fails the first). */
 TEST(warp_sincos_quarter_is_accurate) {
     const int n = 1 << 20;
     float worst_s = 0, worst_c = 0;
@@ -364,4 +364,40 @@ TEST(warp_sincos_quarter_is_accurate) {
         CHECK(w.z >= 0.0f, "direction %d below the horizon: z = %g", i, w.z);
     }
     CHECK(worst_len <= 4e-7f, "a cosine-warped direction's length is off by %g", worst_len);
+}
+
+/* The integrator takes each sampled direction to world space without
+ * normalising it again (integrator.c), and the next vertex's wo is that
+ * direction reversed: a direction must stay unit along a whole path, also
+ * through chains of reflections, which build wi from wo and so would carry
+ * its rounding on. Paths of 64 bounces through every material kind
+ * (Lambert, Phong, PBR rough and nearly smooth, mirror, glass), each vertex
+ * with a random unit normal turned towards wo (as the integrator turns ng),
+ * 2000 paths per kind: every direction unit within 1e-6. (Without the
+ * reflections' own normalisation the nearly smooth PBR metal drifted to
+ * 2.6e-6 by the 60th bounce.) */
+TEST(bsdf_path_directions_stay_unit_without_renormalising) {
+    material ms[] = {diffuse(), glossy(0.4f, 0.5f, 5), pbr(0.8f, 0.5f, 0.2f, 0, 0.5f), pbr(1, 0.8f, 0.4f, 1, 0.05f),
+                     {.kind = MATERIAL_MIRROR, .ks = {0.95f, 0.95f, 0.95f}},
+                     {.kind = MATERIAL_GLASS, .ior = 1.5f, .kt = {1, 1, 1}}};
+    float worst = 0;
+    int steps = 0;
+    for (size_t i = 0; i < sizeof ms / sizeof ms[0]; i++)
+        for (int k = 0; k < 2000; k++) {
+            rng_stream r = rng_stream_start(29, i, (uint64_t)k);
+            vec3 wo = dir_from(rng_next(&r), 2 * M_PI * rng_next(&r)); /* unit, towards the viewer */
+            for (int depth = 0; depth < 64; depth++) {
+                vec3 n = dir_from(2.0 * rng_next(&r) - 1.0, 2 * M_PI * rng_next(&r));
+                if (ms[i].kind != MATERIAL_GLASS && vec3_dot(n, wo) < 0.0f) n = vec3_neg(n);
+                frame f = frame_from_normal(n);
+                bsdf_sample bs;
+                float u1 = rng_next(&r), u2 = rng_next(&r), u3 = rng_next(&r);
+                if (!bsdf_sample_wi(&ms[i], frame_to_local(&f, wo), u1, u2, u3, &bs)) break;
+                vec3 wi = frame_to_world(&f, bs.wi);
+                worst = fmaxf(worst, fabsf(vec3_length(wi) - 1.0f));
+                wo = vec3_neg(wi);
+                steps++;
+            }
+        }
+    CHECK(worst <= 1e-6f && steps > 100000, "a path's direction is off unit length by %g (%d bounces)", worst, steps);
 }

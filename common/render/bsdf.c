@@ -13,6 +13,12 @@
 
 static inline vec3 reflect_local(vec3 wo) { return vec3_make(-wo.x, -wo.y, wo.z); }
 
+/* A sampled mirror direction, made unit: the integrator does not normalise
+ * sampled directions again, and a reflection built from wo would carry
+ * wo's rounding on from bounce to bounce down a chain of mirrors
+ * (bsdf_path_directions_stay_unit_without_renormalising). */
+static inline vec3 reflect_unit(vec3 wo) { return vec3_normalize(reflect_local(wo)); }
+
 static float phong_cos_alpha(vec3 wo, vec3 wi) { return vec3_dot(reflect_local(wo), wi); }
 
 /* f(wo, wi) and, into *pdf, the density bsdf_sample_wi gives wi, for a
@@ -78,7 +84,7 @@ static int sample_glass(const material *m, vec3 wo, float u, bsdf_sample *out) {
     out->pdf = 0.0f;
     out->is_delta = 1;
     if (u < F) {
-        out->wi = reflect_local(wo);
+        out->wi = reflect_unit(wo);
         out->weight = vec3_splat(1.0f);
         return 1;
     }
@@ -131,7 +137,7 @@ int bsdf_sample_wi(const material *m, vec3 wo, float u1, float u2, float u3, bsd
         return sample_lambert_phong(MATERIAL_GLOSSY, m, wo, u1, u2, u3, out);
     case MATERIAL_MIRROR:
         if (wo.z <= 0.0f) return 0;
-        out->wi = reflect_local(wo);
+        out->wi = reflect_unit(wo);
         out->pdf = 0.0f;
         out->is_delta = 1;
         out->weight = m->ks;

@@ -94,7 +94,10 @@ int bsdf_pbr_sample(const material *m, vec3 wo, float u1, float u2, float u3, bs
     vec3 wi;
     if (u3 < p_specular(m, wo)) {
         vec3 h = sample_vndf(pbr_alpha(m), wo, u1, u2);
-        wi = vec3_sub(vec3_scale(h, 2.0f * vec3_dot(wo, h)), wo);
+        /* Made unit: built from wo, it would carry wo's rounding on down a
+         * chain of glossy reflections (the integrator does not normalise
+         * sampled directions again). */
+        wi = vec3_normalize(vec3_sub(vec3_scale(h, 2.0f * vec3_dot(wo, h)), wo));
     } else {
         wi = warp_cosine_hemisphere(u1, u2);
     }

@@ -243,8 +243,10 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
         int scattered = bsdf_sample_wi(m, wo_local, u1, u2, u_lobe, &bs);
         if (scattered) sampler_get_bounce(rng, dim + INTEGRATOR_DIMS_PER_BOUNCE, u_next);
         /* Not normalised again: the frame is orthonormal and bs.wi unit, so
-         * wi is unit within 1e-6 (math_world_directions_stay_unit_without_
-         * renormalising), and a square root and a division fewer stand
+         * wi is unit within 1e-6 even 64 bounces down a chain of mirrors
+         * (bsdf_path_directions_stay_unit_without_renormalising; the
+         * mirror, glass and glossy PBR reflections normalise their own
+         * direction for it), and a square root and a division fewer stand
          * between this vertex and the next walk (2026-11-29, paired runs,
          * one thread per core, 128x128x64: ico5 0.976 and 0.957, ico6 0.941,
          * the spheres 0.940, the box 0.981, ico7 1.004). */
