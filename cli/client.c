@@ -616,6 +616,7 @@ static int do_submit(const cli_args *a, const char *scene_path) {
     if (a->ov.height > 0) cJSON_AddNumberToObject(m, "height", a->ov.height);
     if (a->ov.spp > 0) cJSON_AddNumberToObject(m, "spp", a->ov.spp);
     if (a->ov.max_depth > 0) cJSON_AddNumberToObject(m, "max_depth", a->ov.max_depth);
+    if (a->ov.has_roulette_depth) cJSON_AddNumberToObject(m, "roulette_depth", a->ov.roulette_depth);
     if (a->ov.has_seed) {
         char seed[32];
         snprintf(seed, sizeof seed, "%llu", (unsigned long long)a->ov.seed);
@@ -833,7 +834,7 @@ static void usage_submit(FILE *f) {
                "job on the coordinator and exits with status 130.\n"
                "\n"
                "options:\n"
-               "      --spp N, --max-depth N, --seed N   override the scene's render settings\n"
+               "      --spp N, --max-depth N, --roulette-depth N, --seed N   override the scene's render settings\n"
                "      --width W, --height H  image size; given one, the other keeps the aspect ratio\n"
                "      --tile-size N        tile side in pixels (default: the coordinator's)\n"
                "      --priority P         higher runs first (default 0)\n"
@@ -925,7 +926,7 @@ typedef struct {
 } client_command;
 
 static const char *const common_opts[] = {"coordinator", "token-file", "client-name", "insecure", "json", NULL};
-static const char *const submit_opts[] = {"spp", "width", "height", "max-depth", "seed", "priority", "tile-size",
+static const char *const submit_opts[] = {"spp", "width", "height", "max-depth", "roulette-depth", "seed", "priority", "tile-size",
                                           "noise-threshold", "min-spp", "wait", "quiet", "verbose", "output", "tonemap", "exposure", "quality",
                                           "png16", "camera", NULL};
 static const char *const fetch_opts[] = {"partial", "output", "tonemap", "exposure", "quality", "png16", NULL};
@@ -973,6 +974,8 @@ int client_main(int argc, char **argv) {
         {.name = "width", .kind = ARG_INT, .dest = &a.ov.width, .lo = 1, .hi = LIMIT_SIDE},
         {.name = "height", .kind = ARG_INT, .dest = &a.ov.height, .lo = 1, .hi = LIMIT_SIDE},
         {.name = "max-depth", .kind = ARG_INT, .dest = &a.ov.max_depth, .lo = 1, .hi = LIMIT_DEPTH},
+        {.name = "roulette-depth", .kind = ARG_INT, .dest = &a.ov.roulette_depth, .lo = 0, .hi = LIMIT_DEPTH,
+         .given = &a.ov.has_roulette_depth},
         {.name = "seed", .kind = ARG_U64, .dest = &a.ov.seed, .given = &a.ov.has_seed},
         {.name = "priority", .kind = ARG_INT, .dest = &a.priority, .lo = -LIMIT_PRIORITY, .hi = LIMIT_PRIORITY},
         {.name = "tile-size", .kind = ARG_INT, .dest = &a.tile_size, .lo = 1, .hi = 4096},

@@ -86,6 +86,9 @@ static void usage_render(FILE *f) {
             "      --height H         image height in pixels (overrides render.height); given\n"
             "                         one of the two, the other keeps the scene's aspect ratio\n"
             "      --max-depth N      maximum bounces (overrides render.max_depth)\n"
+            "      --roulette-depth N Russian roulette may end paths from vertex N on, 0 being\n"
+            "                         the camera ray's hit (overrides render.roulette_depth,\n"
+            "                         default 4; 1 is Cycles' rule)\n"
             "      --seed N           random seed (overrides render.seed)\n"
             "      --camera NAME      glTF: render from this camera (node or camera name; default: the first)\n"
             "      --max-memory SIZE  refuse up front a frame larger than this, e.g. 12G (default:\n"
@@ -257,6 +260,8 @@ static void parse_render_args(int argc, char **argv, render_args *a) {
         {.name = "width", .kind = ARG_INT, .dest = &a->ov.width, .lo = 1, .hi = LIMIT_SIDE},
         {.name = "height", .kind = ARG_INT, .dest = &a->ov.height, .lo = 1, .hi = LIMIT_SIDE},
         {.name = "max-depth", .kind = ARG_INT, .dest = &a->ov.max_depth, .lo = 1, .hi = LIMIT_DEPTH},
+        {.name = "roulette-depth", .kind = ARG_INT, .dest = &a->ov.roulette_depth, .lo = 0, .hi = LIMIT_DEPTH,
+         .given = &a->ov.has_roulette_depth},
         {.name = "seed", .kind = ARG_U64, .dest = &a->ov.seed, .given = &a->ov.has_seed},
         {.name = "threads", .kind = ARG_INT, .dest = &a->threads, .lo = 1, .hi = 1024, .given = &a->threads_given},
         {.name = "workers", .kind = ARG_INT, .dest = &a->workers, .lo = 0, .hi = 4096},
@@ -374,8 +379,9 @@ static void print_scene_info(const scene *s) {
     else
         fprintf(stderr, "intersector: flat (every triangle, %d at a time; no tree for %u triangles)\n", accel_flat_lanes(s->accel),
                 s->triangle_count);
-    fprintf(stderr, "render: %dx%d, %d spp, max depth %d, seed %llu\n", s->settings.width, s->settings.height,
-            s->settings.spp, s->settings.max_depth, (unsigned long long)s->settings.seed);
+    fprintf(stderr, "render: %dx%d, %d spp, max depth %d, roulette from vertex %d, seed %llu\n", s->settings.width,
+            s->settings.height, s->settings.spp, s->settings.max_depth, s->settings.roulette_depth,
+            (unsigned long long)s->settings.seed);
 }
 
 /* Render in this process with a thread pool. Returns 0 or -1 (printed). */
@@ -411,7 +417,8 @@ static int render_on_farm(render_args *a, const scene *s, const scene_bundle *b,
         return -1;
     }
     proto_job job = {.id = 1, .width = s->settings.width, .height = s->settings.height, .spp = s->settings.spp,
-                     .max_depth = s->settings.max_depth, .seed = s->settings.seed,
+                     .max_depth = s->settings.max_depth, .roulette_depth = s->settings.roulette_depth,
+                     .seed = s->settings.seed,
                      .integrator = a->ro.integrator, .adaptive = a->ro.noise_threshold > 0};
     scene_bundle_hash(bytes, len, job.scene_hash);
     local_farm_options lo = {.workers = a->workers, .threads_per_worker = a->threads_given ? a->threads : 1,

@@ -25,6 +25,7 @@ int store_save_job(sjob *j, char *err, size_t err_len) {
     cJSON_AddNumberToObject(m, "height", j->desc.height);
     cJSON_AddNumberToObject(m, "spp", j->desc.spp);
     cJSON_AddNumberToObject(m, "max_depth", j->desc.max_depth);
+    cJSON_AddNumberToObject(m, "roulette_depth", j->desc.roulette_depth);
     cJSON_AddStringToObject(m, "seed", seed);
     cJSON_AddBoolToObject(m, "nee", !j->desc.integrator.no_nee);
     cJSON_AddBoolToObject(m, "mis", !j->desc.integrator.no_mis);

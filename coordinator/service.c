@@ -121,7 +121,7 @@ static void submit_checked(upload *u) {
     }
     const render_settings *st = &u->settings;
     j->desc = (proto_job){.id = s->next_id++, .width = st->width, .height = st->height, .spp = st->spp,
-                          .max_depth = st->max_depth, .seed = st->seed};
+                          .max_depth = st->max_depth, .roulette_depth = st->roulette_depth, .seed = st->seed};
     j->desc.integrator.no_nee = q->no_nee;
     j->desc.integrator.no_mis = q->no_mis;
     j->desc.integrator.sampler = q->sampler;
@@ -182,10 +182,11 @@ static void on_submit(client *cl, const cJSON *m) {
     if (!cJSON_IsString(h) || strlen(h->valuestring) != SCENE_BUNDLE_HASH_HEX - 1)
         return client_error(cl, "submit: \"scene\" must be the uploaded scene's hash (%d hex digits)",
                             SCENE_BUNDLE_HASH_HEX - 1);
-    long w = -1, ht = -1, spp = -1, depth = -1, pri = 0, tile = s->o.tile_size, min_spp = 16;
+    long w = -1, ht = -1, spp = -1, depth = -1, roulette = -1, pri = 0, tile = s->o.tile_size, min_spp = 16;
     const struct { const char *key; long lo, hi; long *out; } ints[] = {
         {"width", 1, LIMIT_SIDE, &w}, {"height", 1, LIMIT_SIDE, &ht}, {"spp", 1, LIMIT_SPP, &spp},
-        {"max_depth", 1, LIMIT_DEPTH, &depth}, {"priority", -LIMIT_PRIORITY, LIMIT_PRIORITY, &pri},
+        {"max_depth", 1, LIMIT_DEPTH, &depth}, {"roulette_depth", 0, LIMIT_DEPTH, &roulette},
+        {"priority", -LIMIT_PRIORITY, LIMIT_PRIORITY, &pri},
         {"tile_size", 1, s->o.farm.max_tile_side, &tile}, {"min_spp", 2, LIMIT_SPP, &min_spp}};
     for (size_t i = 0; i < sizeof ints / sizeof ints[0]; i++)
         if (opt_int(m, ints[i].key, ints[i].lo, ints[i].hi, ints[i].out))
@@ -200,7 +201,8 @@ static void on_submit(client *cl, const cJSON *m) {
     if (sname && (!cJSON_IsString(sname) || sampler_parse(sname->valuestring, &sampler) != 0))
         return client_error(cl, "submit: sampler must be \"sobol-global\", \"sobol\" or \"random\"");
     /* no intersector: the workers build theirs */
-    scene_overrides ov = {.width = (int)w, .height = (int)ht, .spp = (int)spp, .max_depth = (int)depth, .no_accel = 1};
+    scene_overrides ov = {.width = (int)w, .height = (int)ht, .spp = (int)spp, .max_depth = (int)depth,
+                          .has_roulette_depth = roulette >= 0, .roulette_depth = (int)roulette, .no_accel = 1};
     const cJSON *seed = cJSON_GetObjectItemCaseSensitive(m, "seed");
     if (seed) {
         if (request_seed(seed, &ov.seed))

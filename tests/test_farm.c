@@ -142,6 +142,24 @@ TEST(farm_thread_same_image_any_workers_and_tiles) {
     }
 }
 
+/* --roulette-depth travels in the job: the farm's workers end paths where
+ * the single process does (the same bytes), not where the default would. */
+TEST(farm_roulette_depth_reaches_the_workers) {
+    tpath one = temp("roulette-0.pfm"), farm = temp("roulette-2.pfm");
+    char cmd[1024], out[8192];
+    snprintf(cmd, sizeof cmd, "%s render " SCENE " --workers 0 --threads 2 --roulette-depth 1 -o %s",
+             harness_tessera(), one.path);
+    int st = util_run(cmd, out, sizeof out);
+    CHECK(st == 0, "%s failed (%d): %s", cmd, st, out);
+    snprintf(cmd, sizeof cmd, "%s render " SCENE " --workers 2 --tile-size 11 --roulette-depth 1 -o %s",
+             harness_tessera(), farm.path);
+    st = util_run(cmd, out, sizeof out);
+    CHECK(st == 0, "%s failed (%d): %s", cmd, st, out);
+    CHECK(util_same_file(one.path, farm.path), "--roulette-depth 1: the farm's %s differs from the process's %s",
+          farm.path, one.path);
+    CHECK(!util_same_file(one.path, reference("pfm")), "--roulette-depth 1 rendered the default's bytes");
+}
+
 TEST(farm_kill9_worker_mid_render) {
     tpath clog = temp("kill9-coord.log"), alog = temp("kill9-a.log"), blog = temp("kill9-b.log"),
           img = temp("kill9.pfm"), hold = temp("kill9.hold");

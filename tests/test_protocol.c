@@ -172,6 +172,18 @@ TEST(job_and_assign_messages) {
     CHECK(k.seed == j.seed && k.integrator.no_nee == 1 && k.integrator.no_mis == 0 && k.width == 640 &&
               strcmp(k.scene_hash, j.scene_hash) == 0,
           "job round trip (a 64-bit seed must survive JSON)");
+    CHECK(k.roulette_depth == 0 && k.max_depth == 12, "roulette_depth 0 (from the camera hit) lost: %d",
+          k.roulette_depth);
+    /* A job journaled before roulette_depth: the default, not 0. */
+    cJSON_DeleteItemFromObject(m, "roulette_depth");
+    CHECK(proto_job_parse(m, "coordinator", &k, err, sizeof err) == 0 &&
+              k.roulette_depth == SCENE_ROULETTE_DEPTH_DEFAULT,
+          "a job without roulette_depth: %s, %d", err, k.roulette_depth);
+    cJSON_AddNumberToObject(m, "roulette_depth", 1025);
+    CHECK(proto_job_parse(m, "coordinator", &k, err, sizeof err) == -1 &&
+              strstr(err, "coordinator: job.roulette_depth: expected an integer from 0 to 1024"),
+          "roulette_depth 1025: %s", err);
+    cJSON_ReplaceItemInObject(m, "roulette_depth", cJSON_CreateNumber(7));
     cJSON_ReplaceItemInObject(m, "seed", cJSON_CreateString("-1"));
     CHECK(proto_job_parse(m, "coordinator", &k, err, sizeof err) == -1 && strstr(err, "coordinator: job.seed"),
           "negative seed: %s", err);

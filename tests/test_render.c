@@ -129,6 +129,45 @@ TEST(render_cornell_matches_reference) {
     image_free(&ref);
 }
 
+/* render.roulette_depth only trades rays for noise: from the camera ray's
+ * hit (0), from Cycles' vertex (1), the default's (4) and late (16), the
+ * box stays within its noise of the reference and as bright, and each
+ * earlier start traces fewer rays per sample (the setting reaches the
+ * integrator). */
+TEST(render_roulette_depth_keeps_the_image) {
+    image ref;
+    CHECK(load_reference(&ref) == 0, "cannot read tests/data/cornell-ref-64.pfm.gz (make reference)");
+    if (!ref.rgb) return;
+    char err[512];
+    scene_overrides ov = {.width = -1, .height = -1, .spp = 64, .max_depth = -1, .has_seed = 1, .seed = 7};
+    scene *s = scene_load("tests/scenes/cornell-small.json", &ov, err, sizeof err);
+    CHECK(s != NULL, "%s", err);
+    if (!s) {
+        image_free(&ref);
+        return;
+    }
+    CHECK(s->settings.roulette_depth == SCENE_ROULETTE_DEPTH_DEFAULT, "default roulette depth %d",
+          s->settings.roulette_depth);
+    const int depths[] = {0, 1, SCENE_ROULETTE_DEPTH_DEFAULT, 16};
+    double rays[4];
+    for (int i = 0; i < 4; i++) {
+        s->settings.roulette_depth = depths[i];
+        double ratio, x = excess_error(s, &ref, &ratio);
+        CHECK(x < 1.5, "roulette from vertex %d: error %.2f times the noise (biased)", depths[i], x);
+        CHECK(fabs(ratio - 1) < 0.01, "roulette from vertex %d: mean brightness %.4f of the reference", depths[i],
+              ratio);
+        trace_stats st;
+        free(util_render(s, 1, 16, 1, &st));
+        rays[i] = (double)st.rays / (double)st.samples;
+        printf("    roulette from vertex %d: %.3f rays per sample, error / noise %.2f, mean ratio %.4f\n", depths[i],
+               rays[i], x, ratio);
+        if (i > 0) CHECK(rays[i] > rays[i - 1], "roulette from vertex %d traced no more rays than from %d (%.3f, %.3f)",
+                         depths[i], depths[i - 1], rays[i], rays[i - 1]);
+    }
+    scene_free(s);
+    image_free(&ref);
+}
+
 /* Scale and translate every point of a scene's JSON tree (vertices,
  * positions, look-at points, centres, radii). */
 static void transform_json(cJSON *node, double scale, double offset) {

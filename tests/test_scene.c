@@ -26,6 +26,8 @@ static const struct {
     {"{\"render\": {\"width\": 40000}," CAM "}", "render.width: expected an integer from 1 to 32768, got 40000"},
     {"{\"render\": {\"height\": 0}," CAM "}", "render.height: expected an integer from 1 to 32768, got 0"},
     {"{\"render\": {\"spp\": 1.5}," CAM "}", "render.spp: expected an integer"},
+    {"{\"render\": {\"roulette_depth\": -1}," CAM "}", "render.roulette_depth: expected an integer from 0 to 1024, got -1"},
+    {"{\"render\": {\"roulette_depth\": \"4\"}," CAM "}", "render.roulette_depth: expected an integer"},
     {"{" CAM ", \"background\": [1, 1e999, 0]}", "background: element 1 is not finite"},
     {"{\"camera\": {\"type\": \"perspective\", \"position\": [0,0,0], \"look_at\": [0,0,0], \"fov\": 40}}",
      "camera.look_at: equals the position"},

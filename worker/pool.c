@@ -147,6 +147,7 @@ static scene job_view(const pool_job *j) {
     v.settings.height = j->desc.height;
     v.settings.seed = j->desc.seed;
     v.settings.max_depth = j->desc.max_depth;
+    v.settings.roulette_depth = j->desc.roulette_depth;
     v.settings.spp = j->desc.spp;
     scene_frame_camera(&v);
     return v;

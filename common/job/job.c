@@ -19,7 +19,9 @@ cJSON *proto_job_json(const proto_job *j) {
     if (!m || !cJSON_AddStringToObject(m, "type", "job") || !cJSON_AddNumberToObject(m, "job", j->id) ||
         !cJSON_AddStringToObject(m, "scene", j->scene_hash) || !cJSON_AddNumberToObject(m, "width", j->width) ||
         !cJSON_AddNumberToObject(m, "height", j->height) || !cJSON_AddNumberToObject(m, "spp", j->spp) ||
-        !cJSON_AddNumberToObject(m, "max_depth", j->max_depth) || !cJSON_AddStringToObject(m, "seed", seed) ||
+        !cJSON_AddNumberToObject(m, "max_depth", j->max_depth) ||
+        !cJSON_AddNumberToObject(m, "roulette_depth", j->roulette_depth) ||
+        !cJSON_AddStringToObject(m, "seed", seed) ||
         !cJSON_AddBoolToObject(m, "nee", !j->integrator.no_nee) ||
         !cJSON_AddBoolToObject(m, "mis", !j->integrator.no_mis) ||
         !cJSON_AddStringToObject(m, "sampler", sampler_name(j->integrator.sampler)) ||
@@ -63,9 +65,10 @@ cJSON *proto_assign_json(const proto_assign *a) {
 
 int proto_job_parse(const cJSON *msg, const char *peer, proto_job *out, char *err, size_t err_len) {
     static const char *const keys[] = {"type", "job", "scene", "width", "height", "spp",
-                                       "max_depth", "seed", "nee", "mis", "sampler", "adaptive", NULL};
+                                       "max_depth", "roulette_depth", "seed", "nee", "mis", "sampler",
+                                       "adaptive", NULL};
     json_ctx c = {peer, err, err_len};
-    long long id, w, h, spp, depth;
+    long long id, w, h, spp, depth, roulette;
     const char *hash, *seed, *sampler; /* sampler: NULL (sobol) in jobs journaled before samplers */
     int nee, mis, adaptive = 0;
     memset(out, 0, sizeof *out);
@@ -74,6 +77,8 @@ int proto_job_parse(const cJSON *msg, const char *peer, proto_job *out, char *er
         jf_int(&c, msg, "job", "height", 1, 0, 1, LIMIT_SIDE, &h) ||
         jf_int(&c, msg, "job", "spp", 1, 0, 1, LIMIT_SPP, &spp) ||
         jf_int(&c, msg, "job", "max_depth", 1, 0, 1, LIMIT_DEPTH, &depth) ||
+        /* absent in jobs journaled before it: the default then */
+        jf_int(&c, msg, "job", "roulette_depth", 0, SCENE_ROULETTE_DEPTH_DEFAULT, 0, LIMIT_DEPTH, &roulette) ||
         jf_string(&c, msg, "job", "seed", 1, &seed) || jf_bool(&c, msg, "job", "nee", 1, &nee) ||
         jf_bool(&c, msg, "job", "mis", 1, &mis) || jf_string(&c, msg, "job", "sampler", 0, &sampler) ||
         jf_bool(&c, msg, "job", "adaptive", 0, &adaptive))
@@ -96,6 +101,7 @@ int proto_job_parse(const cJSON *msg, const char *peer, proto_job *out, char *er
     out->height = (int)h;
     out->spp = (int)spp;
     out->max_depth = (int)depth;
+    out->roulette_depth = (int)roulette;
     out->seed = sv;
     out->integrator.no_nee = !nee;
     out->integrator.no_mis = !mis;

@@ -24,6 +24,7 @@ typedef struct {
     uint32_t id;
     char scene_hash[SCENE_BUNDLE_HASH_HEX];
     int width, height, spp, max_depth;
+    int roulette_depth; /* render.roulette_depth; SCENE_ROULETTE_DEPTH_DEFAULT when a job does not say */
     uint64_t seed; /* sent as a decimal string: JSON numbers are doubles */
     integrator_options integrator;
     int adaptive; /* a round of adaptive sampling: assignments carry a pixel

@@ -30,10 +30,6 @@ enum {
     DIM_ROULETTE = 5     /* Russian roulette */
 };
 
-/* The first vertex (0 = the camera ray's hit) after whose bounce Russian
- * roulette may end a path. */
-#define ROULETTE_MIN_DEPTH 4
-
 
 /* Geometry at a hit: precise position and unit geometric normal (front face
  * for triangles by winding order, outward for spheres; with vertex normals,
@@ -276,11 +272,13 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
          * the weight, so the roll would only repeat the decision of the last
          * rough vertex, against the caustic paths that carry the largest
          * weights (a path of delta bounces alone, between mirrors, runs to
-         * max_depth). From the fifth vertex on. Measured in docs/performance.md
-         * (issue 15): on the spheres 33% less variance from the delta rule,
-         * then 10% less (box 9%) from the fifth vertex for 9% more rays. */
+         * max_depth). From vertex render.roulette_depth on (by default the
+         * fifth: SCENE_ROULETTE_DEPTH_DEFAULT). Measured in
+         * docs/performance.md (issue 15): on the spheres 33% less variance
+         * from the delta rule, then 10% less (box 9%) from the fifth vertex
+         * than from the fourth for 9% more rays. */
         eta_scale *= bs.eta * bs.eta;
-        if (depth >= ROULETTE_MIN_DEPTH && !bs.is_delta) {
+        if (depth >= s->settings.roulette_depth && !bs.is_delta) {
             float survive = min_f(1.0f, sqrtf(vec3_max_comp(beta) * eta_scale));
             if (!(u_roulette < survive)) break;
             beta = vec3_scale(beta, 1.0f / survive);

@@ -137,13 +137,13 @@ static double dlen(const double a[3]) { return sqrt(ddot(a, a)); }
 /* ---- render settings ---------------------------------------------------- */
 
 static int load_render(loader *L, const cJSON *root, const scene_overrides *ov) {
-    static const char *const keys[] = {"width", "height", "spp", "max_depth", "seed", "accel", NULL};
+    static const char *const keys[] = {"width", "height", "spp", "max_depth", "roulette_depth", "seed", "accel", NULL};
     const cJSON *r = cJSON_GetObjectItemCaseSensitive(root, "render");
     cJSON empty = {0};
     empty.type = cJSON_Object;
     if (!r) r = &empty;
     if (jf_check_object(&L->j, r, "render", keys)) return -1;
-    long long w, h, spp, depth, seed;
+    long long w, h, spp, depth, roulette, seed;
     const char *accel = "auto";
     if (jf_string(&L->j, r, "render", "accel", 0, &accel)) return -1;
     if (!accel) accel = "auto";
@@ -156,6 +156,7 @@ static int load_render(loader *L, const cJSON *root, const scene_overrides *ov) 
         jf_int(&L->j, r, "render", "height", 0, 512, 1, MAX_RESOLUTION, &h) ||
         jf_int(&L->j, r, "render", "spp", 0, 16, 1, MAX_SPP, &spp) ||
         jf_int(&L->j, r, "render", "max_depth", 0, 64, 1, MAX_DEPTH, &depth) ||
+        jf_int(&L->j, r, "render", "roulette_depth", 0, SCENE_ROULETTE_DEPTH_DEFAULT, 0, MAX_DEPTH, &roulette) ||
         jf_int(&L->j, r, "render", "seed", 0, 0, 0, (1ll << 53), &seed))
         return -1;
     render_settings *st = &L->s->settings;
@@ -163,6 +164,7 @@ static int load_render(loader *L, const cJSON *root, const scene_overrides *ov) 
     st->height = (int)h;
     st->spp = (int)spp;
     st->max_depth = (int)depth;
+    st->roulette_depth = (int)roulette;
     st->seed = (uint64_t)seed;
     if (ov) {
         /* One side given: the other keeps the scene's aspect ratio. */
@@ -173,9 +175,10 @@ static int load_render(loader *L, const cJSON *root, const scene_overrides *ov) 
         if (ov->spp > 0) st->spp = ov->spp;
         if (ov->max_depth > 0) st->max_depth = ov->max_depth;
         if (ov->has_seed) st->seed = ov->seed;
+        if (ov->has_roulette_depth) st->roulette_depth = ov->roulette_depth;
     }
     if (st->width > MAX_RESOLUTION || st->height > MAX_RESOLUTION || st->spp > MAX_SPP ||
-        st->max_depth > MAX_DEPTH)
+        st->max_depth > MAX_DEPTH || st->roulette_depth < 0 || st->roulette_depth > MAX_DEPTH)
         return jf_fail(&L->j, "render", NULL, "command-line override out of range");
     return 0;
 }
