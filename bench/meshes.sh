@@ -12,9 +12,17 @@
 #      filter 1 px, no adaptive sampling / denoising / clamping, Filter
 #      Glossy 0, caustics, 1024 bounces; scene sync and BVH build included,
 #      Blender start-up and its Python OBJ reader excluded).
-# With more rounds the median of each figure is kept. Printed, and written
-# to bench/results/meshes.csv with a gnuplot plot bench/results/meshes.png
-# (bench/meshes-plot.sh).
+#   4. `tessera render --roulette-depth 1`, as 2. but with Cycles' own
+#      roulette rule (paths may end from the second vertex, as Cycles' with
+#      Min Light Bounces 0): the same work per sample as Cycles.
+# With more rounds the median of each figure is kept. Then, unless
+# MESH_ERROR=0, the noise per sample of each (the default, Cycles' rule,
+# Cycles): two more renders with other seeds, and half the relative MSE
+# between them, mean((a-b)^2/(b^2+0.01)) / 2 (`tessera compare`), the
+# variance of one image at SPP; equal_error = the time ratio times the
+# variance ratio, Tessera's time against Cycles' for the same noise.
+# Printed, and written to bench/results/meshes.csv with a gnuplot plot
+# bench/results/meshes.png (bench/meshes-plot.sh).
 # Not asserted. MESH_NO_CYCLES=1 skips Cycles (columns left empty).
 #
 # usage: bench/meshes.sh BIN_DIR [SCENES] [SPP] [ROUNDS]
@@ -28,10 +36,12 @@ mkdir -p "$dir" "$here/results"
 cc -O2 -o "$dir/icosphere" "$here/icosphere.c" -lm
 csv="$here/results/meshes.csv"
 load0=$(cut -d' ' -f1-3 /proc/loadavg)
-echo "scene,triangles,accel,load_build_s,render_s,msamples_s,peak_rss_mb,cycles_s,ratio" > "$csv"
+echo "scene,triangles,accel,load_build_s,render_s,msamples_s,peak_rss_mb,cycles_s,ratio,tessera_var,cycles_var,equal_error,rr1_s,rr1_ratio,rr1_var,rr1_equal_error" > "$csv"
 med() { tr ' ' '\n' <<< "$1" | grep . | sort -g | awk '{v[NR] = $1} END {print v[int((NR + 1) / 2)]}'; }
-fmt="%10s %10s %7s %13s %9s %11s %12s %9s %14s\n"
-printf "$fmt" scene triangles accel load+build_s render_s Msamples/s peak_RSS_MB cycles_s tessera/cycles
+fmt="%10s %10s %7s %13s %9s %11s %12s %9s %14s %11s %11s %11s %7s %10s %10s %11s\n"
+printf "$fmt" scene triangles accel load+build_s render_s Msamples/s peak_RSS_MB cycles_s tessera/cycles \
+  tessera_var cycles_var equal_error rr1_s rr1/cycles rr1_var rr1_eq_err
+tc() { "$bin/tessera" compare "$1" "$2" | awk '{printf "%.4g", $4 / 2}'; } # half the relative MSE of two images
 
 # The OBJ of mesh $1 (icoL or suzanneK; made once, cached in $dir).
 mesh_obj() {
@@ -52,7 +62,7 @@ for sc in $scenes; do
   obj=$(mesh_obj "$name")
   json="$dir/$name.json"
   python3 "$here/mesh_scene.py" "$here/../scenes/cornell-spheres.json" "$obj" > "$json"
-  lb="" rs="" ms="" rss="" cy=""
+  lb="" rs="" ms="" rss="" cy="" r1=""
   for r in $(seq "$rounds"); do
     info=$( { /usr/bin/time -f "wall %e" "$bin/tessera" render "$json" --workers 0 --width 1 --height 1 \
               --spp 1 -v --no-progress -o "$dir/x.pfm"; } 2>&1) || { echo "$name: $info" >&2; exit 1; }
@@ -64,15 +74,39 @@ for sc in $scenes; do
     rs+="$(awk '/^wall/ {print $2}' <<< "$out") "
     ms+="$(awk '/^rendered/ {print $5}' <<< "$out") "
     rss+="$(awk '/^wall/ {printf "%.0f", $4 / 1024}' <<< "$out") "
+    out=$( { /usr/bin/time -f "wall %e" "$bin/tessera" render "$json" --width 256 --height 256 --spp "$spp" \
+             --roulette-depth 1 --no-progress -o "$dir/r-$name.pfm"; } 2>&1) || { echo "$name: $out" >&2; exit 1; }
+    r1+="$(awk '/^wall/ {print $2}' <<< "$out") "
     if [ -z "${MESH_NO_CYCLES:-}" ]; then
       line=$("$here/cycles/render.sh" "$json" -o "$dir/c-$name.exr" --width 256 --height 256 --spp "$spp" --seed 1)
       cy+="$(sed -n 's/.*render_s=\([0-9.]*\).*/\1/p' <<< "$line") "
     fi
   done
-  c=$(med "$cy") t=$(med "$rs")
+  c=$(med "$cy") t=$(med "$rs") t1=$(med "$r1")
   ratio=$( [ -n "$c" ] && awk -v t="$t" -v c="$c" 'BEGIN {printf "%.2f", t / c}' || true)
-  printf "$fmt" "$name" "$tris" "$accel" "$(med "$lb")" "$t" "$(med "$ms")" "$(med "$rss")" "${c:--}" "${ratio:--}"
-  echo "$name,$tris,$accel,$(med "$lb"),$t,$(med "$ms"),$(med "$rss"),$c,$ratio" >> "$csv"
+  ratio1=$( [ -n "$c" ] && awk -v t="$t1" -v c="$c" 'BEGIN {printf "%.2f", t / c}' || true)
+  tv="" cv="" v1="" eq="" eq1=""
+  if [ "${MESH_ERROR:-1}" != 0 ]; then
+    for sd in 1001 1002; do
+      "$bin/tessera" render "$json" --width 256 --height 256 --spp "$spp" --seed $sd -q --no-progress \
+        -o "$dir/e-$name-$sd.pfm" > /dev/null
+      "$bin/tessera" render "$json" --width 256 --height 256 --spp "$spp" --seed $sd --roulette-depth 1 -q \
+        --no-progress -o "$dir/e1-$name-$sd.pfm" > /dev/null
+      if [ -z "${MESH_NO_CYCLES:-}" ]; then
+        "$here/cycles/render.sh" "$json" -o "$dir/ec-$name-$sd.exr" --width 256 --height 256 --spp "$spp" \
+          --seed $sd > /dev/null
+      fi
+    done
+    tv=$(tc "$dir/e-$name-1001.pfm" "$dir/e-$name-1002.pfm") v1=$(tc "$dir/e1-$name-1001.pfm" "$dir/e1-$name-1002.pfm")
+    if [ -z "${MESH_NO_CYCLES:-}" ]; then
+      cv=$(tc "$dir/ec-$name-1001.exr" "$dir/ec-$name-1002.exr")
+      eq=$(awk -v r="$t" -v c="$c" -v a="$tv" -v b="$cv" 'BEGIN {printf "%.2f", r / c * a / b}')
+      eq1=$(awk -v r="$t1" -v c="$c" -v a="$v1" -v b="$cv" 'BEGIN {printf "%.2f", r / c * a / b}')
+    fi
+  fi
+  printf "$fmt" "$name" "$tris" "$accel" "$(med "$lb")" "$t" "$(med "$ms")" "$(med "$rss")" "${c:--}" "${ratio:--}" \
+    "${tv:--}" "${cv:--}" "${eq:--}" "$t1" "${ratio1:--}" "${v1:--}" "${eq1:--}"
+  echo "$name,$tris,$accel,$(med "$lb"),$t,$(med "$ms"),$(med "$rss"),$c,$ratio,$tv,$cv,$eq,$t1,$ratio1,$v1,$eq1" >> "$csv"
 done
 load1=$(cut -d' ' -f1-3 /proc/loadavg)
 echo "written: $csv (256x256, spp $spp, rounds $rounds; $(nproc) cores; load average $load0 at the start, $load1 at the end)"
