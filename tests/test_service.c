@@ -1132,7 +1132,7 @@ TEST(service_jobs_of_other_sizes_and_seeds_share_a_loaded_scene) {
     const char *argv[] = {name, "--connect", s.addr, "--threads", "1", "--name", "sharer", "-v", NULL};
     pid_t w = util_spawn(argv, wlog);
     static const char *const opts[3] = {"--width 32 --height 32 --seed 1 --max-depth 8",
-                                        "--width 32 --height 32 --seed 7 --max-depth 3",
+                                        "--width 32 --height 32 --seed 7 --max-depth 3 --roulette-depth 1",
                                         "--width 40 --height 24 --seed 1 --max-depth 8"};
     for (int i = 0; i < 3; i++) {
         snprintf(img[i], sizeof img[i], "%s", util_temp_path(i == 0 ? "share-a.pfm" : i == 1 ? "share-b.pfm" : "share-c.pfm"));
