@@ -106,14 +106,24 @@ static double excess_error(scene *s, const image *ref, double *mean_ratio) {
     return err / noise;
 }
 
-TEST(render_cornell_matches_reference) {
-    image ref;
-    CHECK(load_reference(&ref) == 0, "cannot read tests/data/cornell-ref-64.pfm.gz (make reference)");
-    if (!ref.rgb) return;
+/* The reference into *ref and the small box at 64 spp with `seed`, the
+ * scene the reference was rendered from. Returns the scene (the caller
+ * frees both), or NULL with a failed check and nothing to free. */
+static scene *reference_and_scene(image *ref, uint64_t seed) {
+    memset(ref, 0, sizeof *ref);
+    CHECK(load_reference(ref) == 0, "cannot read tests/data/cornell-ref-64.pfm.gz (make reference)");
+    if (!ref->rgb) return NULL;
     char err[512];
-    scene_overrides ov = {.width = -1, .height = -1, .spp = 64, .max_depth = -1, .has_seed = 1, .seed = 5};
+    scene_overrides ov = {.width = -1, .height = -1, .spp = 64, .max_depth = -1, .has_seed = 1, .seed = seed};
     scene *s = scene_load("tests/scenes/cornell-small.json", &ov, err, sizeof err);
     CHECK(s != NULL, "%s", err);
+    if (!s) image_free(ref);
+    return s;
+}
+
+TEST(render_cornell_matches_reference) {
+    image ref;
+    scene *s = reference_and_scene(&ref, 5);
     if (!s) return;
     double ratio, x = excess_error(s, &ref, &ratio), x_ok = x, ratio_ok = ratio;
     /* An unbiased render's error is its noise: x ~ 1 (plus the reference's
@@ -136,16 +146,8 @@ TEST(render_cornell_matches_reference) {
  * integrator). */
 TEST(render_roulette_depth_keeps_the_image) {
     image ref;
-    CHECK(load_reference(&ref) == 0, "cannot read tests/data/cornell-ref-64.pfm.gz (make reference)");
-    if (!ref.rgb) return;
-    char err[512];
-    scene_overrides ov = {.width = -1, .height = -1, .spp = 64, .max_depth = -1, .has_seed = 1, .seed = 7};
-    scene *s = scene_load("tests/scenes/cornell-small.json", &ov, err, sizeof err);
-    CHECK(s != NULL, "%s", err);
-    if (!s) {
-        image_free(&ref);
-        return;
-    }
+    scene *s = reference_and_scene(&ref, 7);
+    if (!s) return;
     CHECK(s->settings.roulette_depth == SCENE_ROULETTE_DEPTH_DEFAULT, "default roulette depth %d",
           s->settings.roulette_depth);
     const int depths[] = {0, 1, SCENE_ROULETTE_DEPTH_DEFAULT, 16};
