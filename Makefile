@@ -295,8 +295,10 @@ bench: bench-cycles
 # `make bench-meshes`: cornell-spheres with icosphere meshes of 41k to 2.6M
 # triangles and a subdivided Suzanne of 1M, Tessera and Blender Cycles
 # interleaved in the same run (bench/meshes.sh; MESH_SCENES, MESH_SPP,
-# MESH_ROUNDS to change; "9" adds 10.5M triangles), table printed, CSV and
-# plot in bench/results/meshes.{csv,png}.
+# MESH_ROUNDS to change; "9" adds 10.5M triangles), also Tessera with
+# Cycles' roulette rule (--roulette-depth 1), then each one's noise per
+# sample from two more seeds (MESH_ERROR=0 skips them), table printed, CSV
+# and plot in bench/results/meshes.{csv,png}.
 MESH_SCENES ?= 5 6 7 8 suzanne5
 MESH_SPP ?= 64
 MESH_ROUNDS ?= 1
