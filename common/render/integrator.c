@@ -30,7 +30,6 @@ enum {
     DIM_ROULETTE = 5     /* Russian roulette */
 };
 
-
 /* Geometry at a hit: precise position and unit geometric normal (front face
  * for triangles by winding order, outward for spheres; with vertex normals,
  * the side they point to), and the shading normal ns: the vertex normals

@@ -62,8 +62,8 @@ typedef enum { ACCEL_AUTO, ACCEL_BVH, ACCEL_FLAT, ACCEL_EMBREE, ACCEL_WIDE } acc
 
 /* render.roulette_depth when a scene does not say: roulette from the fifth
  * vertex on (docs/performance.md, issue 15: 10% less variance per sample
- * than from the fourth for 9% more rays). 1 is Cycles' rule with its Min
- * Light Bounces at 0, the default (docs/meshes.md: what each costs). */
+ * than from the fourth for 9% more rays). 1 is Cycles' rule (its Min Light
+ * Bounces at their default, 0); docs/meshes.md says what each costs. */
 #define SCENE_ROULETTE_DEPTH_DEFAULT 4
 
 typedef struct {
