@@ -154,6 +154,7 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
      * to add. (Material kinds and area-light MIS cost nothing unused: they
      * are reached only through primitives that have them.) */
     int has_lights = (s->features & (FEATURE_AREA_LIGHTS | FEATURE_POINT_LIGHTS)) != 0;
+    const int roulette_depth = s->settings.roulette_depth; /* the first vertex that may roll */
     int passes = 0; /* cut-out surfaces passed through (render/shading.h) */
     /* The product of eta^2 over the refractions so far: beta * eta_scale is
      * the throughput without the radiance scaling (eta_i / eta_t)^2 of
@@ -277,7 +278,7 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
          * from the delta rule, then 10% less (box 9%) from the fifth vertex
          * than from the fourth for 9% more rays. */
         eta_scale *= bs.eta * bs.eta;
-        if (depth >= s->settings.roulette_depth && !bs.is_delta) {
+        if (depth >= roulette_depth && !bs.is_delta) {
             float survive = min_f(1.0f, sqrtf(vec3_max_comp(beta) * eta_scale));
             if (!(u_roulette < survive)) break;
             beta = vec3_scale(beta, 1.0f / survive);
