@@ -14,7 +14,7 @@
 #      Blender start-up and its Python OBJ reader excluded).
 #   4. `tessera render --roulette-depth 1`, as 2. but with Cycles' own
 #      roulette rule (paths may end from the second vertex, as Cycles' with
-#      Min Light Bounces 0): the same work per sample as Cycles.
+#      Min Light Bounces 0): about the same work per sample as Cycles.
 # With more rounds the median of each figure is kept. Then, unless
 # MESH_ERROR=0, the noise per sample of each (the default, Cycles' rule,
 # Cycles): two more renders with other seeds, and half the relative MSE
@@ -62,6 +62,7 @@ for sc in $scenes; do
   obj=$(mesh_obj "$name")
   json="$dir/$name.json"
   python3 "$here/mesh_scene.py" "$here/../scenes/cornell-spheres.json" "$obj" > "$json"
+  t256=("$bin/tessera" render "$json" --width 256 --height 256 --spp "$spp" --no-progress) # the benchmark's render
   lb="" rs="" ms="" rss="" cy="" r1=""
   for r in $(seq "$rounds"); do
     info=$( { /usr/bin/time -f "wall %e" "$bin/tessera" render "$json" --workers 0 --width 1 --height 1 \
@@ -69,13 +70,12 @@ for sc in $scenes; do
     tris=$(awk '/^scene/ {print $3}' <<< "$info")
     accel=$(awk '/^intersector:/ {print $2}' <<< "$info" | tr -d ',')
     lb+="$(awk '/^wall/ {print $2}' <<< "$info") "
-    out=$( { /usr/bin/time -f "wall %e rss %M" "$bin/tessera" render "$json" --width 256 --height 256 \
-             --spp "$spp" --no-progress -o "$dir/t-$name.pfm"; } 2>&1) || { echo "$name: $out" >&2; exit 1; }
+    out=$( { /usr/bin/time -f "wall %e rss %M" "${t256[@]}" -o "$dir/t-$name.pfm"; } 2>&1) || { echo "$name: $out" >&2; exit 1; }
     rs+="$(awk '/^wall/ {print $2}' <<< "$out") "
     ms+="$(awk '/^rendered/ {print $5}' <<< "$out") "
     rss+="$(awk '/^wall/ {printf "%.0f", $4 / 1024}' <<< "$out") "
-    out=$( { /usr/bin/time -f "wall %e" "$bin/tessera" render "$json" --width 256 --height 256 --spp "$spp" \
-             --roulette-depth 1 --no-progress -o "$dir/r-$name.pfm"; } 2>&1) || { echo "$name: $out" >&2; exit 1; }
+    out=$( { /usr/bin/time -f "wall %e" "${t256[@]}" --roulette-depth 1 -o "$dir/r-$name.pfm"; } 2>&1) ||
+      { echo "$name: $out" >&2; exit 1; }
     r1+="$(awk '/^wall/ {print $2}' <<< "$out") "
     if [ -z "${MESH_NO_CYCLES:-}" ]; then
       line=$("$here/cycles/render.sh" "$json" -o "$dir/c-$name.exr" --width 256 --height 256 --spp "$spp" --seed 1)
@@ -88,10 +88,8 @@ for sc in $scenes; do
   tv="" cv="" v1="" eq="" eq1=""
   if [ "${MESH_ERROR:-1}" != 0 ]; then
     for sd in 1001 1002; do
-      "$bin/tessera" render "$json" --width 256 --height 256 --spp "$spp" --seed $sd -q --no-progress \
-        -o "$dir/e-$name-$sd.pfm" > /dev/null
-      "$bin/tessera" render "$json" --width 256 --height 256 --spp "$spp" --seed $sd --roulette-depth 1 -q \
-        --no-progress -o "$dir/e1-$name-$sd.pfm" > /dev/null
+      "${t256[@]}" --seed $sd -q -o "$dir/e-$name-$sd.pfm" > /dev/null
+      "${t256[@]}" --seed $sd --roulette-depth 1 -q -o "$dir/e1-$name-$sd.pfm" > /dev/null
       if [ -z "${MESH_NO_CYCLES:-}" ]; then
         "$here/cycles/render.sh" "$json" -o "$dir/ec-$name-$sd.exr" --width 256 --height 256 --spp "$spp" \
           --seed $sd > /dev/null
