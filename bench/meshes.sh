@@ -21,7 +21,11 @@
 # between them, mean((a-b)^2/(b^2+0.01)) / 2 (`tessera compare`), the
 # variance of one image at SPP; equal_error = the time ratio times the
 # variance ratio, Tessera's time against Cycles' for the same noise.
-# Printed, and written to bench/results/meshes.csv with a gnuplot plot
+# round_ratios: each round's Tessera/Cycles from that round's two renders
+# (slash-separated), and round_ratio_median their median: on a VM whose
+# speed drifts between rounds it moves less than the ratio of the
+# medians, `ratio` (2026-12-02: ico6 0.57 and 0.64 in two runs an hour
+# apart). Printed, and written to bench/results/meshes.csv with a gnuplot plot
 # bench/results/meshes.png (bench/meshes-plot.sh).
 # Not asserted. MESH_NO_CYCLES=1 skips Cycles (columns left empty).
 #
@@ -36,11 +40,11 @@ mkdir -p "$dir" "$here/results"
 cc -O2 -o "$dir/icosphere" "$here/icosphere.c" -lm
 csv="$here/results/meshes.csv"
 load0=$(cut -d' ' -f1-3 /proc/loadavg)
-echo "scene,triangles,accel,load_build_s,render_s,msamples_s,peak_rss_mb,cycles_s,ratio,tessera_var,cycles_var,equal_error,rr1_s,rr1_ratio,rr1_var,rr1_equal_error" > "$csv"
+echo "scene,triangles,accel,load_build_s,render_s,msamples_s,peak_rss_mb,cycles_s,ratio,tessera_var,cycles_var,equal_error,rr1_s,rr1_ratio,rr1_var,rr1_equal_error,round_ratios,round_ratio_median" > "$csv"
 med() { tr ' ' '\n' <<< "$1" | grep . | sort -g | awk '{v[NR] = $1} END {print v[int((NR + 1) / 2)]}'; }
-fmt="%10s %10s %7s %13s %9s %11s %12s %9s %14s %11s %11s %11s %7s %10s %10s %11s\n"
+fmt="%10s %10s %7s %13s %9s %11s %12s %9s %14s %11s %11s %11s %7s %10s %10s %11s %16s %13s\n"
 printf "$fmt" scene triangles accel load+build_s render_s Msamples/s peak_RSS_MB cycles_s tessera/cycles \
-  tessera_var cycles_var equal_error rr1_s rr1/cycles rr1_var rr1_eq_err
+  tessera_var cycles_var equal_error rr1_s rr1/cycles rr1_var rr1_eq_err round_ratios round_median
 tc() { "$bin/tessera" compare "$1" "$2" | awk '{printf "%.4g", $4 / 2}'; } # half the relative MSE of two images
 
 # The OBJ of mesh $1 (icoL or suzanneK; made once, cached in $dir).
@@ -63,7 +67,7 @@ for sc in $scenes; do
   json="$dir/$name.json"
   python3 "$here/mesh_scene.py" "$here/../scenes/cornell-spheres.json" "$obj" > "$json"
   t256=("$bin/tessera" render "$json" --width 256 --height 256 --spp "$spp" --no-progress) # the benchmark's render
-  lb="" rs="" ms="" rss="" cy="" r1=""
+  lb="" rs="" ms="" rss="" cy="" r1="" rr=""
   for r in $(seq "$rounds"); do
     info=$( { /usr/bin/time -f "wall %e" "$bin/tessera" render "$json" --workers 0 --width 1 --height 1 \
               --spp 1 -v --no-progress -o "$dir/x.pfm"; } 2>&1) || { echo "$name: $info" >&2; exit 1; }
@@ -80,6 +84,7 @@ for sc in $scenes; do
     if [ -z "${MESH_NO_CYCLES:-}" ]; then
       line=$("$here/cycles/render.sh" "$json" -o "$dir/c-$name.exr" --width 256 --height 256 --spp "$spp" --seed 1)
       cy+="$(sed -n 's/.*render_s=\([0-9.]*\).*/\1/p' <<< "$line") "
+      rr+="$(awk -v t="$rs" -v c="$cy" 'BEGIN {n = split(t, a, " "); m = split(c, b, " "); printf "%.2f", a[n] / b[m]}') "
     fi
   done
   c=$(med "$cy") t=$(med "$rs") t1=$(med "$r1")
@@ -102,9 +107,10 @@ for sc in $scenes; do
       eq1=$(awk -v r="$t1" -v c="$c" -v a="$v1" -v b="$cv" 'BEGIN {printf "%.2f", r / c * a / b}')
     fi
   fi
+  rlist=$(tr -s ' ' '/' <<< "${rr% }") rmed=$(med "$rr")
   printf "$fmt" "$name" "$tris" "$accel" "$(med "$lb")" "$t" "$(med "$ms")" "$(med "$rss")" "${c:--}" "${ratio:--}" \
-    "${tv:--}" "${cv:--}" "${eq:--}" "$t1" "${ratio1:--}" "${v1:--}" "${eq1:--}"
-  echo "$name,$tris,$accel,$(med "$lb"),$t,$(med "$ms"),$(med "$rss"),$c,$ratio,$tv,$cv,$eq,$t1,$ratio1,$v1,$eq1" >> "$csv"
+    "${tv:--}" "${cv:--}" "${eq:--}" "$t1" "${ratio1:--}" "${v1:--}" "${eq1:--}" "${rlist:--}" "${rmed:--}"
+  echo "$name,$tris,$accel,$(med "$lb"),$t,$(med "$ms"),$(med "$rss"),$c,$ratio,$tv,$cv,$eq,$t1,$ratio1,$v1,$eq1,$rlist,$rmed" >> "$csv"
 done
 load1=$(cut -d' ' -f1-3 /proc/loadavg)
 echo "written: $csv (256x256, spp $spp, rounds $rounds; $(nproc) cores; load average $load0 at the start, $load1 at the end)"
