@@ -21,11 +21,12 @@
 # between them, mean((a-b)^2/(b^2+0.01)) / 2 (`tessera compare`), the
 # variance of one image at SPP; equal_error = the time ratio times the
 # variance ratio, Tessera's time against Cycles' for the same noise.
-# round_ratios: each round's Tessera/Cycles from that round's two renders
-# (slash-separated), and round_ratio_median their median: on a VM whose
-# speed drifts between rounds it moves less than the ratio of the
-# medians, `ratio` (2026-12-02: ico6 0.57 and 0.64 in two runs an hour
-# apart). Printed, and written to bench/results/meshes.csv with a gnuplot plot
+# round_ratios: each round's Tessera/Cycles from that round's two renders,
+# made minutes apart (slash-separated), and round_ratio_median their
+# median, beside `ratio`, whose medians may come from different rounds; on
+# a VM whose speed drifts, the rounds' spread says how far one run's ratio
+# can be trusted (2026-12-02: ico6 0.57 and 0.64 in two runs an hour
+# apart, one run's rounds 0.52/0.69/0.58). Printed, and written to bench/results/meshes.csv with a gnuplot plot
 # bench/results/meshes.png (bench/meshes-plot.sh).
 # Not asserted. MESH_NO_CYCLES=1 skips Cycles (columns left empty).
 #
