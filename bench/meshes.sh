@@ -26,8 +26,9 @@
 # median, beside `ratio`, whose medians may come from different rounds; on
 # a VM whose speed drifts, the rounds' spread says how far one run's ratio
 # can be trusted (2026-12-02: ico6 0.57 and 0.64 in two runs an hour
-# apart, one run's rounds 0.52/0.69/0.58). Printed, and written to bench/results/meshes.csv with a gnuplot plot
-# bench/results/meshes.png (bench/meshes-plot.sh).
+# apart, one run's rounds 0.52/0.69/0.58). Printed, and written to
+# bench/results/meshes.csv with a gnuplot plot bench/results/meshes.png
+# (bench/meshes-plot.sh).
 # Not asserted. MESH_NO_CYCLES=1 skips Cycles (columns left empty).
 #
 # usage: bench/meshes.sh BIN_DIR [SCENES] [SPP] [ROUNDS]
@@ -42,7 +43,9 @@ cc -O2 -o "$dir/icosphere" "$here/icosphere.c" -lm
 csv="$here/results/meshes.csv"
 load0=$(cut -d' ' -f1-3 /proc/loadavg)
 echo "scene,triangles,accel,load_build_s,render_s,msamples_s,peak_rss_mb,cycles_s,ratio,tessera_var,cycles_var,equal_error,rr1_s,rr1_ratio,rr1_var,rr1_equal_error,round_ratios,round_ratio_median" > "$csv"
-med() { tr ' ' '\n' <<< "$1" | grep . | sort -g | awk '{v[NR] = $1} END {print v[int((NR + 1) / 2)]}'; }
+# The median of a list of numbers (the lower middle one of an even count;
+# nothing, and success, for an empty list: the columns MESH_NO_CYCLES leaves empty).
+med() { tr ' ' '\n' <<< "$1" | sort -g | awk 'NF {v[++n] = $1} END {if (n) print v[int((n + 1) / 2)]}'; }
 fmt="%10s %10s %7s %13s %9s %11s %12s %9s %14s %11s %11s %11s %7s %10s %10s %11s %16s %13s\n"
 printf "$fmt" scene triangles accel load+build_s render_s Msamples/s peak_RSS_MB cycles_s tessera/cycles \
   tessera_var cycles_var equal_error rr1_s rr1/cycles rr1_var rr1_eq_err round_ratios round_median
@@ -76,7 +79,8 @@ for sc in $scenes; do
     accel=$(awk '/^intersector:/ {print $2}' <<< "$info" | tr -d ',')
     lb+="$(awk '/^wall/ {print $2}' <<< "$info") "
     out=$( { /usr/bin/time -f "wall %e rss %M" "${t256[@]}" -o "$dir/t-$name.pfm"; } 2>&1) || { echo "$name: $out" >&2; exit 1; }
-    rs+="$(awk '/^wall/ {print $2}' <<< "$out") "
+    tw=$(awk '/^wall/ {print $2}' <<< "$out") # this round's wall time
+    rs+="$tw "
     ms+="$(awk '/^rendered/ {print $5}' <<< "$out") "
     rss+="$(awk '/^wall/ {printf "%.0f", $4 / 1024}' <<< "$out") "
     out=$( { /usr/bin/time -f "wall %e" "${t256[@]}" --roulette-depth 1 -o "$dir/r-$name.pfm"; } 2>&1) ||
@@ -84,8 +88,9 @@ for sc in $scenes; do
     r1+="$(awk '/^wall/ {print $2}' <<< "$out") "
     if [ -z "${MESH_NO_CYCLES:-}" ]; then
       line=$("$here/cycles/render.sh" "$json" -o "$dir/c-$name.exr" --width 256 --height 256 --spp "$spp" --seed 1)
-      cy+="$(sed -n 's/.*render_s=\([0-9.]*\).*/\1/p' <<< "$line") "
-      rr+="$(awk -v t="$rs" -v c="$cy" 'BEGIN {n = split(t, a, " "); m = split(c, b, " "); printf "%.2f", a[n] / b[m]}') "
+      cw=$(sed -n 's/.*render_s=\([0-9.]*\).*/\1/p' <<< "$line")
+      cy+="$cw "
+      rr+="$(awk -v t="$tw" -v c="$cw" 'BEGIN {printf "%.2f", t / c}') "
     fi
   done
   c=$(med "$cy") t=$(med "$rs") t1=$(med "$r1")
