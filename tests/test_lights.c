@@ -92,7 +92,7 @@ static double by_integral(const scene *s, vec3 ref, vec3 nr, int m) {
     for (uint32_t k = 0; k < s->light_count; k++) {
         const light *l = &s->lights[k];
         const triangle *t = &s->triangles[l->prim];
-        vec3 nl = triangle_normal(&s->triangles[l->prim]);
+        vec3 nl = triangle_normal(t);
         double da = l->area / ((double)m * m);
         for (int i = 0; i < m; i++)
             for (int j = 0; i + j < m; j++)
