@@ -66,7 +66,7 @@ static estimate estimate_irradiance(const scene *s, vec3 ref, vec3 nr, int n, in
                 vec3 d = vec3_sub(p, ref);
                 double dist = vec3_length(d);
                 vec3 wi = vec3_scale(d, 1.0f / (float)dist);
-                double cos_l = -vec3_dot(triangle_normal(&s->triangles[l->prim]), wi);
+                double cos_l = -vec3_dot(s->triangle_normals[l->prim], wi);
                 if (cos_l > 0) {
                     double pdf = by_angle ? l->select_pdf / omega : l->select_pdf * dist * dist / (cos_l * l->area);
                     v = l->radiance.x * fmax(0.0, vec3_dot(nr, wi)) / pdf;
@@ -92,7 +92,7 @@ static double by_integral(const scene *s, vec3 ref, vec3 nr, int m) {
     for (uint32_t k = 0; k < s->light_count; k++) {
         const light *l = &s->lights[k];
         const triangle *t = &s->triangles[l->prim];
-        vec3 nl = triangle_normal(t);
+        vec3 nl = s->triangle_normals[l->prim];
         double da = l->area / ((double)m * m);
         for (int i = 0; i < m; i++)
             for (int j = 0; i + j < m; j++)
@@ -134,7 +134,7 @@ TEST(lights_solid_angle_matches_integral) {
     const triangle *t1 = &s->triangles[s->lights[1].prim];
     /* Light frame in internal units: centre, down normal, size. */
     vec3 c = vec3_scale(vec3_add(vec3_add(t0->v0, t0->v1), vec3_add(t0->v2, t1->v0)), 0.25f);
-    vec3 nl = triangle_normal(&s->triangles[s->lights[0].prim]);
+    vec3 nl = s->triangle_normals[s->lights[0].prim];
     float size = vec3_length(vec3_sub(t0->v0, t0->v2));
     vec3 side = vec3_normalize(vec3_sub(t0->v1, t0->v0));
     struct {
@@ -255,7 +255,7 @@ TEST(lights_spherical_rect) {
     const triangle *t0 = &s->triangles[s->lights[0].prim];
     vec3 corner = t0->v1, ex = vec3_sub(t0->v0, t0->v1), ey = vec3_sub(t0->v2, t0->v1);
     CHECK(fabsf(vec3_dot(ex, ey)) < 1e-6f * vec3_dot(ex, ex), "the light is not a rectangle");
-    vec3 nl = triangle_normal(&s->triangles[s->lights[0].prim]), c = vec3_add(corner, vec3_scale(vec3_add(ex, ey), 0.5f));
+    vec3 nl = s->triangle_normals[s->lights[0].prim], c = vec3_add(corner, vec3_scale(vec3_add(ex, ey), 0.5f));
     float size = vec3_length(ex);
     vec3 side = vec3_normalize(ex);
     struct {

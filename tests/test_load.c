@@ -191,6 +191,7 @@ TEST(load_scene_same_on_any_threads) {
               b->degenerate_triangles, a->degenerate_triangles, b->light_count, a->light_count);
         if (a->triangle_count == b->triangle_count)
             CHECK(memcmp(a->triangles, b->triangles, n * sizeof(triangle)) == 0 &&
+                      memcmp(a->triangle_normals, b->triangle_normals, n * sizeof(vec3)) == 0 &&
                       memcmp(a->triangle_info, b->triangle_info, n * sizeof(prim_info)) == 0 &&
                       memcmp(a->world_center, b->world_center, sizeof a->world_center) == 0 &&
                       a->world_scale == b->world_scale &&

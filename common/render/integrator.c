@@ -47,7 +47,7 @@ static void surface_at(const scene *s, const ray *r, const hit *h, surface *out)
         /* From the barycentrics, not o + t d: the error is then relative to
          * the triangle's coordinates, not to the ray's length. */
         out->p = vec3_add(vec3_add(vec3_scale(t->v0, b0), vec3_scale(t->v1, h->b1)), vec3_scale(t->v2, h->b2));
-        out->ng = triangle_normal(t);
+        out->ng = s->triangle_normals[h->prim];
         out->info = &s->triangle_info[h->prim];
         out->ns = out->ng;
         out->smooth = shading_normal_at(s, h->prim, b0, h->b1, h->b2, &out->ng, &out->ns);

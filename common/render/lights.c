@@ -76,7 +76,7 @@ static int sample_triangle(const scene *s, const light *l, vec3 ref, float u1, f
     float b1, b2;
     warp_uniform_triangle(u1, u2, &b1, &b2);
     out->p = vec3_add(vec3_add(vec3_scale(t->v0, 1.0f - b1 - b2), vec3_scale(t->v1, b1)), vec3_scale(t->v2, b2));
-    out->n = triangle_normal(t);
+    out->n = s->triangle_normals[l->prim];
     vec3 d = vec3_sub(out->p, ref);
     out->dist = vec3_length(d);
     if (!(out->dist > 0.0f)) return 0;

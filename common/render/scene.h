@@ -101,16 +101,6 @@ typedef struct {
     vec3 v0, v1, v2;
 } triangle;
 
-/* t's unit geometric normal, (v1 - v0) x (v2 - v0) normalised: the same
- * float operations wherever it is called (no FMA: -ffp-contract=off), so
- * the same bits. Computed where a hit or a light sample needs it rather
- * than stored: an array of them was 12 bytes per triangle to fault in and
- * one more cache miss per hit (docs/meshes.md, "Twenty-fourth session").
- * NaN for a triangle without area, which the loader never keeps. */
-static inline vec3 triangle_normal(const triangle *t) {
-    return vec3_normalize(vec3_cross(vec3_sub(t->v1, t->v0), vec3_sub(t->v2, t->v0)));
-}
-
 /* The bound on any coordinate of a scene (its JSON numbers, the vertices
  * of its meshes' faces): past it a renderer's float arithmetic overflows
  * and the geometry would render black. */
@@ -175,10 +165,11 @@ typedef struct scene {
     material *materials;
     uint32_t material_count;
 
-    triangle *triangles; /* their unit geometric normals: triangle_normal */
+    triangle *triangles;
+    vec3 *triangle_normals; /* unit geometric normals, (v1 - v0) x (v2 - v0) */
     prim_info *triangle_info;
     uint32_t triangle_count;
-    int triangles_on_huge_pages; /* the two arrays above asked for them (scene_render_is_long) */
+    int triangles_on_huge_pages; /* the three arrays above asked for them (scene_render_is_long) */
 
     sphere *spheres;
     prim_info *sphere_info;

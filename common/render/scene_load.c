@@ -1090,6 +1090,7 @@ static void assemble_triangles(void *ctx, size_t b, size_t e, int part) {
         tr->v0 = to_internal(s, L->wv + 3 * (size_t)L->tris[t].v[0]);
         tr->v1 = to_internal(s, L->wv + 3 * (size_t)L->tris[t].v[1]);
         tr->v2 = to_internal(s, L->wv + 3 * (size_t)L->tris[t].v[2]);
+        s->triangle_normals[t] = vec3_normalize(vec3_cross(vec3_sub(tr->v1, tr->v0), vec3_sub(tr->v2, tr->v0)));
         s->triangle_info[t].material = L->tris[t].material;
         s->triangle_info[t].light = -1;
     }
@@ -1103,9 +1104,10 @@ static int assemble(loader *L) {
      * (zeroed) so that no size is 0. */
     s->triangles = malloc((L->tri_count + 1) * sizeof(triangle));
     s->triangle_info = malloc((L->tri_count + 1) * sizeof(prim_info));
+    s->triangle_normals = malloc((L->tri_count + 1) * sizeof(vec3));
     s->spheres = calloc(L->sphere_count + 1, sizeof(sphere));
     s->sphere_info = calloc(L->sphere_count + 1, sizeof(prim_info));
-    if (!s->triangles || !s->triangle_info || !s->spheres || !s->sphere_info)
+    if (!s->triangles || !s->triangle_info || !s->triangle_normals || !s->spheres || !s->sphere_info)
         return jf_fail(&L->j, "shapes", NULL, "out of memory");
     /* The records a hit's shading reads, on huge pages for a long render
      * (scene_render_is_long) or where they are cheaper to fault in
@@ -1118,9 +1120,11 @@ static int assemble(loader *L) {
     if (s->triangles_on_huge_pages) {
         memhint_huge(s->triangles, (L->tri_count + 1) * sizeof(triangle));
         memhint_huge(s->triangle_info, (L->tri_count + 1) * sizeof(prim_info));
+        memhint_huge(s->triangle_normals, (L->tri_count + 1) * sizeof(vec3));
     }
     memset(&s->triangles[L->tri_count], 0, sizeof(triangle));
     memset(&s->triangle_info[L->tri_count], 0, sizeof(prim_info));
+    memset(&s->triangle_normals[L->tri_count], 0, sizeof(vec3));
     par_run(L->tri_count, par_parts_touch(L->tri_count, 1 << 14), assemble_triangles, L);
     free(L->wv); /* not needed past here: the scene's peak memory is the intersector's build */
     L->wv = NULL;
@@ -1265,6 +1269,7 @@ void scene_free(scene *s) {
     free(s->materials);
     free(s->triangles);
     free(s->triangle_info);
+    free(s->triangle_normals);
     free(s->vertex_normals);
     free(s->triangle_vertex_normals);
     free(s->uvs);

@@ -102,7 +102,7 @@ int shading_occluded(const scene *s, const ray *r, float tmax) {
         const triangle *t = &s->triangles[h.prim];
         float b0 = 1.0f - h.b1 - h.b2;
         vec3 p = vec3_add(vec3_add(vec3_scale(t->v0, b0), vec3_scale(t->v1, h.b1)), vec3_scale(t->v2, h.b2));
-        vec3 ng = triangle_normal(t);
+        vec3 ng = s->triangle_normals[h.prim];
         vec3 o = offset_ray_origin(p, vec3_dot(cur.d, ng) > 0.0f ? ng : vec3_neg(ng));
         tmax -= vec3_length(vec3_sub(o, cur.o));
         if (!(tmax > 0.0f)) return 0;
