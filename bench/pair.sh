@@ -5,9 +5,10 @@
 # --workers 0 --threads 1` with the given options, and swaps the cores every
 # round (the two cores of a VM need not be equally fast). Prints each
 # round's user CPU, the ratio of the sums, B/A (below 1: B is faster), and
-# the median of the rounds' ratios with its interquartile range (robust
-# when one core of the VM slows for a while, then the other: on the
-# twenty-fifth session's host single rounds ranged 0.6-1.5). Noise: about +-3% at 6-8 rounds of a 1 s render, +-1% at 16
+# the median of the rounds' ratios with its interquartile range, which a
+# few outlying rounds move less than the sums (on the twenty-fifth
+# session's host single rounds ranged 0.6-1.5 for builds within 5% of
+# each other). Noise: about +-3% at 6-8 rounds of a 1 s render, +-1% at 16
 # on a quiet host; changes below that need more rounds. Nothing is asserted.
 #
 # usage: bench/pair.sh A_BIN_DIR B_BIN_DIR ROUNDS SCENE [tessera render options]
