@@ -7,8 +7,8 @@
 # round's user CPU, the ratio of the sums, B/A (below 1: B is faster), and
 # the median of the rounds' ratios with its interquartile range, which a
 # few outlying rounds move less than the sums (on the twenty-fifth
-# session's host single rounds ranged 0.6-1.5 for builds within about 10% of
-# each other). Noise: about +-3% at 6-8 rounds of a 1 s render, +-1% at 16
+# session's host single rounds ranged 0.6-1.5 for builds within about 10%
+# of each other). Noise: about +-3% at 6-8 rounds of a 1 s render, +-1% at 16
 # on a quiet host; changes below that need more rounds. Nothing is asserted.
 #
 # usage: bench/pair.sh A_BIN_DIR B_BIN_DIR ROUNDS SCENE [tessera render options]
