@@ -29,8 +29,8 @@ for r in $(seq "$n"); do
   wait
   ta=$(tail -1 "$tmp/ta") tb=$(tail -1 "$tmp/tb")
   sa=$(awk -v x="$sa" -v y="$ta" 'BEGIN {print x + y}') sb=$(awk -v x="$sb" -v y="$tb" 'BEGIN {print x + y}')
-  awk -v r="$r" -v x="$ta" -v y="$tb" 'BEGIN {printf "round %d: A %.2f s, B %.2f s, B/A %.3f\n", r, x, y, y / x}'
-  awk -v x="$ta" -v y="$tb" 'BEGIN {printf "%.6f\n", y / x}' >> "$tmp/ratios"
+  awk -v r="$r" -v x="$ta" -v y="$tb" -v f="$tmp/ratios" \
+    'BEGIN {printf "round %d: A %.2f s, B %.2f s, B/A %.3f\n", r, x, y, y / x; printf "%.6f\n", y / x >> f}'
 done
 awk -v x="$sa" -v y="$sb" 'BEGIN {printf "user CPU: A %.2f s, B %.2f s, B/A %.3f\n", x, y, y / x}'
 sort -g "$tmp/ratios" | awk '{v[NR] = $1} END {
