@@ -44,9 +44,12 @@ static inline float safe_inverse(float d) { return d != 0.0f ? 1.0f / d : copysi
 
 /* The constants of the watertight test only (all but inv_d, which only the
  * BVH's slab test reads): what the flat intersector needs. Always inlined:
- * the wide BVH's paired walk (AVX2) called it out of line, a generic SSE
- * function from AVX code, and 18% of a render's CPU (ico5, Zen 3) sat on
- * its entry and on the instruction after its return (docs/meshes.md). */
+ * in a build whose walk header had grown (four walks in turn, an
+ * experiment), GCC called it out of line from the AVX2 paired walk, a
+ * generic SSE function from AVX code, and 18% of a render's CPU (ico5,
+ * Zen 3) sat on its entry and on the instruction after its return; the
+ * paired walk went from 4% faster than unpaired walks to 16% slower
+ * (docs/meshes.md). On main's walk it makes no difference. */
 static inline __attribute__((always_inline)) void ray_prepare_shear(const ray *r, ray_prep *p) {
     p->o = r->o;
     p->d = r->d;
