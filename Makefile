@@ -120,7 +120,10 @@ $(BUILD)/%.o: %.c | $(DEPS_STAMP)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) -c $< -o $@
 
-$(TESSERA): $(CLI_OBJ) $(COORD_OBJ) $(LIBS_ALL)
+# The local farm's forked workers (cli/local_fork.c) run worker/'s loop in
+# the tessera binary: all of worker/ but its main.
+WORKER_LIB_OBJ := $(filter-out $(BUILD)/worker/main.o,$(WORKER_OBJ))
+$(TESSERA): $(CLI_OBJ) $(COORD_OBJ) $(WORKER_LIB_OBJ) $(LIBS_ALL)
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 	ln -sf tessera $(BUILD)/bin/tessera-coordinator

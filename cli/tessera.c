@@ -29,6 +29,7 @@
 #include "version.h"
 #include "cli_util.h"
 #include "client.h"
+#include "local_fork.h"
 #include "coordinator/local_farm.h"
 #include "coordinator/service.h"
 #include "coordinator/membudget.h"
@@ -408,7 +409,7 @@ static void farm_progress(void *ctx, int done, int total, double samples_per_s, 
 
 /* Render on a farm: local worker processes and/or remote ones. Returns 0 or
  * -1 (printed). */
-static int render_on_farm(render_args *a, const scene *s, const scene_bundle *b, image *img, trace_stats *st) {
+static int render_on_farm(render_args *a, scene *s, const scene_bundle *b, image *img, trace_stats *st) {
     size_t len;
     uint8_t *bytes = scene_bundle_serialise(b, &len);
     if (!bytes) {
@@ -432,7 +433,23 @@ static int render_on_farm(render_args *a, const scene *s, const scene_bundle *b,
     if (a->http) lo.http = &a->web;
     local_farm_report rep = {0};
     char err[700];
+    /* This process built the intersector (local_fork_wanted): the local
+     * workers start as forks of it, holding both. */
+    local_farm_forked *forked = s->accel && a->workers > 0 ? calloc((size_t)a->workers, sizeof *forked) : NULL;
+    if (forked) {
+        local_fork_options fo = {.workers = a->workers, .threads = lo.threads_per_worker, .verbose = a->verbose,
+                                 .quiet = !a->verbose, .token_file = a->token_file};
+        if (local_fork_workers(&fo, s, job.scene_hash, forked, err, sizeof err) == 0) {
+            lo.forked = forked;
+            if (a->verbose)
+                fprintf(stderr, "local workers: %d forked from this process, holding its scene and intersector "
+                        "(shared pages, not loaded again)\n", a->workers);
+        } else {
+            fprintf(stderr, "tessera: %s; starting tessera-worker instead\n", err);
+        }
+    }
     int rc = local_farm_render(&lo, &job, bytes, len, img->rgb, &rep, err, sizeof err);
+    free(forked);
     free(bytes);
     if (rc && rep.interrupted) {
         a->interrupted = rep.interrupted;
@@ -452,6 +469,24 @@ static int render_on_farm(render_args *a, const scene *s, const scene_bundle *b,
                 (double)rep.bytes_out / rep.tiles, (unsigned long long)rep.requeued,
                 (unsigned long long)rep.backups, (unsigned long long)rep.duplicates);
     return 0;
+}
+
+/* Whether the local workers are to be forked from this process over the
+ * scene and an intersector it builds: a farm with local workers, the
+ * worker program not named ($TESSERA_WORKER: that program is run), not
+ * turned off ($TESSERA_LOCAL_FORK=0), and the scene passing a worker's
+ * memory check and the build fitting --max-memory (if not, each worker
+ * loads and checks for itself, and says why it cannot). */
+static int local_fork_wanted(const render_args *a, const scene_bundle *b, const scene *s) {
+    const char *exe = getenv("TESSERA_WORKER"), *off = getenv("TESSERA_LOCAL_FORK");
+    char why[300];
+    if (a->workers <= 0 || (exe && *exe) || (off && strcmp(off, "0") == 0)) return 0;
+    if (scene_memory_check(b, why, sizeof why)) return 0; /* what a worker checks: let each say so */
+    char how[160];
+    uint64_t tris, budget = a->max_memory ? a->max_memory : membudget_default(how, sizeof how);
+    uint64_t need = membudget_job_bytes(s->settings.width, s->settings.height, 0,
+                                        scene_memory_estimate_loaded(b, s->triangle_count, &tris));
+    return need <= budget;
 }
 
 /* The image could not be written to OUT (a full disk, a folder removed
@@ -598,6 +633,10 @@ static int cmd_render(int argc, char **argv) {
             fprintf(stderr, "tessera: %s\n", err);
             rc = -1;
         }
+    }
+    if (rc == 0 && farm_mode && local_fork_wanted(&a, &b, s) && scene_build_accel(s, err, sizeof err)) {
+        fprintf(stderr, "tessera: %s\n", err);
+        rc = -1;
     }
     if (a.verbose) print_scene_info(s);
     image img = {0};

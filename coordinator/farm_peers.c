@@ -175,6 +175,38 @@ static auth_class hello_auth(peer *p, const cJSON *m, const auth_key **key) {
     return AUTH_NONE;
 }
 
+/* A bundle hash as scene_bundle_hash writes it: lowercase hex, full length. */
+static int is_bundle_hash(const char *h) {
+    size_t n = 0;
+    for (; h[n]; n++)
+        if (!((h[n] >= '0' && h[n] <= '9') || (h[n] >= 'a' && h[n] <= 'f'))) return 0;
+    return n == SCENE_BUNDLE_HASH_HEX - 1;
+}
+
+/* The hello's "scenes": bundles the worker holds already (a local farm's
+ * forked worker, loaded before it started), counted as sent on this
+ * connection, so peer_tell_job does not send them and forget_scene may
+ * name them. Anything but an array of bundle hashes is ignored, and so
+ * are claims beyond PROTOCOL_HELLO_SCENES or FARM_PEER_SCENES. */
+static void peer_claim_scenes(peer *p, const cJSON *scenes) {
+    if (!cJSON_IsArray(scenes)) return;
+    const cJSON *h;
+    int seen = 0;
+    cJSON_ArrayForEach(h, scenes) {
+        if (++seen > PROTOCOL_HELLO_SCENES || p->scene_count >= FARM_PEER_SCENES) return;
+        if (!cJSON_IsString(h) || !is_bundle_hash(h->valuestring)) continue;
+        int dup = 0;
+        for (int i = 0; i < p->scene_count; i++) dup |= strcmp(p->scenes[i].hash, h->valuestring) == 0;
+        if (dup) continue;
+        void *grown = realloc(p->scenes, (size_t)(p->scene_count + 1) * sizeof *p->scenes);
+        if (!grown) return; /* not claimed: the bundle is sent, which is always right */
+        p->scenes = grown;
+        peer_scene *ps = &p->scenes[p->scene_count++];
+        memcpy(ps->hash, h->valuestring, SCENE_BUNDLE_HASH_HEX);
+        ps->used = 0;
+    }
+}
+
 static int on_hello(peer *p, const cJSON *m) {
     farm *f = p->f;
     const auth_key *key = NULL;
@@ -214,6 +246,7 @@ static int on_hello(peer *p, const cJSON *m) {
         p->limit_class = CONNLIMIT_WORKER;
     }
     p->rec.threads = (int)threads->valuedouble;
+    peer_claim_scenes(p, cJSON_GetObjectItemCaseSensitive(m, "scenes"));
     p->state = PEER_ACTIVE;
     size_t max_frame = proto_tile_frame_max(f->opt.max_tile_side);
     conn_set_max_frame(p->c, max_frame > WIRE_JSON_MAX + 1 ? max_frame : WIRE_JSON_MAX + 1);

@@ -17,7 +17,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <errno.h>
 #include <sys/resource.h>
+#include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
 #include <uv.h>
@@ -35,6 +37,7 @@ typedef struct {
 
 typedef struct {
     int alive, restarts;
+    int pid; /* while alive: a forked worker (local_farm_options.forked), watched through SIGCHLD; else 0 */
 } local_slot;
 
 struct local_run {
@@ -46,6 +49,8 @@ struct local_run {
     char exe[PATH_MAX];
     char connect[300];
     uv_signal_t sigint, sigterm;
+    uv_signal_t sigchld; /* forked workers' exits (spawned ones are libuv's) */
+    int watching_forked;  /* sigchld started, not yet closed */
     uv_timer_t grace;
     int farm_closing; /* farm_close called (close_farm_when_alone) */
     int finished, failed, interrupted;
@@ -103,13 +108,12 @@ static void on_proc_closed(uv_handle_t *h) { free(h->data); }
 
 static int spawn_worker(local_run *r, int slot);
 
-static void on_worker_exit(uv_process_t *p, int64_t status, int signal) {
-    local_proc *lp = p->data;
-    local_run *r = lp->run;
-    int slot = lp->slot;
-    lp->proc.data = lp;
-    uv_close((uv_handle_t *)p, on_proc_closed);
+/* Local worker `slot` has exited with status, or was killed by signal:
+ * start it again (up to LOCAL_RESTARTS times), or end the render when no
+ * worker is left. */
+static void worker_gone(local_run *r, int slot, int64_t status, int signal) {
     r->slots[slot].alive = 0;
+    r->slots[slot].pid = 0;
     r->alive--;
     if (r->finished) {
         close_farm_when_alone(r);
@@ -131,6 +135,77 @@ static void on_worker_exit(uv_process_t *p, int64_t status, int signal) {
         r->failed = 1;
         render_stop(r);
     }
+}
+
+static void on_worker_exit(uv_process_t *p, int64_t status, int signal) {
+    local_proc *lp = p->data;
+    local_run *r = lp->run;
+    int slot = lp->slot;
+    lp->proc.data = lp;
+    uv_close((uv_handle_t *)p, on_proc_closed);
+    worker_gone(r, slot, status, signal);
+}
+
+/* Reap the forked workers that have exited (SIGCHLD, and once when the
+ * watch starts: one may have gone before). */
+static void reap_forked(local_run *r) {
+    for (int i = 0; i < r->o->workers; i++) {
+        int st, pid = r->slots[i].pid;
+        if (!pid || waitpid(pid, &st, WNOHANG) != pid) continue;
+        worker_gone(r, i, WIFEXITED(st) ? WEXITSTATUS(st) : 0, WIFSIGNALED(st) ? WTERMSIG(st) : 0);
+    }
+}
+
+static void on_sigchld(uv_signal_t *h, int signum) {
+    (void)signum;
+    reap_forked(h->data);
+}
+
+/* Signal every forked worker still running. */
+static void signal_forked(local_run *r, int signum) {
+    for (int i = 0; i < r->o->workers; i++)
+        if (r->slots[i].pid) kill(r->slots[i].pid, signum);
+}
+
+/* Take over the caller's forked workers: watch their exits, and tell each
+ * where to dial (then close its fd, so that it reads to the end). */
+static void adopt_forked(local_run *r) {
+    const local_farm_options *o = r->o;
+    uv_signal_init(&r->loop, &r->sigchld);
+    r->sigchld.data = r;
+    uv_signal_start(&r->sigchld, on_sigchld, SIGCHLD);
+    r->watching_forked = 1;
+    for (int i = 0; i < o->workers; i++) {
+        r->slots[i].pid = o->forked[i].pid;
+        r->slots[i].alive = 1;
+        r->alive++;
+        size_t len = strlen(r->connect), off = 0;
+        while (off < len) { /* a few bytes into an empty socket: never blocks for long */
+            ssize_t n = write(o->forked[i].fd, r->connect + off, len - off);
+            if (n < 0 && errno == EINTR) continue;
+            if (n <= 0) break; /* it has gone already: its exit is reaped below */
+            off += (size_t)n;
+        }
+        close(o->forked[i].fd);
+    }
+    reap_forked(r);
+}
+
+/* The render failed before the farm took the forked workers over: let
+ * them go (each reads end of file and exits) and reap them. */
+static void release_forked(const local_farm_options *o) {
+    if (!o->forked) return;
+    for (int i = 0; i < o->workers; i++) close(o->forked[i].fd);
+    for (int i = 0; i < o->workers; i++)
+        while (waitpid(o->forked[i].pid, NULL, 0) < 0 && errno == EINTR) {
+        }
+}
+
+/* Stop watching forked workers once none is left; once. */
+static void unwatch_forked(local_run *r) {
+    if (!r->watching_forked) return;
+    r->watching_forked = 0;
+    uv_close((uv_handle_t *)&r->sigchld, NULL);
 }
 
 static int spawn_worker(local_run *r, int slot) {
@@ -185,6 +260,7 @@ static void on_grace_timer(uv_timer_t *t) {
     fprintf(stderr, "tessera: local workers still running %d s after the render; killing them\n",
             EXIT_GRACE_MS / 1000);
     uv_walk(t->loop, kill_walk, NULL);
+    signal_forked(t->data, SIGKILL);
     uv_close((uv_handle_t *)t, NULL);
 }
 
@@ -201,6 +277,7 @@ static void term_walk(uv_handle_t *h, void *arg) {
 static void close_farm_when_alone(local_run *r) {
     if (!r->finished || r->alive > 0 || r->farm_closing) return;
     r->farm_closing = 1;
+    unwatch_forked(r);
     if (!uv_is_closing((uv_handle_t *)&r->grace)) uv_close((uv_handle_t *)&r->grace, NULL);
     farm_close(r->f, on_farm_closed, r);
 }
@@ -218,6 +295,7 @@ static void render_stop(local_run *r) {
     r->web = NULL;
     farm_wind_down(r->f); /* their leaving is not news */
     uv_walk(&r->loop, term_walk, NULL);
+    signal_forked(r, SIGTERM);
     uv_close((uv_handle_t *)&r->sigint, NULL);
     uv_close((uv_handle_t *)&r->sigterm, NULL);
     uv_close((uv_handle_t *)&r->round_timer, NULL);
@@ -343,7 +421,9 @@ static void set_connect_address(local_run *r) {
  * any failure stops the render with r->err set. */
 static void start_render(local_run *r, int adaptive_ok) {
     const local_farm_options *o = r->o;
-    for (int i = 0; i < o->workers; i++) spawn_worker(r, i);
+    if (o->forked) adopt_forked(r);
+    else
+        for (int i = 0; i < o->workers; i++) spawn_worker(r, i);
     const char *why = NULL;
     if (o->workers > 0 && r->alive == 0 && !o->listening) why = "could not start any local worker";
     else if (!adaptive_ok) why = "out of memory for adaptive sampling";
@@ -421,18 +501,21 @@ int local_farm_render(const local_farm_options *o, const proto_job *job, const u
     local_run *r = calloc(1, sizeof *r);
     if (!r || (o->workers > 0 && !(r->slots = calloc((size_t)o->workers, sizeof *r->slots)))) {
         free(r);
+        release_forked(o);
         snprintf(err, err_len, "out of memory");
         return -1;
     }
     *r = (local_run){.slots = r->slots, .o = o, .job = job, .bundle = bundle, .bundle_len = bundle_len, .rgb = rgb};
     memset(rep, 0, sizeof *rep);
     if (o->workers > 0 && find_worker_exe(r->exe, sizeof r->exe, err, err_len)) {
+        release_forked(o);
         run_free(r);
         return -1;
     }
     double cpu0 = cpu_seconds();
     uv_loop_init(&r->loop);
     if (!(r->f = farm_new(&r->loop, &o->farm, err, err_len))) {
+        release_forked(o);
         uv_loop_close(&r->loop);
         run_free(r);
         return -1;
@@ -446,6 +529,7 @@ int local_farm_render(const local_farm_options *o, const proto_job *job, const u
         clock_gettime(CLOCK_REALTIME, &ts);
         r->wall_start = (double)ts.tv_sec + ts.tv_nsec / 1e9;
         if (!(r->web = dashboard_new(&r->loop, r->f, &wo, &src, err, err_len))) {
+            release_forked(o);
             farm_close(r->f, on_farm_closed, r);
             uv_run(&r->loop, UV_RUN_DEFAULT);
             farm_free(r->f);

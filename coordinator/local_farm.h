@@ -13,8 +13,20 @@
 #include "farm.h"
 #include "dashboard.h"
 
+/* A local worker the caller started before the farm (a fork of this
+ * process holding the loaded scene): it waits to read, from fd, the
+ * address to dial ("HOST:PORT", then end of file). */
+typedef struct {
+    int pid, fd;
+} local_farm_forked;
+
 typedef struct {
     int workers;            /* local worker processes to spawn (may be 0 with a listen address) */
+    /* NULL, or `workers` of them already started (local_farm_forked): the
+     * farm sends each its address and closes fd, watches and stops them
+     * as it would the ones it spawns, and spawns tessera-worker only to
+     * restart one that dies. */
+    const local_farm_forked *forked;
     int threads_per_worker; /* their --threads */
     int tile_size;
     farm_options farm;      /* host/port: where to listen (port 0: any) */

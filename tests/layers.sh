@@ -2,7 +2,7 @@
 # layers.sh - fail when a file includes a header from a layer it may not use.
 #
 # The layers (README "Where things are"), each allowed what follows it:
-#   cli          -> coordinator, worker-free: job render image net base
+#   cli          -> coordinator worker job render image net base
 #   coordinator  -> job render image net base
 #   worker       -> job render net base
 #   job          -> render net base      (what a job and a tile are on the wire)
@@ -17,7 +17,7 @@
 set -u
 cd "${1:-$(dirname "$0")/..}" || exit 2
 declare -A allowed=(
-  [cli]="cli coordinator job render image net base"
+  [cli]="cli coordinator worker job render image net base"
   [coordinator]="coordinator job render image net base"
   [worker]="worker job render net base"
   [bench]="coordinator job render image net base"

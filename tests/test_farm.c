@@ -22,6 +22,7 @@
 #include "job/job.h"
 #include "net/protocol.h"
 #include "net/wire.h"
+#include "render/scene_bundle.h"
 #include "harness.h"
 #include "util.h"
 
@@ -479,6 +480,84 @@ TEST(farm_bad_peers_are_dropped_and_the_render_goes_on) {
         CHECK(util_file_count(clog.path, expect[i]), "log lacks \"%s\"; log %s", expect[i], clog.path);
     CHECK(util_same_file(img.path, reference("pfm")), "image differs; log %s", clog.path);
     CHECK(rss_kb > 0 && rss_kb < 64 * 1024, "coordinator peak memory %ld KiB after a 64 MiB flood", rss_kb);
+    stop_worker(w, wlog.path);
+}
+
+/* Dial, say hello claiming `scenes` (JSON text for the hello's "scenes"
+ * field), ask for a tile and read up to its assignment: 0 with *a filled
+ * and *sent_scene saying whether the scene's bundle came first, or -1. */
+static int fake_claim_and_get_tile(int port, const char *name, const char *scenes, proto_assign *a, int *sent_scene) {
+    static uint8_t buf[1 << 20];
+    char text[4096];
+    size_t len;
+    int fd = dial(port);
+    snprintf(text, sizeof text,
+             "{\"type\":\"hello\",\"protocol\":%d,\"build\":\"%s\",\"name\":\"%s\",\"threads\":1,\"scenes\":%s}",
+             PROTOCOL_VERSION, protocol_build_id(), name, scenes);
+    send_json_text(fd, text);
+    send_json_text(fd, "{\"type\":\"ready\",\"slots\":1}");
+    *sent_scene = 0;
+    int rc = -1;
+    for (int i = 0; i < 1000 && rc < 0; i++) { /* heartbeats may come first */
+        int kind = read_frame(fd, buf, sizeof buf, &len);
+        if (kind < 0) break;
+        if (kind == WIRE_KIND_SCENE) *sent_scene = 1;
+        if (kind != WIRE_KIND_JSON) continue;
+        const char *type;
+        char err[256];
+        cJSON *m = proto_parse_json(buf, len, &type, err, sizeof err);
+        if (m && strcmp(type, "assign") == 0 && proto_assign_parse(m, "test", a, err, sizeof err) == 0) rc = 0;
+        cJSON_Delete(m);
+    }
+    close(fd); /* its tile goes back to the queue */
+    return rc;
+}
+
+/* A hello's "scenes" (a local farm's forked worker claims the bundle it
+ * was forked with): a claim of the job's bundle hash means the bundle is
+ * not sent; claims that are not bundle hashes (numbers, short or
+ * uppercase strings, a string instead of an array, too many) are ignored,
+ * and the bundle is sent. The render ends with the right image. */
+TEST(farm_hello_scene_claims) {
+    tpath clog = temp("claims-coord.log"), wlog = temp("claims-w.log"), img = temp("claims.pfm");
+    scene_bundle b;
+    char err[256], hash[SCENE_BUNDLE_HASH_HEX], claim[256], upper[SCENE_BUNDLE_HASH_HEX];
+    CHECK(scene_bundle_read(SCENE, &b, err, sizeof err) == 0, "%s", err);
+    size_t len;
+    uint8_t *bytes = scene_bundle_serialise(&b, &len);
+    scene_bundle_hash(bytes, len, hash);
+    free(bytes);
+    scene_bundle_free(&b);
+    for (int i = 0; hash[i]; i++) upper[i] = (char)(hash[i] >= 'a' && hash[i] <= 'f' ? hash[i] - 32 : hash[i]);
+    upper[SCENE_BUNDLE_HASH_HEX - 1] = '\0';
+    int port;
+    pid_t coord = start_coordinator(clog.path, img.path, 0, NULL, &port);
+    CHECK(port > 0, "coordinator did not start; log %s", clog.path);
+    proto_assign a;
+    int sent;
+    snprintf(claim, sizeof claim, "[\"%s\"]", hash);
+    CHECK(fake_claim_and_get_tile(port, "claims", claim, &a, &sent) == 0 && !sent,
+          "a worker claiming the job's scene: %s; log %s", sent ? "was sent the bundle" : "got no tile", clog.path);
+    free(a.mask);
+    char junk[2048];
+    snprintf(junk, sizeof junk, "[5, \"abc\", \"%s\", null, {\"h\": \"%s\"}]", upper, hash);
+    CHECK(fake_claim_and_get_tile(port, "junk", junk, &a, &sent) == 0 && sent,
+          "a worker with junk claims: %s; log %s", sent ? "got no tile" : "was not sent the bundle", clog.path);
+    free(a.mask);
+    snprintf(junk, sizeof junk, "\"%s\"", hash); /* not an array */
+    CHECK(fake_claim_and_get_tile(port, "notarray", junk, &a, &sent) == 0 && sent,
+          "a worker claiming by a string: %s; log %s", sent ? "got no tile" : "was not sent the bundle", clog.path);
+    free(a.mask);
+    size_t off = (size_t)snprintf(junk, sizeof junk, "[");
+    for (int i = 0; i < PROTOCOL_HELLO_SCENES; i++) /* the real one comes after the limit */
+        off += (size_t)snprintf(junk + off, sizeof junk - off, "\"%064d\",", i);
+    snprintf(junk + off, sizeof junk - off, "\"%s\"]", hash);
+    CHECK(fake_claim_and_get_tile(port, "toomany", junk, &a, &sent) == 0 && sent,
+          "a worker claiming past the limit: %s; log %s", sent ? "got no tile" : "was not sent the bundle", clog.path);
+    free(a.mask);
+    pid_t w = start_worker(wlog.path, port, "real", "0");
+    coordinator_done(coord, clog.path, NULL);
+    CHECK(util_same_file(img.path, reference("pfm")), "image differs; log %s", clog.path);
     stop_worker(w, wlog.path);
 }
 

@@ -1332,15 +1332,23 @@ TEST(mesh_big_scene_renders_in_process_with_the_farms_bytes) {
     CHECK(st == 0 && strstr(out, "no local farm: 524290 primitives are rendered in this process") &&
               strstr(out, "intersector: ") && !strstr(out, "built by each worker"),
           "defaults: status %d: %s", st, out);
+    snprintf(cmd, sizeof cmd, "TESSERA_LOCAL_FORK=0 %s render %s --workers 1 --threads 2 -v --no-progress -o %s",
+             harness_tessera(), scene_path, img_farm);
+    st = util_run(cmd, out, sizeof out);
+    CHECK(st == 0, "one spawned worker: status %d: %s", st, out);
+    /* With -v a spawned local worker says which intersector it built (the
+     * choice is the scene's: the same as in process). */
+    CHECK(strstr(out, "built by each worker") && strstr(out, "loaded, 524290 triangles, intersector wide"),
+          "one spawned worker, -v: no line naming the worker's intersector: %s", out);
+    CHECK(util_same_file(img_own, img_farm), "in process and on a one-worker farm: the images differ");
+    /* A forked worker (the default) renders with this process's tree. */
     snprintf(cmd, sizeof cmd, "%s render %s --workers 1 --threads 2 -v --no-progress -o %s", harness_tessera(),
              scene_path, img_farm);
     st = util_run(cmd, out, sizeof out);
-    CHECK(st == 0, "one worker: status %d: %s", st, out);
-    /* With -v a local worker says which intersector it built (the choice is
-     * the scene's: the same as in process). */
-    CHECK(strstr(out, "built by each worker") && strstr(out, "loaded, 524290 triangles, intersector wide"),
-          "one worker, -v: no line naming the worker's intersector: %s", out);
-    CHECK(util_same_file(img_own, img_farm), "in process and on a one-worker farm: the images differ");
+    CHECK(st == 0 && strstr(out, "intersector: wide") && strstr(out, "local workers: 1 forked") &&
+              !strstr(out, "built by each worker") && !strstr(out, "loaded, 524290 triangles"),
+          "one forked worker: status %d: %s", st, out);
+    CHECK(util_same_file(img_own, img_farm), "in process and on a one-forked-worker farm: the images differ");
 }
 
 /* The wide BVH's arena (render/bump_arena.h) under threads: blocks from

@@ -38,6 +38,7 @@ typedef struct pool_scene {
     char load_error[512];
     pthread_mutex_t load_lock;
     int refs;            /* jobs holding it; under pool.lock */
+    int pinned;          /* handed over loaded (pool_preload) and claimed in the hello: kept until unpinned */
     double idle_since;   /* pool_clock() when refs fell to 0 */
     LIST_ENTRY(pool_scene) link; /* on the pool's scene list */
 } pool_scene;
@@ -95,7 +96,7 @@ static void scenes_drop_idle(pool *p, double max_idle_s) {
     pool_scene *sc = LIST_FIRST(&p->scenes), *next;
     for (; sc; sc = next) {
         next = LIST_NEXT(sc, link);
-        if (sc->refs > 0 || (max_idle_s > 0 && now - sc->idle_since < max_idle_s)) continue;
+        if (sc->refs > 0 || sc->pinned || (max_idle_s > 0 && now - sc->idle_since < max_idle_s)) continue;
         LIST_REMOVE(sc, link);
         scene_entry_free(sc);
     }
@@ -106,7 +107,7 @@ static void scenes_drop_idle(pool *p, double max_idle_s) {
 static void scene_unref(pool *p, pool_scene *sc) {
     if (--sc->refs > 0) return;
     sc->idle_since = pool_clock();
-    if (p->cfg.keep_s > 0 && !atomic_load(&sc->failed)) return;
+    if (sc->pinned || (p->cfg.keep_s > 0 && !atomic_load(&sc->failed))) return;
     LIST_REMOVE(sc, link);
     scene_entry_free(sc);
 }
@@ -418,7 +419,9 @@ void pool_free(pool *p) {
         LIST_REMOVE(j, link);
         job_unref(p, j);
     }
-    scenes_drop_idle(p, 0); /* every job is gone, and every hold on a scene; the threads too (no lock needed) */
+    pool_scene *sc; /* every job is gone, and every hold on a scene; the threads too (no lock needed) */
+    LIST_FOREACH(sc, &p->scenes, link) sc->pinned = 0;
+    scenes_drop_idle(p, 0);
     pthread_mutex_destroy(&p->lock);
     pthread_cond_destroy(&p->cond);
     free(p->running);
@@ -462,6 +465,12 @@ pool_job *pool_job_new(pool *p, const proto_job *desc, const uint8_t *bundle, si
     pthread_mutex_lock(&p->lock);
     pool_scene *sc = scene_find(p, desc);
     *shared = sc != NULL;
+    if (!sc && !bundle) {
+        pthread_mutex_unlock(&p->lock);
+        free(j);
+        snprintf(err, err_len, "job %u: scene %s is not held here", desc->id, desc->scene_hash);
+        return NULL;
+    }
     if (!sc) {
         scenes_drop_idle(p, 0); /* before this scene's load: memory for one, not two */
         pthread_mutex_unlock(&p->lock);
@@ -479,6 +488,64 @@ pool_job *pool_job_new(pool *p, const proto_job *desc, const uint8_t *bundle, si
     LIST_INSERT_HEAD(&p->jobs, j, link);
     pthread_mutex_unlock(&p->lock);
     return j;
+}
+
+int pool_preload(pool *p, const char *hash, scene *s) {
+    pool_scene *sc = calloc(1, sizeof *sc);
+    if (!sc) return -1;
+    snprintf(sc->hash, sizeof sc->hash, "%s", hash);
+    sc->s = s;
+    sc->width = s->settings.width, sc->height = s->settings.height, sc->spp = s->settings.spp;
+    sc->max_depth = s->settings.max_depth, sc->seed = s->settings.seed;
+    sc->load_state = 1;
+    sc->pinned = 1;
+    atomic_init(&sc->failed, 0);
+    pthread_mutex_init(&sc->load_lock, NULL);
+    pthread_mutex_lock(&p->lock);
+    sc->idle_since = pool_clock();
+    LIST_INSERT_HEAD(&p->scenes, sc, link);
+    pthread_mutex_unlock(&p->lock);
+    return 0;
+}
+
+/* The pinned scene of this hash; under the lock. */
+static pool_scene *pinned_find(pool *p, const char *hash) {
+    pool_scene *sc;
+    LIST_FOREACH(sc, &p->scenes, link)
+        if (sc->pinned && strcmp(sc->hash, hash) == 0) return sc;
+    return NULL;
+}
+
+int pool_pinned(pool *p, const char *hash) {
+    pthread_mutex_lock(&p->lock);
+    int found = pinned_find(p, hash) != NULL;
+    pthread_mutex_unlock(&p->lock);
+    return found;
+}
+
+int pool_pinned_hashes(pool *p, char (*out)[SCENE_BUNDLE_HASH_HEX], int max) {
+    int n = 0;
+    pthread_mutex_lock(&p->lock);
+    pool_scene *sc;
+    LIST_FOREACH(sc, &p->scenes, link)
+        if (sc->pinned && n < max) memcpy(out[n++], sc->hash, SCENE_BUNDLE_HASH_HEX);
+    pthread_mutex_unlock(&p->lock);
+    return n;
+}
+
+int pool_unpin(pool *p, const char *hash) {
+    pthread_mutex_lock(&p->lock);
+    pool_scene *sc = pinned_find(p, hash);
+    if (sc) {
+        sc->pinned = 0;
+        sc->idle_since = pool_clock();
+        if (sc->refs == 0 && p->cfg.keep_s <= 0) {
+            LIST_REMOVE(sc, link);
+            scene_entry_free(sc);
+        }
+    }
+    pthread_mutex_unlock(&p->lock);
+    return sc != NULL;
 }
 
 void pool_trim(pool *p) {

@@ -58,7 +58,8 @@ pool *pool_new(const pool_config *cfg);
 void pool_free(pool *p);
 
 /* A job of desc over the scene bundle's bytes (bundle, len: the worker's,
- * not taken). Jobs that would load the same scene (the same bundle hash,
+ * not taken; NULL for a scene the pool holds, pinned or loaded, else an
+ * error). Jobs that would load the same scene (the same bundle hash,
  * width, height, max_depth and seed, whatever their spp: an adaptive
  * render's rounds, a service's jobs of one scene) share one: *shared is set to 1 when this job
  * joins a scene the pool holds, and the bytes are then not even read; else
@@ -67,6 +68,25 @@ void pool_free(pool *p);
  * memory, a malformed bundle). */
 pool_job *pool_job_new(pool *p, const proto_job *desc, const uint8_t *bundle, size_t len, int *shared, char *err,
                        size_t err_len);
+
+/* Hand the pool a scene already loaded, intersector built, as the bundle
+ * of this hash would load (a local farm's forked worker: the coordinator
+ * loaded it before the fork). The pool owns s from here on (scene_free).
+ * It is pinned: jobs of that hash take it without their bundle
+ * (pool_job_new with bundle NULL), and no trim or other scene drops it
+ * until pool_unpin. Returns 0, or -1 when out of memory (s not taken). */
+int pool_preload(pool *p, const char *hash, struct scene *s);
+
+/* Whether the scene of this hash is pinned here (pool_preload). */
+int pool_pinned(pool *p, const char *hash);
+
+/* The pinned scenes' hashes, at most max of them into out; returns how
+ * many. */
+int pool_pinned_hashes(pool *p, char (*out)[SCENE_BUNDLE_HASH_HEX], int max);
+
+/* The coordinator forgot the pinned scene of this hash: from now on it is
+ * kept and dropped like any loaded scene. Returns 1 if it was pinned. */
+int pool_unpin(pool *p, const char *hash);
 
 /* Free the scenes no job has held for keep_s seconds. Called on the loop's
  * timer. Can't fail. */

@@ -214,6 +214,15 @@ static int on_job(worker *w, conn *c, const cJSON *m) {
                        shared ? " (its scene is already loaded or loading here: shared, not loaded again)" : "");
         return 0;
     }
+    if (pool_pinned(w->pool, d.scene_hash)) { /* claimed in the hello: loaded here already */
+        int shared;
+        if (!pool_job_new(w->pool, &d, NULL, 0, &shared, err, sizeof err)) return protocol_error(w, c, err);
+        if (w->cfg.verbose)
+            worker_log(w, "job %u: scene %.12s, %dx%d, %d spp (its scene was loaded before this worker started: "
+                       "shared with the coordinator's pages, not loaded again)", d.id, d.scene_hash, d.width,
+                       d.height, d.spp);
+        return 0;
+    }
     snprintf(err, sizeof err, "job %u: scene %s was never sent", d.id, d.scene_hash);
     return protocol_error(w, c, err);
 }
@@ -283,7 +292,9 @@ static int on_json(worker *w, conn *c, const uint8_t *body, size_t len) {
     } else if (strcmp(type, "forget_scene") == 0) {
         const cJSON *h = cJSON_GetObjectItemCaseSensitive(m, "scene");
         cached_bundle *cb = cJSON_IsString(h) ? find_bundle(w, h->valuestring) : NULL;
-        if (!cb) {
+        if (!cb && cJSON_IsString(h) && pool_unpin(w->pool, h->valuestring)) {
+            if (w->cfg.verbose) worker_log(w, "scene %.12s forgotten, as the coordinator says", h->valuestring);
+        } else if (!cb) {
             rc = protocol_error(w, c, "forget_scene: not a scene this connection sent");
         } else {
             if (w->cfg.verbose) worker_log(w, "scene %.12s forgotten, as the coordinator says", cb->hash);
@@ -375,6 +386,12 @@ static void send_hello(worker *w, const char *challenge) {
     cJSON_AddStringToObject(m, "build", protocol_build_id());
     cJSON_AddStringToObject(m, "name", w->cfg.name);
     cJSON_AddNumberToObject(m, "threads", w->cfg.threads);
+    char held[PROTOCOL_HELLO_SCENES][SCENE_BUNDLE_HASH_HEX];
+    int nheld = pool_pinned_hashes(w->pool, held, PROTOCOL_HELLO_SCENES);
+    if (nheld > 0) { /* loaded before the first connection: the coordinator need not send them */
+        cJSON *arr = cJSON_AddArrayToObject(m, "scenes");
+        for (int i = 0; i < nheld; i++) cJSON_AddItemToArray(arr, cJSON_CreateString(held[i]));
+    }
     if (w->cfg.auth.enabled) {
         char who[128], proof[AUTH_HEX];
         snprintf(who, sizeof who, "worker:%s", w->cfg.name);
@@ -546,7 +563,12 @@ int worker_run(const worker_config *cfg) {
     pool_config pc = {.threads = cfg->threads, .throttle_ms = cfg->throttle_ms, .keep_s = cfg->keep_scene_s,
                       .wake = wake_loop, .wake_ctx = &w->wake, .log = cfg->verbose ? pool_log_line : NULL, .log_ctx = w};
     w->pool = pool_new(&pc);
+    if (w->pool && cfg->preload_scene && pool_preload(w->pool, cfg->preload_hash, cfg->preload_scene)) {
+        scene_free(cfg->preload_scene); /* out of memory for its entry: the bundle will be asked for instead */
+        worker_log(w, "out of memory for the scene handed over; it will be loaded from its bundle");
+    }
     if (!w->pool) {
+        scene_free(cfg->preload_scene);
         worker_log(w, "cannot start %d render threads", cfg->threads);
         uv_close((uv_handle_t *)&w->wake, NULL);
         uv_run(&w->loop, UV_RUN_DEFAULT);

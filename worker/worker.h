@@ -23,6 +23,13 @@ typedef struct {
     int verbose;
     int quiet;          /* errors only (local farms) */
     auth_key auth;      /* enabled: prove the token, and make the coordinator prove it */
+    /* A scene already loaded, intersector built, that the bundle of
+     * preload_hash would load (a local farm's forked worker: the
+     * coordinator's, shared page by page). worker_run takes it (frees it);
+     * the hello claims it, so the coordinator does not send that bundle.
+     * NULL: none. */
+    struct scene *preload_scene;
+    const char *preload_hash;
 } worker_config;
 
 /* Run until SIGTERM/SIGINT, a refused handshake, (with once) the end of

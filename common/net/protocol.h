@@ -19,6 +19,12 @@
  * `last` a "logs" request may ask for (the CLI checks it before asking). */
 #define PROTOCOL_LOG_LINES_MAX 2000
 
+/* Scenes a worker's hello may claim to hold already ("scenes": bundle
+ * hashes; a local farm's forked workers claim the one they were forked
+ * with), so that the coordinator does not send their bundles. More are
+ * ignored. */
+#define PROTOCOL_HELLO_SCENES 8
+
 /* The build's identity, "0.1.0+<git commit>": peers must match exactly,
  * because bit-identical images need the same code on both sides. */
 const char *protocol_build_id(void);
