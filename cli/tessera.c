@@ -39,8 +39,10 @@
 /* From this many primitives the default local farm gives way to rendering
  * in this process with a thread per core (bench/meshes.sh: at 655k
  * triangles and above two workers each loading the scene were slower than
- * one process; one worker still loaded the scene a second time, after this
- * process had, from its own copy of every mesh file). */
+ * one process). With the workers forked over this process's scene
+ * (local_fork.h) the farm loads once too, and is still about 4% slower at
+ * 164k and 655k than one process (docs/meshes.md, twenty-seventh session),
+ * so the bound stays. */
 #define LOCAL_FARM_ONE_WORKER_PRIMITIVES (1u << 19)
 
 typedef struct {
@@ -608,10 +610,9 @@ static int cmd_render(int argc, char **argv) {
         fprintf(stderr, "size: %dx%d: --%s given alone, so the %s keeps the scene's aspect ratio\n",
                 s->settings.width, s->settings.height, a.ov.width > 0 ? "width" : "height",
                 a.ov.width > 0 ? "height" : "width");
-    /* A big scene costs every local worker its own load, build and memory;
-     * this process has loaded it already: it renders with a thread per core
-     * (same bytes). A farm that was asked for (--workers, --threads,
-     * --listen, --http) stays one. */
+    /* A big scene renders in this process with a thread per core (same
+     * bytes): faster than the farm's processes, even forked. A farm that
+     * was asked for (--workers, --threads, --listen, --http) stays one. */
     int rc = 0;
     if (a.workers_defaulted && !a.threads_given && !a.http && a.workers > 1 &&
         s->triangle_count + s->sphere_count >= LOCAL_FARM_ONE_WORKER_PRIMITIVES) {
