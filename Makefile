@@ -175,6 +175,8 @@ test-tsan:
 	  build/tsan/bin/run-tests --filter service_finished_image_is_saved_off_the_loop
 	TSAN_OPTIONS=suppressions=$(CURDIR)/tests/tsan.supp TESSERA_BIN=build/tsan/bin/tessera \
 	  build/tsan/bin/run-tests --filter adaptive_rounds_share_one_loaded_scene_on_a_worker
+	TSAN_OPTIONS=suppressions=$(CURDIR)/tests/tsan.supp TESSERA_BIN=build/tsan/bin/tessera \
+	  build/tsan/bin/run-tests --filter local_fork_
 
 # References: 256x256, cached under bench/ref/ by scene contents.
 BENCH_REF_BOX := 8192
