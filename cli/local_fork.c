@@ -9,7 +9,6 @@
 #include <stdio.h>
 #include <string.h>
 #include <sys/socket.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include "net/address.h"
@@ -73,14 +72,6 @@ static void child_run(const local_fork_options *o, int slot, scene *s, const cha
     _exit(worker_run(&cfg));
 }
 
-/* Let the children forked so far go, and reap them. */
-static void release(local_farm_forked *out, int n) {
-    for (int i = 0; i < n; i++) close(out[i].fd);
-    for (int i = 0; i < n; i++)
-        while (waitpid(out[i].pid, NULL, 0) < 0 && errno == EINTR) {
-        }
-}
-
 int local_fork_workers(const local_fork_options *o, scene *s, const char *hash, local_farm_forked *out, char *err,
                        size_t err_len) {
     fflush(NULL); /* nothing buffered twice */
@@ -88,7 +79,7 @@ int local_fork_workers(const local_fork_options *o, scene *s, const char *hash, 
         int sv[2];
         if (socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sv) != 0) {
             snprintf(err, err_len, "cannot start local worker local-%d: socketpair: %s", i, strerror(errno));
-            release(out, i);
+            local_farm_release_forked(out, i);
             return -1;
         }
         pid_t pid = fork();
@@ -96,7 +87,7 @@ int local_fork_workers(const local_fork_options *o, scene *s, const char *hash, 
             snprintf(err, err_len, "cannot start local worker local-%d: fork: %s", i, strerror(errno));
             close(sv[0]);
             close(sv[1]);
-            release(out, i);
+            local_farm_release_forked(out, i);
             return -1;
         }
         if (pid == 0) child_run(o, i, s, hash, sv[1]);

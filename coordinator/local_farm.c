@@ -191,14 +191,16 @@ static void adopt_forked(local_run *r) {
     reap_forked(r);
 }
 
-/* The render failed before the farm took the forked workers over: let
- * them go (each reads end of file and exits) and reap them. */
-static void release_forked(const local_farm_options *o) {
-    if (!o->forked) return;
-    for (int i = 0; i < o->workers; i++) close(o->forked[i].fd);
-    for (int i = 0; i < o->workers; i++)
-        while (waitpid(o->forked[i].pid, NULL, 0) < 0 && errno == EINTR) {
+void local_farm_release_forked(const local_farm_forked *forked, int n) {
+    for (int i = 0; i < n; i++) close(forked[i].fd);
+    for (int i = 0; i < n; i++)
+        while (waitpid(forked[i].pid, NULL, 0) < 0 && errno == EINTR) {
         }
+}
+
+/* The render failed before the farm took the forked workers over. */
+static void release_forked(const local_farm_options *o) {
+    if (o->forked) local_farm_release_forked(o->forked, o->workers);
 }
 
 /* Stop watching forked workers once none is left; once. */

@@ -53,6 +53,11 @@ typedef struct {
     int interrupted; /* the signal (SIGINT, SIGTERM) that stopped the render, or 0 */
 } local_farm_report;
 
+/* Let forked[0 .. n) go without a farm (each reads end of file and exits)
+ * and reap them; local_farm_render does this itself when it fails before
+ * taking them over. */
+void local_farm_release_forked(const local_farm_forked *forked, int n);
+
 /* Render job over the farm; bundle is the serialised scene bundle (sent to
  * the workers), rgb the caller's width * height * 3 floats. Returns 0, or
  * -1 with the reason in err (no worker program, cannot listen, every local

@@ -4,11 +4,15 @@
  * (TESSERA_LOCAL_FORK=0) and as one process, for 1, 2 and 3 workers; the
  * scene's bundle is never sent to them (their hello claims it); a forked
  * worker killed mid-render is replaced by a spawned tessera-worker, and
- * the image is still the same. */
+ * the image is still the same; forked workers are let go when the farm
+ * cannot start. */
+#include <arpa/inet.h>
+#include <netinet/in.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
 #include <unistd.h>
 
 #include "harness.h"
@@ -112,4 +116,27 @@ TEST(local_fork_worker_killed_is_restarted_by_spawning) {
     int st = util_wait(coord, LONG, NULL);
     CHECK(st == 0, "render status %d; log %s", st, log);
     CHECK(util_same_file(ref, img), "after a forked worker was killed: the image differs; log %s", log);
+}
+
+/* A farm that cannot start (its --listen port taken) after the workers
+ * were forked: they are let go (end of file where the address would be)
+ * and reaped, and the render fails at once with the reason; no worker
+ * says a word, and nothing hangs (timeout would make it 124). */
+TEST(local_fork_workers_let_go_when_the_farm_cannot_start) {
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    struct sockaddr_in a = {.sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
+    socklen_t alen = sizeof a;
+    CHECK(fd >= 0 && bind(fd, (struct sockaddr *)&a, sizeof a) == 0 && listen(fd, 1) == 0 &&
+              getsockname(fd, (struct sockaddr *)&a, &alen) == 0,
+          "no port to take");
+    char cmd[1024], out[8192];
+    snprintf(cmd, sizeof cmd,
+             "timeout 60 %s render tests/scenes/icospheres.json --workers 2 --listen 127.0.0.1:%d -v --no-progress "
+             "-o %s",
+             harness_tessera(), ntohs(a.sin_port), util_temp_path("let-go.pfm"));
+    int st = util_run(cmd, out, sizeof out);
+    close(fd);
+    CHECK(st == 1 && strstr(out, "local workers: 2 forked") && strstr(out, "address already in use"),
+          "status %d: %s", st, out);
+    CHECK(!strstr(out, "tessera-worker"), "a forked worker said something: %s", out);
 }

@@ -206,25 +206,21 @@ static int on_job(worker *w, conn *c, const cJSON *m) {
     if (proto_job_parse(m, "coordinator", &d, err, sizeof err)) return protocol_error(w, c, err);
     if (pool_job_find(w->pool, d.id)) return protocol_error(w, c, "job: id already in use");
     cached_bundle *cb = find_bundle(w, d.scene_hash);
-    if (cb) {
-        int shared;
-        if (!pool_job_new(w->pool, &d, cb->bytes, cb->len, &shared, err, sizeof err)) return protocol_error(w, c, err);
-        if (w->cfg.verbose)
-            worker_log(w, "job %u: scene %.12s, %dx%d, %d spp%s", d.id, d.scene_hash, d.width, d.height, d.spp,
-                       shared ? " (its scene is already loaded or loading here: shared, not loaded again)" : "");
-        return 0;
+    int pinned = !cb && pool_pinned(w->pool, d.scene_hash); /* claimed in the hello: loaded here already */
+    if (!cb && !pinned) {
+        snprintf(err, sizeof err, "job %u: scene %s was never sent", d.id, d.scene_hash);
+        return protocol_error(w, c, err);
     }
-    if (pool_pinned(w->pool, d.scene_hash)) { /* claimed in the hello: loaded here already */
-        int shared;
-        if (!pool_job_new(w->pool, &d, NULL, 0, &shared, err, sizeof err)) return protocol_error(w, c, err);
-        if (w->cfg.verbose)
-            worker_log(w, "job %u: scene %.12s, %dx%d, %d spp (its scene was loaded before this worker started: "
-                       "shared with the coordinator's pages, not loaded again)", d.id, d.scene_hash, d.width,
-                       d.height, d.spp);
-        return 0;
-    }
-    snprintf(err, sizeof err, "job %u: scene %s was never sent", d.id, d.scene_hash);
-    return protocol_error(w, c, err);
+    int shared;
+    if (!pool_job_new(w->pool, &d, cb ? cb->bytes : NULL, cb ? cb->len : 0, &shared, err, sizeof err))
+        return protocol_error(w, c, err);
+    if (w->cfg.verbose)
+        worker_log(w, "job %u: scene %.12s, %dx%d, %d spp%s", d.id, d.scene_hash, d.width, d.height, d.spp,
+                   pinned   ? " (its scene was loaded before this worker started: shared with the coordinator's "
+                              "pages, not loaded again)"
+                   : shared ? " (its scene is already loaded or loading here: shared, not loaded again)"
+                            : "");
+    return 0;
 }
 
 static int on_assign(worker *w, conn *c, const cJSON *m) {
