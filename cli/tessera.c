@@ -40,9 +40,9 @@
  * in this process with a thread per core (bench/meshes.sh: at 655k
  * triangles and above two workers each loading the scene were slower than
  * one process). With the workers forked over this process's scene
- * (local_fork.h) the farm loads once too, and is still about 4% slower at
- * 164k and 655k than one process (docs/meshes.md, twenty-seventh session),
- * so the bound stays. */
+ * (local_fork.h) the farm loads once too; against one process it was 4%
+ * slower in one series at 164k and 655k and not in the next
+ * (docs/meshes.md, twenty-seventh session), so the bound stays. */
 #define LOCAL_FARM_ONE_WORKER_PRIMITIVES (1u << 19)
 
 typedef struct {
