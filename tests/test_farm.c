@@ -647,3 +647,57 @@ TEST(farm_tiny_render_ends_quietly_with_every_worker_gone) {
     util_run("pgrep -f 'tessera-worker --connect 127.0.0.1:[0-9]* --threads 1 --name local-' | wc -l", out, sizeof out);
     CHECK(atoi(out) == 0, "%d local workers are still running", atoi(out));
 }
+
+/* One job across CPU generations: a coordinator and a native worker (AVX2
+ * or AVX-512 here) with a second worker under qemu emulating a Nehalem
+ * (SSE4.2, no AVX: the flat kernel's 4 lanes, the SSE walk over leaves of
+ * 4), each rendering some of the tiles: the image is the native single
+ * process's, byte for byte, on the box (flat kernel) and the icospheres
+ * (wide BVH). The emulated worker runs with --once and is never signalled:
+ * under qemu-user a signal reaching libuv's handler kills the process
+ * (2026-12-03: also why a local farm's coordinator cannot itself run under
+ * qemu), so it leaves when the coordinator closes its connection. */
+TEST(farm_one_job_across_cpu_generations_same_bytes) {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+    return;
+#else
+    if (!util_have_qemu()) return;
+    const char *scenes[] = {SCENE, "tests/scenes/icospheres.json"};
+    for (int k = 0; k < 2; k++) {
+        tpath clog = temp("gen-coord.log"), nlog = temp("gen-native.log"), qlog = temp("gen-qemu.log"),
+              img = temp("gen.pfm"), ref = temp("gen-ref.pfm");
+        char cmd[1024], out[4096], connect[64];
+        snprintf(cmd, sizeof cmd, "%s render %s --workers 0 --spp 8 --no-progress -o %s", harness_tessera(),
+                 scenes[k], ref.path);
+        CHECK(util_run(cmd, out, sizeof out) == 0, "reference: %s", out);
+        const char *argv[] = {harness_tessera(), "render", scenes[k], "--spp", "8", "--tile-size", "8",
+                              "--no-progress", "-v", "-o", img.path, "--listen", "127.0.0.1:0", NULL};
+        pid_t coord = util_spawn(argv, clog.path);
+        int port = -1;
+        if (coord > 0 && util_wait_for_text(clog.path, "coordinator listening on 127.0.0.1:", LONG) == 0) {
+            FILE *f = fopen(clog.path, "r");
+            char line[512];
+            while (f && fgets(line, sizeof line, f))
+                if (sscanf(line, "tessera: coordinator listening on 127.0.0.1:%d", &port) == 1) break;
+            if (f) fclose(f);
+        }
+        CHECK(port > 0, "coordinator did not start; log %s", clog.path);
+        snprintf(connect, sizeof connect, "127.0.0.1:%d", port);
+        const char *qargv[] = {"/usr/bin/qemu-x86_64", "-cpu", "Nehalem-v1", util_bin("tessera-worker"), "--connect",
+                               connect, "--threads", "1", "--name", "nehalem", "--once", NULL};
+        pid_t q = util_spawn(qargv, qlog.path);
+        /* The native worker sleeps after each tile, so the emulated one
+         * (tens of times slower) gets some of them. */
+        pid_t n = start_worker(nlog.path, port, "native", "100");
+        coordinator_done(coord, clog.path, NULL);
+        int qst = util_wait(q, LONG, NULL);
+        CHECK(qst == 0, "%s: the emulated worker exited with %d; log %s", scenes[k], qst, qlog.path);
+        stop_worker(n, nlog.path);
+        int tq = tiles_of(clog.path, "nehalem"), tn = tiles_of(clog.path, "native");
+        CHECK(tq > 0 && tn > 0, "%s: tiles by the emulated worker %d, the native one %d; log %s", scenes[k], tq, tn,
+              clog.path);
+        CHECK(util_same_file(img.path, ref.path), "%s: one job across CPU generations differs from one process; log %s",
+              scenes[k], clog.path);
+    }
+#endif
+}
