@@ -152,15 +152,34 @@ int util_wait_for_text(const char *path, const char *text, double timeout_s) {
     return 0;
 }
 
+/* Ports are handed out below the kernel's ephemeral range (read from
+ * /proc; 32768 up by default), each at most once per run: a port found
+ * free by binding to 0 there could be taken before the test's server
+ * bound it, by the next call (the same number again) or by any outgoing
+ * connection's source port (2026-12-03: a coordinator failed with
+ * "address already in use" in make test). Start offset by the pid, so two
+ * runs at once rarely probe the same ports. */
 int util_free_port(void) {
-    int fd = socket(AF_INET, SOCK_STREAM, 0);
-    struct sockaddr_in a = {.sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
-    socklen_t len = sizeof a;
-    int port = -1;
-    if (fd >= 0 && bind(fd, (struct sockaddr *)&a, sizeof a) == 0 && getsockname(fd, (struct sockaddr *)&a, &len) == 0)
-        port = ntohs(a.sin_port);
-    if (fd >= 0) close(fd);
-    return port;
+    static int next;
+    int lo = 32768;
+    FILE *f = fopen("/proc/sys/net/ipv4/ip_local_port_range", "r");
+    if (f) {
+        if (fscanf(f, "%d", &lo) != 1) lo = 32768;
+        fclose(f);
+    }
+    int first = lo > 12000 ? lo - 10000 : 1024, span = lo - first;
+    if (!next) next = first + (int)(getpid() % (span / 2));
+    for (int tries = 0; tries < span; tries++) {
+        int port = next++;
+        if (next >= lo) next = first;
+        int fd = socket(AF_INET, SOCK_STREAM, 0);
+        struct sockaddr_in a = {.sin_family = AF_INET, .sin_port = htons((uint16_t)port),
+                                .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
+        int ok = fd >= 0 && bind(fd, (struct sockaddr *)&a, sizeof a) == 0;
+        if (fd >= 0) close(fd);
+        if (ok) return port;
+    }
+    return -1;
 }
 
 int util_same_file(const char *a, const char *b) {

@@ -73,7 +73,8 @@ int util_wait_for_text(const char *path, const char *text, double timeout_s);
 /* Whether the file at path contains text (0/1); count how often. */
 int util_file_count(const char *path, const char *text);
 
-/* A TCP port on 127.0.0.1 that was free a moment ago. */
+/* A TCP port on 127.0.0.1 that was free a moment ago, below the ephemeral
+ * range and never the same twice in a run (util.c says why); -1 if none. */
 int util_free_port(void);
 
 /* Whole-file comparison: 1 when both exist and are byte-identical. */
