@@ -174,11 +174,8 @@ TEST(hostile_status_of_10000_kept_jobs_answers_within_a_second) {
 /* A coordinator that accepts and then says nothing: the client gives up
  * after its timeout with a message naming the coordinator and the wait. */
 TEST(hostile_silent_coordinator_is_a_timeout_not_a_hang) {
-    int fd = socket(AF_INET, SOCK_STREAM, 0);
-    struct sockaddr_in a = {.sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
-    int port = util_free_port();
-    a.sin_port = htons((uint16_t)port);
-    CHECK(bind(fd, (struct sockaddr *)&a, sizeof a) == 0 && listen(fd, 8) == 0, "cannot listen");
+    int port, fd = util_listen_loopback(8, &port);
+    CHECK(fd >= 0, "cannot listen");
     char cmd[1024], out[4096];
     snprintf(cmd, sizeof cmd, "TESSERA_CLIENT_TIMEOUT=1 TESSERA_COORDINATOR=127.0.0.1:%d %s status", port,
              harness_tessera());

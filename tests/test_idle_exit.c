@@ -128,12 +128,10 @@ TEST(idle_exit_service_without_jobs) {
  * killed (conn_close now shuts down only an established connection), as a
  * `docker stop` or `scancel` during a coordinator's overload would have. */
 TEST(worker_told_to_leave_while_connecting_exits) {
-    int ls = socket(AF_INET, SOCK_STREAM, 0);
-    struct sockaddr_in a = {.sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
-    socklen_t alen = sizeof a;
-    CHECK(ls >= 0 && bind(ls, (struct sockaddr *)&a, sizeof a) == 0 && listen(ls, 0) == 0 &&
-              getsockname(ls, (struct sockaddr *)&a, &alen) == 0,
-          "no listening socket");
+    int port, ls = util_listen_loopback(0, &port);
+    CHECK(ls >= 0, "no listening socket");
+    struct sockaddr_in a = {.sin_family = AF_INET, .sin_port = htons((uint16_t)port),
+                            .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
     int fill[3];
     for (int i = 0; i < 3; i++) { /* fill the accept queue: later SYNs are dropped, connects stay in progress */
         fill[i] = socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK, 0);
@@ -141,7 +139,7 @@ TEST(worker_told_to_leave_while_connecting_exits) {
     }
     util_sleep(0.2);
     char addr[64], log[256];
-    snprintf(addr, sizeof addr, "127.0.0.1:%d", ntohs(a.sin_port));
+    snprintf(addr, sizeof addr, "127.0.0.1:%d", port);
     temp_into(log, sizeof log, "leave-connecting.log");
     const char *argv[] = {util_bin("tessera-worker"), "--connect", addr, "--threads", "1", "--once", NULL};
     pid_t w = util_spawn(argv, log);

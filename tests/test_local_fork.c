@@ -6,13 +6,10 @@
  * worker killed mid-render is replaced by a spawned tessera-worker, and
  * the image is still the same; forked workers are let go when the farm
  * cannot start. */
-#include <arpa/inet.h>
-#include <netinet/in.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/socket.h>
 #include <unistd.h>
 
 #include "harness.h"
@@ -123,17 +120,13 @@ TEST(local_fork_worker_killed_is_restarted_by_spawning) {
  * and reaped, and the render fails at once with the reason; no worker
  * says a word, and nothing hangs (timeout would make it 124). */
 TEST(local_fork_workers_let_go_when_the_farm_cannot_start) {
-    int fd = socket(AF_INET, SOCK_STREAM, 0);
-    struct sockaddr_in a = {.sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
-    socklen_t alen = sizeof a;
-    CHECK(fd >= 0 && bind(fd, (struct sockaddr *)&a, sizeof a) == 0 && listen(fd, 1) == 0 &&
-              getsockname(fd, (struct sockaddr *)&a, &alen) == 0,
-          "no port to take");
+    int port, fd = util_listen_loopback(1, &port);
+    CHECK(fd >= 0, "no port to take");
     char cmd[1024], out[8192];
     snprintf(cmd, sizeof cmd,
              "timeout 60 %s render tests/scenes/icospheres.json --workers 2 --listen 127.0.0.1:%d -v --no-progress "
              "-o %s",
-             harness_tessera(), ntohs(a.sin_port), util_temp_path("let-go.pfm"));
+             harness_tessera(), port, util_temp_path("let-go.pfm"));
     int st = util_run(cmd, out, sizeof out);
     close(fd);
     CHECK(st == 1 && strstr(out, "local workers: 2 forked") && strstr(out, "address already in use"),

@@ -120,15 +120,8 @@ static int read_into(int fd, stream *s) {
 /* A listening socket on a free loopback port for the proxy; its port in
  * *port. */
 static int proxy_listen(int *port) {
-    int lfd = socket(AF_INET, SOCK_STREAM, 0), one = 1;
-    setsockopt(lfd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
-    struct sockaddr_in sa = {.sin_family = AF_INET, .sin_port = 0};
-    sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    socklen_t sl = sizeof sa;
-    CHECK(bind(lfd, (struct sockaddr *)&sa, sizeof sa) == 0 && listen(lfd, 4) == 0 &&
-              getsockname(lfd, (struct sockaddr *)&sa, &sl) == 0,
-          "proxy cannot listen");
-    *port = ntohs(sa.sin_port);
+    int lfd = util_listen_loopback(4, port);
+    CHECK(lfd >= 0, "proxy cannot listen");
     return lfd;
 }
 

@@ -77,6 +77,11 @@ int util_file_count(const char *path, const char *text);
  * range and never the same twice in a run (util.c says why); -1 if none. */
 int util_free_port(void);
 
+/* A socket listening on 127.0.0.1 at a port the kernel picks (held open,
+ * so no race), with this backlog; returns it with its port in *port, or
+ * -1. */
+int util_listen_loopback(int backlog, int *port);
+
 /* Whole-file comparison: 1 when both exist and are byte-identical. */
 int util_same_file(const char *a, const char *b);
 
