@@ -55,8 +55,9 @@ static void child_run(const local_fork_options *o, int slot, scene *s, const cha
     char where[300], host[256], name[32], err[300];
     child_read_address(where, sizeof where);
     if (!where[0]) _exit(0); /* released: the render ended before it began */
-    worker_config cfg = {.threads = o->threads, .prefetch = 1, .once = 1, .retry_max_s = 5, .keep_scene_s = 30,
-                         .verbose = o->verbose, .quiet = o->quiet, .preload_scene = s, .preload_hash = hash};
+    worker_config cfg = worker_config_default(); /* as a spawned tessera-worker --once would run */
+    cfg.threads = o->threads, cfg.once = 1, cfg.verbose = o->verbose, cfg.quiet = o->quiet;
+    cfg.preload_scene = s, cfg.preload_hash = hash;
     if (address_parse(where, host, sizeof host, &cfg.port, err, sizeof err)) {
         fprintf(stderr, "tessera-worker local-%d: the farm's address %s: %s\n", slot, where, err);
         _exit(2);

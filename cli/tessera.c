@@ -473,6 +473,17 @@ static int render_on_farm(render_args *a, scene *s, const scene_bundle *b, image
     return 0;
 }
 
+/* What a render of s needs (the frame, its saved copy, adaptive counts,
+ * and scene_bytes for the scene's load and build) and, in *budget, what
+ * --max-memory or the machine allows (how: which, for messages). */
+static uint64_t render_memory_need(const render_args *a, const scene *s, uint64_t scene_bytes, uint64_t *budget,
+                                   char *how, size_t how_len) {
+    *budget = a->max_memory ? a->max_memory : membudget_default(how, how_len);
+    uint64_t px = (uint64_t)s->settings.width * (uint64_t)s->settings.height;
+    return membudget_job_bytes(s->settings.width, s->settings.height, 0, scene_bytes) +
+           (a->ro.noise_threshold > 0 ? px * sizeof(float) : 0);
+}
+
 /* Whether the local workers are to be forked from this process over the
  * scene and an intersector it builds: a farm with local workers, the
  * worker program not named ($TESSERA_WORKER: that program is run), not
@@ -485,10 +496,9 @@ static int local_fork_wanted(const render_args *a, const scene_bundle *b, const 
     if (a->workers <= 0 || (exe && *exe) || (off && strcmp(off, "0") == 0)) return 0;
     if (scene_memory_check(b, why, sizeof why)) return 0; /* what a worker checks: let each say so */
     char how[160];
-    uint64_t tris, budget = a->max_memory ? a->max_memory : membudget_default(how, sizeof how);
-    uint64_t need = membudget_job_bytes(s->settings.width, s->settings.height, 0,
-                                        scene_memory_estimate_loaded(b, s->triangle_count, &tris));
-    return need <= budget;
+    uint64_t tris, budget;
+    return render_memory_need(a, s, scene_memory_estimate_loaded(b, s->triangle_count, &tris), &budget, how,
+                              sizeof how) <= budget;
 }
 
 /* The image could not be written to OUT (a full disk, a folder removed
@@ -561,10 +571,7 @@ static int save_samples_aov(const render_args *a, const scene *s, const float *s
  * figures). */
 static int render_fits_memory(const render_args *a, const scene *s, uint64_t scene_bytes, uint64_t triangles) {
     char how[160] = "--max-memory", need_s[32], budget_s[32], what[160] = "";
-    uint64_t budget = a->max_memory ? a->max_memory : membudget_default(how, sizeof how);
-    uint64_t px = (uint64_t)s->settings.width * (uint64_t)s->settings.height;
-    uint64_t need = membudget_job_bytes(s->settings.width, s->settings.height, 0, scene_bytes) +
-                    (a->ro.noise_threshold > 0 ? px * sizeof(float) : 0);
+    uint64_t budget, need = render_memory_need(a, s, scene_bytes, &budget, how, sizeof how);
     if (need <= budget) return 0;
     membudget_format(need, need_s, sizeof need_s);
     membudget_format(budget, budget_s, sizeof budget_s);

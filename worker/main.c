@@ -82,8 +82,7 @@ int main(int argc, char **argv) {
         {"throttle-ms", required_argument, 0, OPT_THROTTLE}, {"verbose", no_argument, 0, 'v'},
         {"quiet", no_argument, 0, 'q'}, {"token-file", required_argument, 0, OPT_TOKEN}, {"insecure", no_argument, 0, OPT_INSECURE}, {"version", no_argument, 0, OPT_VERSION}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
     signal(SIGPIPE, SIG_IGN); /* a vanished coordinator is an error to handle, not a reason to die */
-    worker_config cfg = {.threads = (int)sysconf(_SC_NPROCESSORS_ONLN), .prefetch = 1, .retry_max_s = 5,
-                         .keep_scene_s = 30};
+    worker_config cfg = worker_config_default();
     const char *connect = NULL, *token = getenv("TESSERA_WORKER_TOKEN_FILE");
     if (!token || !*token) token = getenv("TESSERA_TOKEN_FILE");
     char host[256], name[128], err[256] = "";

@@ -494,9 +494,7 @@ int pool_preload(pool *p, const char *hash, scene *s) {
     pool_scene *sc = calloc(1, sizeof *sc);
     if (!sc) return -1;
     snprintf(sc->hash, sizeof sc->hash, "%s", hash);
-    sc->s = s;
-    sc->width = s->settings.width, sc->height = s->settings.height, sc->spp = s->settings.spp;
-    sc->max_depth = s->settings.max_depth, sc->seed = s->settings.seed;
+    sc->s = s; /* loaded: the load settings (width ... seed) are never read */
     sc->load_state = 1;
     sc->pinned = 1;
     atomic_init(&sc->failed, 0);

@@ -14,6 +14,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 #include <uv.h>
 
 #include "log.h"
@@ -542,6 +543,11 @@ static void close_handles(worker *w) {
 }
 
 static void wake_loop(void *ctx) { uv_async_send(ctx); }
+
+worker_config worker_config_default(void) {
+    return (worker_config){.threads = (int)sysconf(_SC_NPROCESSORS_ONLN), .prefetch = 1, .retry_max_s = 5,
+                           .keep_scene_s = 30};
+}
 
 int worker_run(const worker_config *cfg) {
     worker *w = calloc(1, sizeof *w);

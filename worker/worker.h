@@ -32,6 +32,11 @@ typedef struct {
     const char *preload_hash;
 } worker_config;
 
+/* tessera-worker's defaults: a thread per core, one tile of prefetch,
+ * retries up to 5 s apart, a loaded scene kept 30 s after its last job;
+ * no coordinator (host NULL). */
+worker_config worker_config_default(void);
+
 /* Run until SIGTERM/SIGINT, a refused handshake, (with once) the end of
  * the connection, or (with idle_exit_s) that long without a tile in hand,
  * whether no coordinator was reachable or it gave no work. Returns the process exit status: 0 after a clean stop,
