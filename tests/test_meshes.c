@@ -55,6 +55,19 @@ static ray test_ray(const scene *s, uint64_t i, float *tmax) {
     return (ray){vec3_scale(unit_direction(&rng), 0.9f * rng_next(&rng)), unit_direction(&rng), PRIM_NONE};
 }
 
+/* Whether the corners a hit hands shading (hit_corners: the wide walk's
+ * leaf lane, else the scene's record) are the hit triangle's, and the
+ * normal made from them is scene.triangle_normals', bit for bit. */
+static int corners_match(const scene *s, const hit *h) {
+    if (h->prim >= s->triangle_count) return h->corners == NULL;
+    vec3 v[3];
+    hit_corners(s, h, &v[0], &v[1], &v[2]);
+    const triangle *t = &s->triangles[h->prim];
+    vec3 n = triangle_geometric_normal(v[0], v[1], v[2]);
+    return !memcmp(&v[0], &t->v0, sizeof(vec3)) && !memcmp(&v[1], &t->v1, sizeof(vec3)) &&
+           !memcmp(&v[2], &t->v2, sizeof(vec3)) && !memcmp(&n, &s->triangle_normals[h->prim], sizeof n);
+}
+
 /* Whether a's paired query (accel_intersect_occluded) of r, with test ray j
  * as its shadow ray, gives r's hit (found, *h) and ray j's occlusion. */
 static int pair_matches(const scene *s, const accel *a, const ray *r, float tmax, const hit *h, int found,
@@ -66,15 +79,18 @@ static int pair_matches(const scene *s, const accel *a, const ray *r, float tmax
     int occluded = -1, fp = accel_intersect_occluded(a, s, r, tmax, &hp, &sh, sh_tmax, &occluded);
     if (occluded != accel_occluded(a, s, &sh, sh_tmax) || fp != found) return 0;
     return !found || (hp.prim == h->prim && !memcmp(&hp.t, &h->t, 4) && !memcmp(&hp.b1, &h->b1, 4) &&
-                      !memcmp(&hp.b2, &h->b2, 4));
+                      !memcmp(&hp.b2, &h->b2, 4) && corners_match(s, &hp));
 }
 
 /* How many of n test rays a and b answer differently (hit, prim, t, b1, b2
- * compared as bits; occlusion), and whether b's paired query (closest hit
- * and a shadow ray at once) gives its separate answers. */
-static int count_differences(const scene *s, const accel *a, const accel *b, uint64_t n, int *hits) {
+ * compared as bits; occlusion), whether b's paired query (closest hit
+ * and a shadow ray at once) gives its separate answers, and whether both
+ * hand shading the hit triangle's own corners (corners_match); *hits
+ * counts b's hits, *from_leaves those whose corners came from b's tree. */
+static int count_differences(const scene *s, const accel *a, const accel *b, uint64_t n, int *hits,
+                             int *from_leaves) {
     int differ = 0;
-    *hits = 0;
+    *hits = *from_leaves = 0;
     for (uint64_t i = 0; i < n; i++) {
         float tmax;
         ray r = test_ray(s, i, &tmax);
@@ -92,7 +108,11 @@ static int count_differences(const scene *s, const accel *a, const accel *b, uin
         } else if (!pair_matches(s, b, &r, tmax, &hb, fb, i + n)) {
             if (differ < 3) fprintf(stderr, "  ray %llu: the paired walk answers otherwise\n", (unsigned long long)i);
             differ++;
+        } else if (fb && (!corners_match(s, &hb) || !corners_match(s, &ha))) {
+            if (differ < 3) fprintf(stderr, "  ray %llu: the hit's corners are not prim %u's\n", (unsigned long long)i, hb.prim);
+            differ++;
         }
+        if (fb && hb.corners) (*from_leaves)++;
     }
     return differ;
 }
@@ -106,11 +126,15 @@ static void matches_bvh(const char *path, accel_kind kind) {
     if (!s) return;
     accel *tree = accel_build(s, ACCEL_BVH), *other = accel_build_err(s, kind, err, sizeof err);
     CHECK(tree && other && accel_get_kind(other) == kind, "build: %s", err);
-    int hits = 0;
-    int differ = tree && other ? count_differences(s, tree, other, 150000, &hits) : -1;
+    int hits = 0, from_leaves = 0;
+    int differ = tree && other ? count_differences(s, tree, other, 150000, &hits, &from_leaves) : -1;
     CHECK(differ == 0, "%s: %d of 150000 rays differ between the BVH and %s", path, differ,
           kind == ACCEL_WIDE ? "the wide BVH" : "Embree");
     CHECK(hits > 50000, "%s: only %d rays hit (test rays not aimed at the scene?)", path, hits);
+    /* The wide walk hands shading its leaves' corners; Embree's hits go to
+     * the scene's records. */
+    CHECK(kind == ACCEL_WIDE ? from_leaves > hits / 2 : from_leaves == 0, "%s: %d of %d hits with corners from %s",
+          path, from_leaves, hits, kind == ACCEL_WIDE ? "the wide BVH's leaves" : "Embree");
     accel_free(tree);
     accel_free(other);
     scene_free(s);
@@ -154,9 +178,10 @@ TEST(mesh_wide_walk_isas_match_bvh) {
             accel *wide = build_wide_walk(s, e, &st, err, sizeof err);
             if (!wide) continue;
             seen[e] = st.walk_isa, node_width = st.node_width;
-            int hits = 0, differ = tree ? count_differences(s, tree, wide, 60000, &hits) : -1;
-            CHECK(differ == 0 && hits > 20000, "%s, %s walk: %d of 60000 rays differ from the BVH, %d hit", scenes[p],
-                  st.walk_isa, differ, hits);
+            int hits = 0, leaves = 0, differ = tree ? count_differences(s, tree, wide, 60000, &hits, &leaves) : -1;
+            CHECK(differ == 0 && hits > 20000 && leaves > hits / 2,
+                  "%s, %s walk: %d of 60000 rays differ from the BVH, %d hit, %d with the leaf's corners", scenes[p],
+                  st.walk_isa, differ, hits, leaves);
             accel_free(wide);
         }
         accel_free(tree);
@@ -250,17 +275,17 @@ static ray far_ray(const scene *s, float size, uint64_t i, float *tmax) {
 static int brute_intersect(const scene *s, const ray *r, float tmax, hit *h) {
     ray_prep rp;
     ray_prepare(r, &rp);
-    *h = (hit){tmax, PRIM_NONE, 0.0f, 0.0f};
+    *h = (hit){tmax, PRIM_NONE, 0.0f, 0.0f, NULL, 0};
     for (uint32_t i = 0; i < s->triangle_count; i++) {
         float t, b1, b2;
         if (i != rp.skip && triangle_intersect(&rp, &s->triangles[i], tmax, &t, &b1, &b2) && hit_before(t, i, h))
-            *h = (hit){t, i, b1, b2};
+            *h = (hit){t, i, b1, b2, NULL, 0};
     }
     for (uint32_t i = 0; i < s->sphere_count; i++) {
         uint32_t id = scene_sphere_base(s) + i;
         float t;
         if (sphere_intersect(&rp, &s->spheres[i], id == rp.skip, tmax, &t) && hit_before(t, id, h))
-            *h = (hit){t, id, 0.0f, 0.0f};
+            *h = (hit){t, id, 0.0f, 0.0f, NULL, 0};
     }
     return h->prim != PRIM_NONE;
 }
@@ -343,7 +368,7 @@ TEST(mesh_wide_small_trees_match_bvh) {
         accel_wide_stats st = {0};
         CHECK(tree && wide && accel_get_wide_stats(wide, &st) == 0 && st.primitive_count == s->triangle_count + s->sphere_count,
               "build: %s", err);
-        int hits = 0, differ = tree && wide ? count_differences(s, tree, wide, 30000, &hits) : -1;
+        int hits = 0, leaves = 0, differ = tree && wide ? count_differences(s, tree, wide, 30000, &hits, &leaves) : -1;
         CHECK(differ == 0 && hits > 5000, "scene %zu (%zu nodes, %zu leaves): %d of 30000 rays differ, %d hit", k,
               st.node_count, st.leaf_count, differ, hits);
         accel_free(tree);
@@ -385,7 +410,7 @@ TEST(mesh_wide_morton_build_matches_bvh) {
             CHECK(wide && accel_get_wide_stats(wide, &st) == 0, "%s: build: %s", scenes[p], err);
             if (!wide) continue;
             CHECK(strcmp(st.builder, b ? "binned SAH" : "Morton") == 0, "%s: built by %s", scenes[p], st.builder);
-            int hits = 0, differ = tree ? count_differences(s, tree, wide, 30000, &hits) : -1;
+            int hits = 0, leaves = 0, differ = tree ? count_differences(s, tree, wide, 30000, &hits, &leaves) : -1;
             CHECK(differ == 0 && hits > 3000, "%s, %s build (%zu nodes, %zu leaves): %d of 30000 rays differ, %d hit",
                   scenes[p], st.builder, st.node_count, st.leaf_count, differ, hits);
             accel_free(wide);
@@ -560,7 +585,7 @@ TEST(mesh_embree_every_isa_agrees) {
         unsetenv("TESSERA_EMBREE_CONFIG");
         accel_embree_stats st;
         CHECK(emb && accel_get_embree_stats(emb, &st) == 0 && strcmp(st.config, cfg) == 0, "%s: %s", cfg, err);
-        int hits = 0, differ = emb && tree ? count_differences(s, tree, emb, 60000, &hits) : -1;
+        int hits = 0, leaves = 0, differ = emb && tree ? count_differences(s, tree, emb, 60000, &hits, &leaves) : -1;
         CHECK(differ == 0, "%s: %d of 60000 rays differ from the BVH", cfg, differ);
         accel_free(emb);
         /* The wide BVH built by that ISA's Morton builder, on one thread and
@@ -576,7 +601,7 @@ TEST(mesh_embree_every_isa_agrees) {
             unsetenv("TESSERA_EMBREE_CONFIG");
             accel_wide_stats ws;
             CHECK(wide && accel_get_wide_stats(wide, &ws) == 0 && strcmp(ws.config, wcfg) == 0, "%s: %s", wcfg, err);
-            differ = wide && tree ? count_differences(s, tree, wide, 60000, &hits) : -1;
+            differ = wide && tree ? count_differences(s, tree, wide, 60000, &hits, &leaves) : -1;
             CHECK(differ == 0, "wide BVH built with %s: %d of 60000 rays differ from the BVH", wcfg, differ);
             accel_free(wide);
         }
@@ -588,7 +613,7 @@ TEST(mesh_embree_every_isa_agrees) {
         setenv("TESSERA_EMBREE_QUALITY", qualities[k], 1);
         accel *emb = accel_build_err(s, ACCEL_EMBREE, err, sizeof err);
         unsetenv("TESSERA_EMBREE_QUALITY");
-        int hits = 0, differ = emb && tree ? count_differences(s, tree, emb, 60000, &hits) : -1;
+        int hits = 0, leaves = 0, differ = emb && tree ? count_differences(s, tree, emb, 60000, &hits, &leaves) : -1;
         CHECK(differ == 0, "build quality %s: %d of 60000 rays differ from the BVH", qualities[k], differ);
         accel_free(emb);
     }
@@ -1413,4 +1438,57 @@ TEST(mesh_bump_arena_threads_get_disjoint_blocks) {
     CHECK(counted >= total && counted < total + 64 * (size_t)(2u << 20) / 8,
           "arena counts %zu bytes for %zu handed out", counted, total);
     bump_arena_free(a);
+}
+
+/* Every triangle's prim_info as shading looks it up (scene_triangle_info:
+ * the runs of scene.info_runs) equals triangle_info's, on the shipped
+ * scenes, the icospheres, 40 emitting quads (80 lights in a row: one
+ * run) and 80 quads of alternating materials (more runs than
+ * SCENE_INFO_RUNS_MAX: none kept, the array read). */
+TEST(mesh_triangle_info_runs_give_every_triangles_info) {
+    static const char *const paths[] = {"scenes/cornell-box.json", "scenes/cornell-phong.json", "scenes/features.json",
+                                        "scenes/cornell-spheres.json", ICO_SCENE};
+    scene *sc[7] = {NULL};
+    char err[512];
+    for (size_t p = 0; p < 5; p++) {
+        sc[p] = scene_load(paths[p], NULL, err, sizeof err);
+        CHECK(sc[p] != NULL, "%s", err);
+    }
+    for (int alternate = 0; alternate < 2; alternate++) {
+        size_t cap = 64 * 1024, len = 0;
+        char *json = malloc(cap);
+        if (!json) break;
+        len += (size_t)snprintf(json + len, cap - len,
+                                "{\"camera\": {\"type\": \"perspective\", \"position\": [0, 0, -50], \"look_at\": [0, 0, 0],"
+                                " \"fov\": 40}, \"materials\": {\"a\": {\"type\": \"diffuse\", \"albedo\": [0.5, 0.5, 0.5]},"
+                                " \"b\": {\"type\": \"diffuse\", \"albedo\": [0.2, 0.5, 0.5]}}, \"shapes\": [");
+        int quads = alternate ? 80 : 40;
+        for (int q = 0; q < quads; q++)
+            len += (size_t)snprintf(json + len, cap - len,
+                                    "%s{\"type\": \"quad\", \"vertices\": [[%d, 0, 0], [%d, 0, 0], [%d, 1, 0], [%d, 1, 0]], %s}",
+                                    q ? ", " : "", q, q + 1, q + 1, q,
+                                    alternate ? (q % 2 ? "\"material\": \"a\"" : "\"material\": \"b\"")
+                                              : "\"material\": \"a\", \"emission\": [1, 1, 1]");
+        snprintf(json + len, cap - len, "]}");
+        sc[5 + alternate] = util_scene_from_text(json, err, sizeof err);
+        CHECK(sc[5 + alternate] != NULL, "%s", err);
+        free(json);
+    }
+    for (size_t p = 0; p < 7; p++) {
+        const scene *s = sc[p];
+        if (!s) continue;
+        uint32_t wrong = 0;
+        for (uint32_t k = 0; k < s->triangle_count; k++) {
+            prim_info a = scene_triangle_info(s, k), b = s->triangle_info[k];
+            wrong += a.material != b.material || a.light != b.light;
+        }
+        CHECK(wrong == 0, "scene %zu: %u of %u triangles' info differ from the runs'", p, wrong, s->triangle_count);
+    }
+    CHECK(sc[0] && sc[0]->info_run_count > 1 && sc[0]->info_run_count < 16, "the box: %u runs",
+          sc[0] ? sc[0]->info_run_count : 0);
+    CHECK(sc[5] && sc[5]->light_count == 80 && sc[5]->info_run_count == 1, "80 emitting triangles: %u lights, %u runs",
+          sc[5] ? sc[5]->light_count : 0, sc[5] ? sc[5]->info_run_count : 0);
+    CHECK(sc[6] && sc[6]->info_run_count == 0 && !sc[6]->info_runs, "80 alternating quads: %u runs kept",
+          sc[6] ? sc[6]->info_run_count : 0);
+    for (size_t p = 0; p < 7; p++) scene_free(sc[p]);
 }

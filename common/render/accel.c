@@ -177,6 +177,7 @@ int accel_flat_lanes(const accel *a) {
 
 int accel_intersect(const accel *a, const scene *s, const ray *r, float tmax, hit *h) {
     if (a->kind == ACCEL_WIDE) return accel_wide_intersect(a->wide, s, r, tmax, h);
+    h->corners = NULL; /* only the wide walk's leaves hand them out (hit_corners) */
     if (a->kind == ACCEL_EMBREE) return accel_embree_intersect(a->embree, s, r, tmax, h);
     if (a->kind == ACCEL_BVH) return bvh_intersect(a->tree, s, r, tmax, h);
     return a->flat_fn(&a->flat, s, r, tmax, h, 0);

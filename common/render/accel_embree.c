@@ -107,7 +107,7 @@ static void cb_intersect(const struct RTCIntersectFunctionNArguments *args) {
     if (!prim_test(q->s, &q->r, id, q->tmax, &t, &b1, &b2)) return;
     if (q->found && !hit_before(t, id, &q->best)) return;
     q->found = 1;
-    q->best = (hit){t, id, b1, b2};
+    q->best = (hit){t, id, b1, b2, NULL, 0};
     struct RTCRayHit *rh = (struct RTCRayHit *)args->rayhit; /* N == 1: rtcIntersect1 */
     rh->ray.tfar = accel_cull_distance(t);
     rh->hit.geomID = args->geomID;
@@ -221,7 +221,7 @@ static void query_start(query *q, const scene *s, const ray *r, float tmax, stru
     ray_prepare(r, &q->r);
     q->tmax = tmax;
     q->found = 0;
-    q->best = (hit){tmax, PRIM_NONE, 0, 0};
+    q->best = (hit){tmax, PRIM_NONE, 0, 0, NULL, 0};
     er->org_x = r->o.x, er->org_y = r->o.y, er->org_z = r->o.z;
     er->dir_x = r->d.x, er->dir_y = r->d.y, er->dir_z = r->d.z;
     er->tnear = 0.0f;

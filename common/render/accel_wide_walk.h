@@ -188,16 +188,17 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(leaf_test)(uin
         int k = __builtin_ctz(bits);
         uint32_t id = l->id[k];
         float inv = 1.0f / g.det[k], t = g.T[k] * inv;
-        if (hit_before(t, id, h)) *h = (hit){t, id, g.V[k] * inv, g.W[k] * inv}, found = 1;
+        if (hit_before(t, id, h)) *h = (hit){t, id, g.V[k] * inv, g.W[k] * inv, &l->v[0][0][k], WALK_LANES}, found = 1;
     }
     /* Lanes on an edge (rare): the scalar test decides, in a loop of its
      * own so that the one above calls nothing. */
     for (; edge; edge &= edge - 1) {
-        uint32_t id = l->id[__builtin_ctz(edge)];
+        int k = __builtin_ctz(edge);
+        uint32_t id = l->id[k];
         float t, b1, b2;
         if (!triangle_intersect(r, &s->triangles[id], tmax, &t, &b1, &b2)) continue;
         if (any_hit) return 1;
-        if (hit_before(t, id, h)) *h = (hit){t, id, b1, b2}, found = 1;
+        if (hit_before(t, id, h)) *h = (hit){t, id, b1, b2, &l->v[0][0][k], WALK_LANES}, found = 1;
     }
     if (!(ref & SPHERE_TAG)) return found;
     for (int k = 0; k < WALK_LANES; k++) { /* the spheres' lanes: ids from the triangle count up */
@@ -206,7 +207,7 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(leaf_test)(uin
         if (id == PRIM_NONE || id < s->triangle_count) continue;
         if (!sphere_intersect(r, &s->spheres[id - s->triangle_count], id == r->skip, tmax, &t)) continue;
         if (any_hit) return 1;
-        if (hit_before(t, id, h)) *h = (hit){t, id, 0.0f, 0.0f}, found = 1;
+        if (hit_before(t, id, h)) *h = (hit){t, id, 0.0f, 0.0f, NULL, 0}, found = 1;
     }
     return found;
 }
@@ -231,6 +232,7 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(start)(const a
     h->t = tmax;
     h->prim = PRIM_NONE;
     h->b1 = h->b2 = 0.0f;
+    h->corners = NULL;
     st->h = h;
     st->cur = wb->root;
     st->sp = st->found = 0;

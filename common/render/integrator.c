@@ -37,18 +37,21 @@ enum {
 typedef struct {
     vec3 p, ng, ns;
     int smooth; /* ns comes from vertex normals, or a normal map bent it: the leak guard applies */
-    const prim_info *info;
+    prim_info info;
 } surface;
 
 static void surface_at(const scene *s, const ray *r, const hit *h, surface *out) {
     if (h->prim < s->triangle_count) {
-        const triangle *t = &s->triangles[h->prim];
+        vec3 v0, v1, v2;
+        hit_corners(s, h, &v0, &v1, &v2);
         float b0 = 1.0f - h->b1 - h->b2;
         /* From the barycentrics, not o + t d: the error is then relative to
          * the triangle's coordinates, not to the ray's length. */
-        out->p = vec3_add(vec3_add(vec3_scale(t->v0, b0), vec3_scale(t->v1, h->b1)), vec3_scale(t->v2, h->b2));
-        out->ng = s->triangle_normals[h->prim];
-        out->info = &s->triangle_info[h->prim];
+        out->p = vec3_add(vec3_add(vec3_scale(v0, b0), vec3_scale(v1, h->b1)), vec3_scale(v2, h->b2));
+        /* Recomputed from corners the walk has just read rather than
+         * fetched: scene.triangle_normals' bits without its cache miss. */
+        out->ng = h->corners ? triangle_geometric_normal(v0, v1, v2) : s->triangle_normals[h->prim];
+        out->info = scene_triangle_info(s, h->prim);
         out->ns = out->ng;
         out->smooth = shading_normal_at(s, h->prim, b0, h->b1, h->b2, &out->ng, &out->ns);
     } else {
@@ -57,7 +60,7 @@ static void surface_at(const scene *s, const ray *r, const hit *h, surface *out)
         vec3 p = vec3_add(r->o, vec3_scale(r->d, h->t));
         out->ng = vec3_normalize(vec3_sub(p, sp->center));
         out->p = vec3_add(sp->center, vec3_scale(out->ng, sp->radius)); /* back onto the surface */
-        out->info = &s->sphere_info[i];
+        out->info = s->sphere_info[i];
         out->ns = out->ng;
         out->smooth = 0;
     }
@@ -137,7 +140,7 @@ static vec3 shadow_term_alone(const scene *s, const shadow_query *q) {
  * prev_p with BSDF density prev_pdf (0 = delta or camera). */
 static vec3 hit_emission(const scene *s, const integrator_options *opt, const surface *sf, const ray *r,
                          float t, vec3 prev_p, float prev_pdf) {
-    const light *l = &s->lights[sf->info->light];
+    const light *l = &s->lights[sf->info.light];
     vec3 Le = lights_emitted(l, sf->ng, vec3_neg(r->d));
     if (vec3_is_zero(Le) || prev_pdf == 0.0f || opt->no_nee) return Le;
     if (opt->no_mis) return vec3_splat(0.0f); /* light sampling already counted it */
@@ -199,9 +202,9 @@ vec3 integrator_radiance(const scene *s, const integrator_options *opt, const ra
         }
         surface sf;
         surface_at(s, &r, &h, &sf);
-        if (sf.info->light >= 0)
+        if (sf.info.light >= 0)
             L = vec3_add(L, vec3_mul(beta, hit_emission(s, opt, &sf, &r, h.t, prev_p, prev_pdf)));
-        const material *m = &s->materials[sf.info->material];
+        const material *m = &s->materials[sf.info.material];
         if (depth >= s->settings.max_depth || m->kind == MATERIAL_NONE) break;
 
         vec3 wo = vec3_neg(r.d);

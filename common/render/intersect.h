@@ -36,7 +36,29 @@ typedef struct {
     float t;
     uint32_t prim; /* triangle index, or sphere_base + sphere index */
     float b1, b2;  /* barycentrics of v1 and v2 (triangles) */
+    /* Where the intersector read the hit triangle's corners, or NULL:
+     * corner k's axis a is corners[(3 k + a) * corner_stride], the same
+     * floats as scene.triangles[prim] (the wide BVH's leaf lane, which the
+     * walk has just read: shading then need not fetch the triangle's
+     * record from memory, hit_corners). */
+    const float *corners;
+    uint32_t corner_stride;
 } hit;
+
+/* The corners of the triangle h hit: from h->corners when the intersector
+ * gave them, else from the scene's record (the same floats either way). */
+static inline void hit_corners(const scene *s, const hit *h, vec3 *v0, vec3 *v1, vec3 *v2) {
+    if (!h->corners) {
+        const triangle *t = &s->triangles[h->prim];
+        *v0 = t->v0, *v1 = t->v1, *v2 = t->v2;
+        return;
+    }
+    const float *c = h->corners;
+    size_t k = h->corner_stride;
+    *v0 = vec3_make(c[0], c[k], c[2 * k]);
+    *v1 = vec3_make(c[3 * k], c[4 * k], c[5 * k]);
+    *v2 = vec3_make(c[6 * k], c[7 * k], c[8 * k]);
+}
 
 /* 1/d, but a huge finite value for d = 0, so that the slab test computes
  * 0 * huge = 0 rather than 0 * inf = NaN for a ray in a box's plane. */

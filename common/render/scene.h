@@ -119,6 +119,21 @@ typedef struct {
     int32_t light; /* index into scene.lights, or -1 */
 } prim_info;
 
+/* A run of consecutive triangles with one material whose lights are none
+ * or one each, consecutive (an emissive mesh): scene.info_runs holds a
+ * scene's prim_info in a few of them when it can, so that shading a hit
+ * need not read triangle_info from memory (scene_triangle_info). */
+typedef struct {
+    uint32_t start;     /* the run's first triangle */
+    uint32_t material;
+    int32_t light;      /* the first triangle's light, or -1 for none */
+    int32_t light_step; /* 1: triangle start + k has light + k; 0: all have `light` */
+} prim_info_run;
+
+/* Runs kept at most: their table (1 KiB) stays in L1. A scene with more
+ * keeps none, and lookups read triangle_info. */
+#define SCENE_INFO_RUNS_MAX 64
+
 typedef enum {
     LIGHT_TRIANGLE, LIGHT_SPHERE, LIGHT_POINT,
     LIGHT_SPOT,       /* KHR_lights_punctual spot: a point light with a cone (render/punctual.h) */
@@ -168,6 +183,8 @@ typedef struct scene {
     triangle *triangles;
     vec3 *triangle_normals; /* unit geometric normals, (v1 - v0) x (v2 - v0) */
     prim_info *triangle_info;
+    prim_info_run *info_runs; /* triangle_info in runs (scene_info_runs_build), or NULL */
+    uint32_t info_run_count;  /* 0: none, look up triangle_info */
     uint32_t triangle_count;
     int triangles_on_huge_pages; /* the three arrays above asked for them (scene_render_is_long) */
 
@@ -275,5 +292,27 @@ static inline int scene_render_is_long(const scene *s, size_t prims) {
 
 /* Index of the first primitive id that is a sphere: ids below are triangles. */
 static inline uint32_t scene_sphere_base(const scene *s) { return s->triangle_count; }
+
+/* Triangle prim's prim_info: from the runs when the scene has them (a
+ * branch-free binary search of a table in L1), else triangle_info[prim].
+ * The same value either way. */
+static inline prim_info scene_triangle_info(const scene *s, uint32_t prim) {
+    if (!s->info_run_count) return s->triangle_info[prim];
+    const prim_info_run *r = s->info_runs;
+    for (uint32_t n = s->info_run_count; n > 1;) {
+        uint32_t half = n / 2;
+        r = r[half].start <= prim ? r + half : r;
+        n -= half;
+    }
+    prim_info out = {r->material, r->light < 0 ? -1 : r->light + r->light_step * (int32_t)(prim - r->start)};
+    return out;
+}
+
+/* A triangle's unit geometric normal, (v1 - v0) x (v2 - v0) normalized:
+ * scene.triangle_normals holds it, and shading recomputes it from corners
+ * the intersector has just read (the same operations, so the same bits). */
+static inline vec3 triangle_geometric_normal(vec3 v0, vec3 v1, vec3 v2) {
+    return vec3_normalize(vec3_cross(vec3_sub(v1, v0), vec3_sub(v2, v0)));
+}
 
 #endif

@@ -1090,7 +1090,7 @@ static void assemble_triangles(void *ctx, size_t b, size_t e, int part) {
         tr->v0 = to_internal(s, L->wv + 3 * (size_t)L->tris[t].v[0]);
         tr->v1 = to_internal(s, L->wv + 3 * (size_t)L->tris[t].v[1]);
         tr->v2 = to_internal(s, L->wv + 3 * (size_t)L->tris[t].v[2]);
-        s->triangle_normals[t] = vec3_normalize(vec3_cross(vec3_sub(tr->v1, tr->v0), vec3_sub(tr->v2, tr->v0)));
+        s->triangle_normals[t] = triangle_geometric_normal(tr->v0, tr->v1, tr->v2);
         s->triangle_info[t].material = L->tris[t].material;
         s->triangle_info[t].light = -1;
     }
@@ -1138,6 +1138,33 @@ static int assemble(loader *L) {
     }
     if (assemble_attributes(L)) return jf_fail(&L->j, "shapes", NULL, "out of memory");
     return build_lights(L);
+}
+
+/* s->info_runs for the assembled triangles: their prim_info as at most
+ * SCENE_INFO_RUNS_MAX runs (prim_info_run), or none (info_run_count 0)
+ * when they take more or the table cannot be allocated: lookups then read
+ * triangle_info. Can't fail. */
+static void build_info_runs(scene *s) {
+    prim_info_run runs[SCENE_INFO_RUNS_MAX];
+    uint32_t n = 0;
+    for (uint32_t i = 0; i < s->triangle_count; i++) {
+        prim_info in = s->triangle_info[i];
+        if (n) {
+            prim_info_run *r = &runs[n - 1];
+            int32_t k = (int32_t)(i - r->start);
+            if (in.material == r->material && r->light < 0 && in.light < 0) continue;
+            if (in.material == r->material && r->light >= 0 && in.light == r->light + k &&
+                (k == 1 || r->light_step == 1)) {
+                r->light_step = 1;
+                continue;
+            }
+        }
+        if (n == SCENE_INFO_RUNS_MAX) return;
+        runs[n++] = (prim_info_run){i, in.material, in.light, 0};
+    }
+    if (!n || !(s->info_runs = malloc(n * sizeof *runs))) return;
+    memcpy(s->info_runs, runs, n * sizeof *runs);
+    s->info_run_count = n;
 }
 
 /* Set s->features from what the assembled scene contains. */
@@ -1209,6 +1236,7 @@ static int load_root(loader *L, const cJSON *root, const scene_overrides *ov) {
     }
     if (load_cancelled(L) || assemble(L) || load_cancelled(L) || assemble_shading(L)) return -1;
     record_features(L->s);
+    build_info_runs(L->s);
     return 0;
 }
 
@@ -1269,6 +1297,7 @@ void scene_free(scene *s) {
     free(s->materials);
     free(s->triangles);
     free(s->triangle_info);
+    free(s->info_runs);
     free(s->triangle_normals);
     free(s->vertex_normals);
     free(s->triangle_vertex_normals);

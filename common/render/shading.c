@@ -27,7 +27,7 @@ int shading_cut_out(const scene *s, uint32_t prim, float b1, float b2) {
     if (prim >= s->triangle_count || !s->corner_uvs) return 0;
     const material *m = &s->materials[s->triangle_info[prim].material];
     if (!(m->alpha_cutoff > 0.0f)) return 0;
-    hit h = {0.0f, prim, b1, b2};
+    hit h = {0.0f, prim, b1, b2, NULL, 0};
     float u, v, a = m->base_alpha;
     corner_uv(s, &h, m, &u, &v);
     const texture *t = tex(s, m->tex_base);
