@@ -37,6 +37,7 @@
 #include "memhint.h"
 #include "par.h"
 #include "sah_build.h"
+#include "shading_normal.h"
 
 #include "accel_embree.h"
 #include <embree3/rtcore_builder.h>

@@ -188,7 +188,10 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(leaf_test)(uin
         int k = __builtin_ctz(bits);
         uint32_t id = l->id[k];
         float inv = 1.0f / g.det[k], t = g.T[k] * inv;
-        if (hit_before(t, id, h)) *h = (hit){t, id, g.V[k] * inv, g.W[k] * inv, &l->v[0][0][k], WALK_LANES}, found = 1;
+        if (hit_before(t, id, h)) {
+            *h = (hit){t, id, g.V[k] * inv, g.W[k] * inv, &l->v[0][0][k], WALK_LANES}, found = 1;
+            shading_normal_prefetch(s, id);
+        }
     }
     /* Lanes on an edge (rare): the scalar test decides, in a loop of its
      * own so that the one above calls nothing. */
