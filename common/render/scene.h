@@ -183,7 +183,7 @@ typedef struct scene {
     triangle *triangles;
     vec3 *triangle_normals; /* unit geometric normals, (v1 - v0) x (v2 - v0) */
     prim_info *triangle_info;
-    prim_info_run *info_runs; /* triangle_info in runs (scene_info_runs_build), or NULL */
+    prim_info_run *info_runs; /* triangle_info in runs (build_info_runs, scene_load.c), or NULL */
     uint32_t info_run_count;  /* 0: none, look up triangle_info */
     uint32_t triangle_count;
     int triangles_on_huge_pages; /* the three arrays above asked for them (scene_render_is_long) */
