@@ -1153,9 +1153,8 @@ static void build_info_runs(scene *s) {
             prim_info_run *r = &runs[n - 1];
             int32_t k = (int32_t)(i - r->start);
             if (in.material == r->material && r->light < 0 && in.light < 0) continue;
-            if (in.material == r->material && r->light >= 0 && in.light == r->light + k &&
-                (k == 1 || r->light_step == 1)) {
-                r->light_step = 1;
+            if (in.material == r->material && r->light >= 0 && in.light == r->light + k) {
+                r->light_step = 1; /* a run with a light grows only by the next one */
                 continue;
             }
         }
