@@ -347,13 +347,15 @@ static void print_wide_stats(const accel_wide_stats *ws) {
             ws->huge_pages ? " on huge pages" : "", (double)ws->peak_bytes / 1024.0, ws->build_seconds * 1e3);
 }
 
-/* -v's line for the page probe (memhint.h), when a big buffer made it run. */
+/* -v's line for the page figures (memhint.h), when a big buffer asked for them. */
 static void print_page_probe(void) {
-    double small, huge;
+    double small, huge, sampled = memhint_sampled_ms();
     memhint_probe_ms(&small, &huge);
     if (small < 0.0 && huge < 0.0) return;
-    fprintf(stderr, "pages: a first touch of %zu MiB took %.1f ms on 4 KiB pages, %.1f ms on huge pages: big buffers "
-            "%s\n", MEMHINT_PROBE_BYTES >> 20, small, huge,
+    char latest[96] = "";
+    if (sampled >= 0.0) snprintf(latest, sizeof latest, ", %.1f ms on huge pages in the latest big buffer", sampled);
+    fprintf(stderr, "pages: a first touch of %zu MiB took %.1f ms on 4 KiB pages, %.1f ms on huge pages%s: big "
+            "buffers %s\n", MEMHINT_PROBE_BYTES >> 20, small, huge, latest,
             memhint_huge_is_cheap() ? "on huge pages" : "on huge pages only for a long render");
 }
 

@@ -1,15 +1,22 @@
-/* memhint.c - the first-touch probe behind memhint_huge_is_cheap (memhint.h):
- * which page size this host faults in faster, timed once per process. */
+/* memhint.c - the figures behind memhint_huge_is_cheap (memhint.h): what
+ * a first touch costs on each page size, from a probe timed once per
+ * process and, for huge pages, from the big buffers put on them since. */
 #include "memhint.h"
 
 #include <pthread.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
+#ifndef MADV_POPULATE_WRITE
+#define MADV_POPULATE_WRITE 23 /* Linux 5.14 */
+#endif
+
 static pthread_once_t probe_once = PTHREAD_ONCE_INIT;
-static int probe_cheap;
 static double probe_small_ms = -1.0, probe_huge_ms = -1.0;
+/* Huge pages' figure from the latest sampled buffer, -1 for none. */
+static _Atomic double sampled_ms = -1.0;
 
 static double now_ms(void) {
     struct timespec t;
@@ -43,17 +50,74 @@ static double first_touch_ms(int huge) {
 static void probe(void) {
     probe_small_ms = first_touch_ms(0);
     probe_huge_ms = first_touch_ms(1);
-    probe_cheap = probe_small_ms >= 0.0 && probe_huge_ms >= 0.0 && probe_huge_ms < 0.75 * probe_small_ms;
+}
+
+/* TESSERA_HUGE_PAGES: 1 or 0 when it decides, else -1. */
+static int forced(void) {
+    const char *f = getenv("TESSERA_HUGE_PAGES");
+    return f && (!strcmp(f, "0") || !strcmp(f, "1")) ? f[0] == '1' : -1;
+}
+
+/* Huge pages' figure: the latest buffer's, else the probe's. */
+static double huge_figure(void) {
+    double s = atomic_load(&sampled_ms);
+    return s >= 0.0 ? s : probe_huge_ms;
+}
+
+int memhint_rule_cheap(double small_ms, double huge_ms) {
+    return small_ms >= 0.0 && huge_ms >= 0.0 && huge_ms < 0.75 * small_ms;
 }
 
 int memhint_huge_is_cheap(void) {
-    const char *forced = getenv("TESSERA_HUGE_PAGES");
-    if (forced && (!strcmp(forced, "0") || !strcmp(forced, "1"))) return forced[0] == '1';
+    int f = forced();
+    if (f >= 0) return f;
     pthread_once(&probe_once, probe);
-    return probe_cheap;
+    return memhint_rule_cheap(probe_small_ms, huge_figure());
 }
 
 void memhint_probe_ms(double *small_pages, double *huge_pages) {
     *small_pages = probe_small_ms;
     *huge_pages = probe_huge_ms;
+}
+
+double memhint_sampled_ms(void) { return atomic_load(&sampled_ms); }
+
+void memhint_set_figures(double small_ms, double huge_ms, double sampled) {
+    pthread_once(&probe_once, probe);
+    probe_small_ms = small_ms, probe_huge_ms = huge_ms;
+    atomic_store(&sampled_ms, sampled);
+}
+
+/* Whether none of the 4 KiB pages of [p, p + bytes) (page-aligned, at
+ * most MEMHINT_PROBE_BYTES) is resident yet: a first touch there is a
+ * fresh fault, worth timing. */
+static int none_resident(void *p, size_t bytes) {
+    unsigned char v[MEMHINT_PROBE_BYTES / 4096];
+    if (bytes > MEMHINT_PROBE_BYTES || mincore(p, bytes, v) != 0) return 0;
+    for (size_t i = 0; i < bytes / 4096; i++)
+        if (v[i] & 1) return 0;
+    return 1;
+}
+
+/* Sample a buffer of at least MEMHINT_SAMPLE_MIN_BYTES (memhint.h): its
+ * front on huge pages, faulted in and timed into sampled_ms. Nothing when
+ * its front is resident or the populate is refused. */
+static void sample(void *p, size_t bytes) {
+    uintptr_t huge = (uintptr_t)2 << 20, lo = ((uintptr_t)p + huge - 1) & ~(huge - 1),
+              hi = ((uintptr_t)p + bytes) & ~(huge - 1);
+    if (hi < lo + MEMHINT_PROBE_BYTES || !none_resident((void *)lo, MEMHINT_PROBE_BYTES)) return;
+    memhint_huge((void *)lo, MEMHINT_PROBE_BYTES);
+    double t0 = now_ms();
+    if (madvise((void *)lo, MEMHINT_PROBE_BYTES, MADV_POPULATE_WRITE) != 0) return;
+    atomic_store(&sampled_ms, now_ms() - t0);
+}
+
+int memhint_fresh_huge(void *p, size_t bytes) {
+    if (!p || !memhint_fresh_wants_huge(bytes)) return 0;
+    if (bytes >= MEMHINT_SAMPLE_MIN_BYTES && forced() < 0) {
+        sample(p, bytes);
+        if (!memhint_huge_is_cheap()) return 0;
+    }
+    memhint_huge(p, bytes);
+    return 1;
 }

@@ -9,6 +9,7 @@
 #include <string.h>
 #include <limits.h>
 #include <pthread.h>
+#include <stdatomic.h>
 #include <stdint.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -488,9 +489,87 @@ TEST(memhint_probe_follows_its_figures_and_the_environment_overrides) {
     memhint_probe_ms(&small, &huge);
     CHECK(small >= 0.0 && huge >= 0.0 && isfinite(small) && isfinite(huge), "probe figures %g and %g ms", small,
           huge);
-    CHECK(cheap == (huge < 0.75 * small), "probe: %g ms on 4 KiB pages, %g on huge ones, answered %d", small, huge,
+    double latest = memhint_sampled_ms(); /* a big scene loaded before may have sampled a buffer */
+    CHECK(cheap == memhint_rule_cheap(small, latest >= 0.0 ? latest : huge),
+          "probe: %g ms on 4 KiB pages, %g on huge ones, %g in the latest buffer, answered %d", small, huge, latest,
           cheap);
+    CHECK(cheap == (small >= 0.0 && (latest >= 0.0 ? latest : huge) < 0.75 * small), "the rule is not 3/4");
     CHECK(memhint_huge_is_cheap() == cheap, "a second call answered differently");
+}
+
+/* A fresh 2 MiB-aligned mapping of `bytes` (munmap(*map, bytes + 2 MiB)
+ * frees it), or NULL. */
+static char *fresh_aligned(size_t bytes, void **map) {
+    *map = mmap(NULL, bytes + (2u << 20), PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if (*map == MAP_FAILED) return NULL;
+    return (char *)(((uintptr_t)*map + (2u << 20) - 1) & ~(uintptr_t)((2u << 20) - 1));
+}
+
+/* Resident 4 KiB pages among the first `pages` of p. */
+static size_t resident_pages(char *p, size_t pages) {
+    static unsigned char v[4096];
+    if (pages > sizeof v || mincore(p, pages * 4096, v) != 0) return (size_t)-1;
+    size_t n = 0;
+    for (size_t i = 0; i < pages; i++) n += v[i] & 1;
+    return n;
+}
+
+/* The page rule on figures (memhint.c), and the samples that give huge
+ * pages their latest figure: a big fresh buffer's front faulted in (its
+ * contents zero), its time the new figure, which decides for the buffer;
+ * no sample of a buffer already touched, of a smaller one, or where huge
+ * pages are not the cheaper ones already; TESSERA_HUGE_PAGES still
+ * decides. */
+TEST(memhint_samples_big_buffers_and_follows_the_latest_figure) {
+    CHECK(memhint_rule_cheap(2, 0.5) && !memhint_rule_cheap(2, 1.5) && !memhint_rule_cheap(-1, 0.5) &&
+              !memhint_rule_cheap(2, -1),
+          "cheap: under 3/4 of the 4 KiB pages' figure, both known");
+    unsetenv("TESSERA_HUGE_PAGES");
+    (void)memhint_huge_is_cheap(); /* the probe, once: its figures restored below */
+    double small0, huge0, sampled0 = memhint_sampled_ms();
+    memhint_probe_ms(&small0, &huge0);
+
+    memhint_set_figures(2, 0.5, -1);
+    CHECK(memhint_huge_is_cheap(), "the probe's 0.5 ms against 2: not cheap");
+    memhint_set_figures(2, 0.5, 11);
+    CHECK(!memhint_huge_is_cheap(), "a latest figure of 11 ms against 2, the probe's 0.5: cheap");
+    memhint_set_figures(2, 11, 0.5);
+    CHECK(memhint_huge_is_cheap(), "a latest figure of 0.5 ms against 2, the probe's 11: not cheap");
+
+    size_t big = MEMHINT_SAMPLE_MIN_BYTES;
+    void *map;
+    char *p = fresh_aligned(big, &map);
+    CHECK(p != NULL, "cannot map");
+    if (!p) return;
+    memhint_set_figures(2, 11, -1); /* not cheap: no sample, 4 KiB pages */
+    CHECK(memhint_fresh_huge(p, big) == 0 && memhint_sampled_ms() == -1 && resident_pages(p, 1024) == 0,
+          "huge pages dearer: a sample was taken or huge pages asked for");
+    memhint_set_figures(2, 0.5, -1); /* cheap: a sample */
+    int got = memhint_fresh_huge(p, big);
+    double s1 = memhint_sampled_ms();
+    CHECK(s1 >= 0.0 && isfinite(s1) && got == memhint_rule_cheap(2, s1),
+          "a fresh %zu MiB buffer: sample %g ms, on huge pages %d", big >> 20, s1, got);
+    CHECK(resident_pages(p, 1024) == 1024, "the sampled front: %zu of 1024 pages resident", resident_pages(p, 1024));
+    size_t nonzero = 0;
+    for (size_t i = 0; i < MEMHINT_PROBE_BYTES; i++) nonzero += p[i] != 0;
+    CHECK(nonzero == 0, "the sample wrote %zu bytes", nonzero);
+    memhint_set_figures(2, 0.5, -1);
+    CHECK(memhint_fresh_huge(p, big) == 1 && memhint_sampled_ms() == -1, "a touched front was sampled again");
+    munmap(map, big + (2u << 20));
+    p = fresh_aligned(big, &map);
+    CHECK(p != NULL, "cannot map");
+    if (!p) return;
+    memhint_set_figures(2, 0.5, -1);
+    CHECK(memhint_fresh_huge(p, big - 1 - (2u << 20)) == 1 && memhint_sampled_ms() == -1,
+          "a buffer under MEMHINT_SAMPLE_MIN_BYTES was sampled");
+    setenv("TESSERA_HUGE_PAGES", "1", 1);
+    CHECK(memhint_fresh_huge(p, big) == 1 && memhint_sampled_ms() == -1 && resident_pages(p, 1024) == 0,
+          "TESSERA_HUGE_PAGES=1: sampled, or not on huge pages");
+    setenv("TESSERA_HUGE_PAGES", "0", 1);
+    CHECK(memhint_fresh_huge(p, big) == 0, "TESSERA_HUGE_PAGES=0: on huge pages");
+    unsetenv("TESSERA_HUGE_PAGES");
+    munmap(map, big + (2u << 20));
+    memhint_set_figures(small0, huge0, sampled0);
 }
 
 /* A grid of 2 * side^2 triangles in the plane y = 0 over [0, 500]^2 as
@@ -1405,8 +1484,20 @@ static void *arena_worker_main(void *arg) {
     return NULL;
 }
 
+/* A chunk hint (bump_arena_hint_fn) that counts its calls, checks what it
+ * is given, and says "huge pages" for all but the chunk numbered
+ * arena_hint_refuse (counting from 1; 0: none). */
+static atomic_int arena_hints, arena_hint_bad;
+static int arena_hint_refuse;
+static int arena_hint(void *chunk, size_t bytes) {
+    int k = atomic_fetch_add(&arena_hints, 1) + 1;
+    if ((uintptr_t)chunk % (2u << 20) || bytes != (2u << 20)) atomic_fetch_add(&arena_hint_bad, 1);
+    return k != arena_hint_refuse;
+}
+
 TEST(mesh_bump_arena_threads_get_disjoint_blocks) {
-    bump_arena *a = bump_arena_new(2u << 20, 1);
+    atomic_store(&arena_hints, 0), atomic_store(&arena_hint_bad, 0), arena_hint_refuse = 0;
+    bump_arena *a = bump_arena_new(2u << 20, arena_hint);
     CHECK(a != NULL, "bump_arena_new failed");
     if (!a) return;
     CHECK(bump_arena_alloc(a, (2u << 20) + 1) == NULL, "a block bigger than a chunk was handed out");
@@ -1440,6 +1531,22 @@ TEST(mesh_bump_arena_threads_get_disjoint_blocks) {
     size_t counted = bump_arena_bytes(a);
     CHECK(counted >= total && counted < total + 64 * (size_t)(2u << 20) / 8,
           "arena counts %zu bytes for %zu handed out", counted, total);
+    int hints = atomic_load(&arena_hints);
+    CHECK(hints >= 2 && (size_t)hints == (counted + (2u << 20) - 1) / (2u << 20) && atomic_load(&arena_hint_bad) == 0,
+          "%d hints (%d with a wrong chunk) for %zu bytes of 2 MiB chunks", hints, atomic_load(&arena_hint_bad),
+          counted);
+    CHECK(bump_arena_on_huge_pages(a) == 1, "every chunk's hint said huge pages, the arena says not");
+    bump_arena_free(a);
+    /* One chunk's hint refused: the arena is no longer on huge pages. */
+    atomic_store(&arena_hints, 0), arena_hint_refuse = 2;
+    a = bump_arena_new(2u << 20, arena_hint);
+    CHECK(a && bump_arena_on_huge_pages(a) == 1, "a new arena with a hint: not on huge pages");
+    for (int i = 0; a && i < 3; i++) CHECK(bump_arena_alloc(a, 2u << 20) != NULL, "a whole chunk refused");
+    CHECK(a && atomic_load(&arena_hints) == 3 && bump_arena_on_huge_pages(a) == 0,
+          "%d hints, the second refused: on huge pages %d", atomic_load(&arena_hints), a ? bump_arena_on_huge_pages(a) : -1);
+    bump_arena_free(a);
+    a = bump_arena_new(2u << 20, NULL);
+    CHECK(a && bump_arena_alloc(a, 64) && bump_arena_on_huge_pages(a) == 0, "an arena without a hint on huge pages");
     bump_arena_free(a);
 }
 

@@ -91,7 +91,8 @@ typedef WIDE_LEAF(8) wide_leaf8;
  * threads by an atomic bump pointer, on transparent huge pages for a
  * render of at least a quarter as many samples as primitives
  * (scene_render_is_long in scene.h), or where they are cheaper to fault
- * in (memhint_fresh_wants_huge). A walk's step then finds its page in the TLB:
+ * in (memhint_fresh_huge, chunk by chunk: a chunk's sample may find them
+ * dearer than the load's buffers did). A walk's step then finds its page in the TLB:
  * render time -3% at 655k triangles (against Embree's thread-local
  * blocks of 4 KiB pages), -13% at 10.5M (docs/meshes.md). But fresh huge
  * pages are slow to get on a VM (and the kernel compacts for them): at
@@ -100,6 +101,13 @@ typedef WIDE_LEAF(8) wide_leaf8;
  * ones, a one-pixel 2.6M render took 1.02-1.12 s against 2.01-2.29 s
  * with every big buffer on huge pages (docs/meshes.md). */
 #define ARENA_CHUNK_MIN ((size_t)4 << 20)
+
+/* The arena's hint for a long render: huge pages, asked for without a
+ * probe (bump_arena_hint_fn). */
+static int hint_huge(void *chunk, size_t bytes) {
+    memhint_huge(chunk, bytes);
+    return 1;
+}
 #define ARENA_CHUNK_MAX ((size_t)128 << 20)
 
 struct accel_wide {
@@ -379,8 +387,9 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
      * primitives), 4 to 128 MiB. */
     size_t tree = n / 8 * (sizeof(wide_node) + sizeof(wide_leaf8)), chunk = tree / 10;
     chunk = chunk < ARENA_CHUNK_MIN ? ARENA_CHUNK_MIN : chunk > ARENA_CHUNK_MAX ? ARENA_CHUNK_MAX : chunk;
-    w->stats.huge_pages = scene_render_is_long(s, n) || memhint_fresh_wants_huge(tree);
-    if (!(w->arena = bump_arena_new(chunk, w->stats.huge_pages))) {
+    int long_render = scene_render_is_long(s, n);
+    bump_arena_hint_fn hint = long_render ? hint_huge : tree >= MEMHINT_MIN_BYTES ? memhint_fresh_huge : NULL;
+    if (!(w->arena = bump_arena_new(chunk, hint))) {
         snprintf(err, err_len, "out of memory");
         accel_wide_free(w);
         return NULL;
@@ -405,6 +414,7 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
     w->stats.node_count = atomic_load(&b.nodes);
     w->stats.leaf_count = atomic_load(&b.leaves);
     w->stats.memory_bytes = bump_arena_bytes(w->arena);
+    w->stats.huge_pages = bump_arena_on_huge_pages(w->arena);
     w->stats.peak_bytes = peak + w->stats.memory_bytes;
     w->stats.build_seconds = elapsed_seconds(&t0);
     return w;

@@ -50,7 +50,7 @@ typedef struct {
     const char *config;    /* the Morton builder's Embree device configuration ("" for Embree's defaults, or the SAH) */
     const char *builder;   /* "binned SAH" (Tessera's) or "Morton" (Embree's; ACCEL_WIDE_MORTON_MIN_PRIMITIVES) */
     int build_threads;     /* the SAH build's threads (0 for the Morton build: Embree's device decides) */
-    int huge_pages;        /* 1 when the tree asked for transparent huge pages (scene_render_is_long) */
+    int huge_pages;        /* 1 when every chunk of the tree asked for transparent huge pages (accel_wide.c) */
 } accel_wide_stats;
 
 /* From this many primitives the tree is built by Embree's Morton-code

@@ -9,7 +9,6 @@
 #include <stdlib.h>
 #include <sys/mman.h>
 
-#include "memhint.h"
 
 #define HUGE_PAGE ((size_t)2 << 20)
 
@@ -23,25 +22,28 @@ typedef struct chunk {
 
 struct bump_arena {
     size_t chunk_bytes;
-    int huge;
+    bump_arena_hint_fn hint;
+    int all_huge; /* every chunk's hint said huge pages (under lock) */
     _Atomic(chunk *) cur; /* the chunk blocks come from, NULL before the first */
     pthread_mutex_t lock; /* taken to replace cur */
 };
 
 static size_t round_up(size_t x, size_t to) { return (x + to - 1) / to * to; }
 
-bump_arena *bump_arena_new(size_t chunk_bytes, int huge) {
+bump_arena *bump_arena_new(size_t chunk_bytes, bump_arena_hint_fn hint) {
     bump_arena *a = calloc(1, sizeof *a);
     if (!a) return NULL;
     a->chunk_bytes = round_up(chunk_bytes ? chunk_bytes : 1, HUGE_PAGE);
-    a->huge = huge;
+    a->hint = hint;
+    a->all_huge = hint != NULL;
     atomic_init(&a->cur, NULL);
     pthread_mutex_init(&a->lock, NULL);
     return a;
 }
 
-/* A mapped chunk after `prev`, or NULL when mmap refuses. */
-static chunk *chunk_new(const bump_arena *a, chunk *prev) {
+/* A mapped chunk after `prev`, its hint given, or NULL when mmap refuses.
+ * Under a's lock. */
+static chunk *chunk_new(bump_arena *a, chunk *prev) {
     chunk *c = malloc(sizeof *c);
     if (!c) return NULL;
     c->map_bytes = a->chunk_bytes + HUGE_PAGE;
@@ -51,7 +53,7 @@ static chunk *chunk_new(const bump_arena *a, chunk *prev) {
         return NULL;
     }
     c->base = (char *)round_up((uintptr_t)c->map, HUGE_PAGE);
-    if (a->huge) memhint_huge(c->base, a->chunk_bytes);
+    if (a->hint && !a->hint(c->base, a->chunk_bytes)) a->all_huge = 0;
     atomic_init(&c->used, 0);
     c->next = prev;
     return c;
@@ -88,6 +90,8 @@ size_t bump_arena_bytes(const bump_arena *a) {
     }
     return sum;
 }
+
+int bump_arena_on_huge_pages(const bump_arena *a) { return a->all_huge; }
 
 void bump_arena_free(bump_arena *a) {
     if (!a) return;

@@ -12,10 +12,19 @@
 
 typedef struct bump_arena bump_arena;
 
+/* The page hint a new chunk gets before its first block: called with the
+ * chunk (2 MiB-aligned) and its size, under the arena's lock; returns 1 if
+ * the chunk asked for huge pages (memhint_fresh_huge, say). */
+typedef int (*bump_arena_hint_fn)(void *chunk, size_t bytes);
+
 /* A new arena of chunks of chunk_bytes (rounded up to 2 MiB; no memory is
- * mapped until the first block), on huge pages if `huge`. Returns NULL when
- * out of memory. Free with bump_arena_free. */
-bump_arena *bump_arena_new(size_t chunk_bytes, int huge);
+ * mapped until the first block), each given `hint` (NULL: none). Returns
+ * NULL when out of memory. Free with bump_arena_free. */
+bump_arena *bump_arena_new(size_t chunk_bytes, bump_arena_hint_fn hint);
+
+/* Whether every chunk mapped so far asked for huge pages (1 for none yet
+ * with a hint, 0 with no hint). Call when no thread allocates. */
+int bump_arena_on_huge_pages(const bump_arena *a);
 
 /* A block of `bytes` (at most the chunk size), BUMP_ARENA_ALIGN-aligned and
  * zero-filled as fresh pages are, owned by the arena. Any thread, at once.

@@ -1110,15 +1110,16 @@ static int assemble(loader *L) {
     if (!s->triangles || !s->triangle_info || !s->triangle_normals || !s->spheres || !s->sphere_info)
         return jf_fail(&L->j, "shapes", NULL, "out of memory");
     /* The records a hit's shading reads, on huge pages for a long render
-     * (scene_render_is_long) or where they are cheaper to fault in
-     * (memhint_fresh_wants_huge): at 655k triangles and 128x128x64 on 4
+     * (scene_render_is_long), or where they are cheaper to fault in
+     * (memhint_fresh_huge): at 655k triangles and 128x128x64 on 4
      * KiB pages the render took 3.8% more CPU, and at 10.5M and 256x256x16
      * on huge pages 3.74-4.17 s against 3.28-3.43 s on a host where they
      * are dearer (docs/meshes.md). */
+    size_t tri_bytes = (L->tri_count + 1) * sizeof(triangle);
     s->triangles_on_huge_pages = scene_render_is_long(s, L->tri_count + L->sphere_count) ||
-                                 memhint_fresh_wants_huge((L->tri_count + 1) * sizeof(triangle));
-    if (s->triangles_on_huge_pages) {
-        memhint_huge(s->triangles, (L->tri_count + 1) * sizeof(triangle));
+                                 memhint_fresh_huge(s->triangles, tri_bytes);
+    if (s->triangles_on_huge_pages) { /* the two smaller arrays as the triangles */
+        memhint_huge(s->triangles, tri_bytes);
         memhint_huge(s->triangle_info, (L->tri_count + 1) * sizeof(prim_info));
         memhint_huge(s->triangle_normals, (L->tri_count + 1) * sizeof(vec3));
     }
