@@ -195,11 +195,12 @@ TEST(load_scene_same_on_any_threads) {
                       memcmp(a->triangle_info, b->triangle_info, n * sizeof(prim_info)) == 0 &&
                       memcmp(a->world_center, b->world_center, sizeof a->world_center) == 0 &&
                       a->world_scale == b->world_scale &&
-                      a->triangle_vertex_normals && a->triangle_uvs &&
-                      same_array(a->triangle_vertex_normals, b->triangle_vertex_normals, 3 * n * sizeof(uint32_t)) &&
+                      a->corner_normals && a->triangle_uvs &&
+                      a->corner_normals_first == b->corner_normals_first &&
+                      a->corner_normal_tris == b->corner_normal_tris &&
+                      same_array(a->corner_normals, b->corner_normals, 3 * (size_t)a->corner_normal_tris * sizeof(vec3)) &&
                       same_array(a->triangle_uvs, b->triangle_uvs, 3 * n * sizeof(uint32_t)) &&
-                      a->vertex_normal_count == b->vertex_normal_count && a->uv_count == b->uv_count &&
-                      memcmp(a->vertex_normals, b->vertex_normals, a->vertex_normal_count * sizeof(vec3)) == 0 &&
+                      a->uv_count == b->uv_count &&
                       memcmp(a->uvs, b->uvs, a->uv_count * 2 * sizeof(float)) == 0,
                   "the scenes loaded on 1 and 3 threads differ");
     }

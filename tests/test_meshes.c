@@ -950,22 +950,34 @@ TEST(mesh_obj_normals_and_uvs_reach_the_scene) {
     scene *s = scene_load(util_write_temp("attrs.json", json), NULL, err, sizeof err);
     CHECK(s != NULL, "%s", err);
     if (!s) return;
-    CHECK(s->triangle_count == 3 && s->vertex_normal_count == 2 && s->uv_count == 4, "%u triangles, %u normals, %u uvs",
-          s->triangle_count, s->vertex_normal_count, s->uv_count);
-    CHECK(s->triangle_vertex_normals && s->triangle_uvs, "no attribute arrays");
-    if (s->triangle_vertex_normals && s->triangle_uvs && s->triangle_count == 3) {
-        const uint32_t *n = s->triangle_vertex_normals, *t = s->triangle_uvs;
-        CHECK(n[0] == SCENE_NONE && n[1] == SCENE_NONE && n[2] == SCENE_NONE && t[0] == SCENE_NONE, "flat mesh got attributes");
-        CHECK(n[3] == 0 && n[4] == 1 && n[5] == 0 && n[6] == 0 && n[7] == 0 && n[8] == 1, "normal indices %u %u %u / %u %u %u",
-              n[3], n[4], n[5], n[6], n[7], n[8]);
+    CHECK(s->triangle_count == 3 && util_distinct_corner_normals(s) == 2 && s->uv_count == 4,
+          "%u triangles, %zu normals, %u uvs", s->triangle_count, util_distinct_corner_normals(s), s->uv_count);
+    CHECK(s->corner_normals && s->triangle_uvs, "no attribute arrays");
+    CHECK(s->corner_normals_first == 1 && s->corner_normal_tris == 2, "corner normals over triangles %u + %u, want 1 + 2",
+          s->corner_normals_first, s->corner_normal_tris);
+    if (s->corner_normals && s->triangle_uvs && s->triangle_count == 3) {
+        const uint32_t *t = s->triangle_uvs;
+        vec3 c[2][3], a = {0, 1, 0}, b = {0, 0.70710678f, 0.70710678f};
+        int has = 1;
+        for (int k = 0; k < 3; k++) has &= util_corner_normal(s, 1, k, &c[0][k]) & util_corner_normal(s, 2, k, &c[1][k]);
+        vec3 unused;
+        CHECK(!util_corner_normal(s, 0, 0, &unused) && t[0] == SCENE_NONE, "flat mesh got attributes");
+        /* f 1/1/1 4/4/2 3/3/1 2/2/2, fanned: (1, 4, 3) with normals (1, 2, 1), (1, 3, 2) with (1, 1, 2). */
+        const vec3 *want[2][3] = {{&a, &b, &a}, {&a, &a, &b}};
+        int right = has;
+        for (int i = 0; i < 2 && has; i++)
+            for (int k = 0; k < 3; k++)
+                right &= c[i][k].x == want[i][k]->x && c[i][k].y == want[i][k]->y && fabsf(c[i][k].z - want[i][k]->z) < 1e-6f;
+        CHECK(right, "corner normals (%g %g %g) (%g %g %g) (%g %g %g) / (%g %g %g) (%g %g %g) (%g %g %g)", c[0][0].x,
+              c[0][0].y, c[0][0].z, c[0][1].x, c[0][1].y, c[0][1].z, c[0][2].x, c[0][2].y, c[0][2].z, c[1][0].x,
+              c[1][0].y, c[1][0].z, c[1][1].x, c[1][1].y, c[1][1].z, c[1][2].x, c[1][2].y, c[1][2].z);
+        CHECK(has && c[0][1].y == c[0][1].z && fabsf(c[0][1].y - 0.70710678f) < 1e-6f, "normals not unit");
         CHECK(t[3] == 0 && t[4] == 3 && t[5] == 2 && t[6] == 0 && t[7] == 2 && t[8] == 1, "uv indices");
-        vec3 a = s->vertex_normals[0], b = s->vertex_normals[1];
-        CHECK(a.x == 0 && a.y == 1 && a.z == 0 && fabsf(b.y - 0.70710678f) < 1e-6f && b.y == b.z, "normals not unit");
         CHECK(s->uvs[2 * 2] == 1 && s->uvs[2 * 2 + 1] == 1, "uv 3 is (%g, %g)", s->uvs[4], s->uvs[5]);
     }
     scene_free(s);
     s = scene_load("scenes/cornell-box.json", NULL, err, sizeof err);
-    CHECK(s && !s->vertex_normals && !s->triangle_vertex_normals && !s->uvs && !s->triangle_uvs, "cornell box has attributes");
+    CHECK(s && !s->corner_normals && !s->uvs && !s->triangle_uvs, "cornell box has attributes");
     scene_free(s);
 }
 
@@ -1005,7 +1017,7 @@ static double furnace(const char *type, const char *obj, int level_poly, const c
     }
     CHECK(img && covered > 300, "%s: only %d pixels on the sphere", obj, covered);
     CHECK(gained == 0, "%s: %d pixels brighter than the albedo allows (energy gained)", obj, gained);
-    CHECK(s->triangle_vertex_normals || level_poly < 0, "%s: no vertex normals loaded", obj);
+    CHECK(s->corner_normals || level_poly < 0, "%s: no vertex normals loaded", obj);
     free(img);
     scene_free(s);
     *min_out = lo;
@@ -1243,7 +1255,7 @@ static void floor_does_not_leak(const char *type, const char *file) {
              " \"lights\": [{\"type\": \"point\", \"position\": [3, -0.5, 0], \"intensity\": [50, 50, 50]}]}",
              type, file);
     scene *s = scene_load(util_write_temp("leak.json", json), NULL, err, sizeof err);
-    CHECK(s && s->triangle_vertex_normals, "%s: %s", file, s ? "no vertex normals" : err);
+    CHECK(s && s->corner_normals, "%s: %s", file, s ? "no vertex normals" : err);
     if (!s) return;
     trace_stats st;
     float *img = util_render(s, 1, 16, 1, &st);
@@ -1316,8 +1328,9 @@ TEST(mesh_imported_smooth_normals_white_furnace) {
     fprintf(stderr, "  imported (glTF) low-poly smooth sphere: mean %.4f, darkest %.4f\n", low, lo);
     char err[512];
     scene *s = glb ? util_scene_from_text("{\"import\": {\"file\": \"ico1n.glb\"}}", err, sizeof err) : NULL;
-    CHECK(s && s->triangle_count == 80 && s->vertex_normal_count == 42, "%u triangles, %u normals (want 80, 42): %s",
-          s ? s->triangle_count : 0, s ? s->vertex_normal_count : 0, s ? "" : err);
+    CHECK(s && s->triangle_count == 80 && util_smooth_triangles(s) == 80 && util_distinct_corner_normals(s) == 42,
+          "%u triangles, %zu with normals, %zu distinct normals (want 80, 80, 42): %s", s ? s->triangle_count : 0,
+          s ? util_smooth_triangles(s) : 0, s ? util_distinct_corner_normals(s) : 0, s ? "" : err);
     scene_free(s);
     glb = glb_from_obj("tests/scenes/icosphere3n.obj", "ico3n.glb");
     double smooth = glb ? furnace("model", glb, 3, "", &lo) : -1;
@@ -1366,12 +1379,52 @@ TEST(mesh_normals_from_faces_follow_the_angle) {
     obj_mesh_free(&m);
 }
 
+/* Corner normals (scene.h) over the triangles that have them: an
+ * octahedron smoothed by "smooth_angle" after a flat quad gets them from
+ * its first triangle on, each corner the same bits as when it is loaded
+ * alone, and the quad none. */
+TEST(mesh_corner_normals_cover_the_smooth_triangles) {
+    util_write_temp("octa2.obj", "v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n"
+                                 "f 1 3 5\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf 3 1 6\nf 2 3 6\nf 4 2 6\nf 1 4 6\n");
+    util_write_temp("floor2.obj", "v -5 -2 -5\nv 5 -2 -5\nv 5 -2 5\nv -5 -2 5\nf 1 3 2\nf 1 4 3\n");
+    char json[1024], err[512];
+    scene *s[2];
+    for (int i = 0; i < 2; i++) {
+        snprintf(json, sizeof json,
+                 "{\"camera\": {\"type\": \"perspective\", \"position\": [0, 1, 4], \"look_at\": [0, 0, 0], \"fov\": 40},"
+                 " \"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo\": [0.8, 0.8, 0.8]}},"
+                 " \"shapes\": [%s{\"type\": \"mesh\", \"file\": \"octa2.obj\", \"material\": \"m\", \"smooth_angle\": 80}]}",
+                 i ? "{\"type\": \"mesh\", \"file\": \"floor2.obj\", \"material\": \"m\"}, " : "");
+        s[i] = scene_load(util_write_temp("corners.json", json), NULL, err, sizeof err);
+        CHECK(s[i] != NULL, "%s", err);
+    }
+    if (s[0] && s[1]) {
+        CHECK(s[0]->corner_normals_first == 0 && s[0]->corner_normal_tris == 8 && s[1]->corner_normals_first == 2 &&
+                  s[1]->corner_normal_tris == 8,
+              "corner normals over %u + %u alone, %u + %u after the quad (want 0 + 8, 2 + 8)",
+              s[0]->corner_normals_first, s[0]->corner_normal_tris, s[1]->corner_normals_first, s[1]->corner_normal_tris);
+        vec3 a, b;
+        CHECK(!util_corner_normal(s[1], 0, 0, &a) && !util_corner_normal(s[1], 1, 0, &a), "the flat quad has normals");
+        int same = 1, have = 1;
+        for (uint32_t t = 0; t < 8; t++)
+            for (int k = 0; k < 3; k++) {
+                have &= util_corner_normal(s[0], t, k, &a) & util_corner_normal(s[1], t + 2, k, &b);
+                same &= memcmp(&a, &b, sizeof a) == 0;
+            }
+        CHECK(have && same, "the octahedron's corner normals differ after the quad (have %d)", have);
+        CHECK(util_distinct_corner_normals(s[1]) == 24, "%zu distinct made normals, want 24 (one per corner)",
+              util_distinct_corner_normals(s[1]));
+    }
+    scene_free(s[0]);
+    scene_free(s[1]);
+}
+
 /* A mesh's own vertex normals survive in a scene that also imports a model:
  * an octahedron smoothed by "smooth_angle", lit directly by a point light,
  * renders the same (to rounding: the scene's bounds differ) with and
  * without an imported triangle far out of view (a "model" shape with a
  * normal: the scene gets the importer's shading data, corner uvs, and the
- * model's normal joins the mesh's in vertex_normals). Once, a separate
+ * model's normal joins the mesh's in the corner normals). Once, a separate
  * per-corner normal array gave triangles that were not imported their
  * geometric normal, which replaced the mesh's smooth normal: the
  * octahedron came out faceted. */
@@ -1390,8 +1443,11 @@ TEST(mesh_smooth_normals_survive_an_imported_model) {
                  " \"lights\": [{\"type\": \"point\", \"position\": [3, 3, 3], \"intensity\": [20, 20, 20]}]}",
                  i ? ", {\"type\": \"model\", \"file\": \"far.obj\", \"translate\": [0, -40, 0]}" : "");
         scene *s = scene_load(util_write_temp("mixed.json", json), NULL, err, sizeof err);
-        CHECK(s && s->triangle_vertex_normals && (i == 0 || s->corner_uvs), "%s", s ? "no normals" : err);
-        CHECK(!s || s->vertex_normal_count == 24u + (unsigned)i, "%u vertex normals", s ? s->vertex_normal_count : 0);
+        CHECK(s && s->corner_normals && (i == 0 || s->corner_uvs), "%s", s ? "no normals" : err);
+        /* Made normals are each corner's own sum of its faces: 24 of them. */
+        CHECK(!s || (util_smooth_triangles(s) == 8u + (unsigned)i && util_distinct_corner_normals(s) == 24u + (unsigned)i),
+              "%zu triangles with normals, %zu distinct normals (want %u, %u)", s ? util_smooth_triangles(s) : 0,
+              s ? util_distinct_corner_normals(s) : 0, 8u + (unsigned)i, 24u + (unsigned)i);
         if (!s) return;
         trace_stats st;
         img[i] = util_render(s, 1, 24, 1, &st);

@@ -247,3 +247,37 @@ void util_resume_counts(const char *log, int *resumed, int *from_journal, int *r
     }
     if (f) fclose(f);
 }
+
+int util_corner_normal(const scene *s, uint32_t prim, int k, vec3 *out) {
+    uint32_t t = prim - s->corner_normals_first;
+    if (!s->corner_normals || t >= s->corner_normal_tris) return 0;
+    const vec3 *c = s->corner_normals + 3 * (size_t)t;
+    if (c[0].x == 0.0f && c[0].y == 0.0f && c[0].z == 0.0f && c[1].x == 0.0f && c[1].y == 0.0f &&
+        c[1].z == 0.0f && c[2].x == 0.0f && c[2].y == 0.0f && c[2].z == 0.0f)
+        return 0;
+    *out = c[k];
+    return 1;
+}
+
+size_t util_smooth_triangles(const scene *s) {
+    size_t n = 0;
+    vec3 v;
+    for (uint32_t t = 0; t < s->triangle_count; t++) n += util_corner_normal(s, t, 0, &v);
+    return n;
+}
+
+static int cmp_vec3_bits(const void *a, const void *b) { return memcmp(a, b, sizeof(vec3)); }
+
+size_t util_distinct_corner_normals(const scene *s) {
+    size_t n = 0, cap = 3 * (size_t)s->triangle_count;
+    vec3 *all = malloc((cap ? cap : 1) * sizeof *all);
+    if (!all) return 0;
+    for (uint32_t t = 0; t < s->triangle_count; t++)
+        for (int k = 0; k < 3; k++)
+            if (util_corner_normal(s, t, k, &all[n])) n++;
+    qsort(all, n, sizeof *all, cmp_vec3_bits);
+    size_t distinct = 0;
+    for (size_t i = 0; i < n; i++) distinct += i == 0 || memcmp(&all[i], &all[i - 1], sizeof *all) != 0;
+    free(all);
+    return distinct;
+}

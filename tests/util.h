@@ -18,6 +18,15 @@ const char *util_temp_path(const char *name);
 /* Load a scene from JSON text; on failure returns NULL with the error. */
 scene *util_scene_from_text(const char *json, char *err, size_t err_len);
 
+/* Corner k (0-2) of triangle prim's shading normals into *out: 1 when the
+ * triangle has them (scene.h: in the range, not zero), else 0. */
+int util_corner_normal(const scene *s, uint32_t prim, int k, vec3 *out);
+
+/* The triangles with shading normals, and the distinct normals (by bits)
+ * among their corners: what an indexed store would have kept. */
+size_t util_smooth_triangles(const scene *s);
+size_t util_distinct_corner_normals(const scene *s);
+
 /* Render the whole frame single-threaded (or with opt) into a malloc'd float
  * buffer of width*height*3; NULL on failure. */
 float *util_render(const scene *s, int threads, int tile, int passes, trace_stats *st);

@@ -106,7 +106,7 @@ typedef struct {
  * and the geometry would render black. */
 #define SCENE_COORD_MAX 1e30
 
-#define SCENE_NONE UINT32_MAX /* no per-corner attribute (scene.triangle_vertex_normals, triangle_uvs) */
+#define SCENE_NONE UINT32_MAX /* no per-corner attribute (scene.triangle_uvs, the loader's normal indices) */
 
 typedef struct {
     vec3 center;
@@ -197,17 +197,18 @@ typedef struct scene {
     uint32_t light_count;
 
     /* Per-corner shading attributes of meshes (OBJ vn and vt), NULL when no
-     * triangle has any. The normals are the scene's one representation of
-     * shading normals: `mesh` shapes' vn (or normals made from faces) and
-     * imported models' (glTF NORMAL, OBJ through the importer) alike (an
-     * imported model stores each distinct normal once, shared by index;
-     * a mesh stores its vn as the file lists them and made normals one per
-     * corner), all shaded by
-     * shading_normal.h's rules. Normals are unit length (world and internal
-     * frames differ only by a uniform scale). */
-    vec3 *vertex_normals;
-    uint32_t vertex_normal_count;
-    uint32_t *triangle_vertex_normals; /* 3 per triangle into vertex_normals, SCENE_NONE for a triangle without */
+     * triangle has any. The corner normals are the scene's one
+     * representation of shading normals: `mesh` shapes' vn (or normals made
+     * from faces) and imported models' (glTF NORMAL, OBJ through the
+     * importer) alike, all shaded by shading_normal.h's rules: triangle
+     * corner_normals_first + k (k < corner_normal_tris) has its three at
+     * corner_normals[3k .. 3k + 2], zero vectors for a triangle without;
+     * triangles outside that range have none. Unit length (world and
+     * internal frames differ only by a uniform scale). Each triangle's own
+     * copy, so that a hit's normals are one load after the walk, not an
+     * index's and then the normals' (docs/meshes.md, twenty-ninth session). */
+    vec3 *corner_normals;
+    uint32_t corner_normals_first, corner_normal_tris;
     float *uvs;                        /* 2 per texture coordinate: u, v */
     uint32_t uv_count;
     uint32_t *triangle_uvs;            /* 3 per triangle into uvs, SCENE_NONE for a triangle without */
@@ -233,7 +234,7 @@ typedef struct scene {
     /* Imported models (render/import.h): per-corner texture coordinates,
      * NULL unless an imported triangle has normals or uvs; triangle t's
      * corners are entries 3t, 3t+1, 3t+2. (Their normals are in
-     * vertex_normals above.) */
+     * corner_normals above.) */
     float *corner_uvs;    /* 2 per corner, glTF convention (v down the image) */
     struct texture *textures; /* render/texture.h */
     uint32_t texture_count;

@@ -544,20 +544,56 @@ static int add_triangle_attributes(loader *L, const obj_mesh *m, size_t t, size_
     return 0;
 }
 
-/* Move the per-corner attributes into the scene (SCENE_NONE past the last
- * triangle that has any). Returns 0 or -1 when out of memory. */
+/* The corner normals of triangles first + [b, e) from the loader's
+ * indexed ones (par_run's body): each corner the normal its index names,
+ * zero for a triangle without (the indices are all SCENE_NONE or none). */
+typedef struct {
+    const loader *L;
+    size_t first;
+    vec3 *out;
+} corner_normals_job;
+
+static void fill_corner_normals(void *ctx, size_t b, size_t e, int part) {
+    const corner_normals_job *J = ctx;
+    (void)part;
+    for (size_t k = b; k < e; k++) {
+        const uint32_t *idx = J->L->tri_vn + 3 * (J->first + k);
+        for (int c = 0; c < 3; c++) J->out[3 * k + c] = idx[0] == SCENE_NONE ? vec3_splat(0.0f) : J->L->vn[idx[c]];
+    }
+}
+
+/* The scene's corner normals (scene.h) over the triangles from the first
+ * with normals to the last (L->tri_vn_len - 1), from the loader's normals
+ * and indices, which are freed. Returns 0 or -1 when out of memory. */
+static int assemble_corner_normals(loader *L) {
+    scene *s = L->s;
+    size_t first = 0;
+    while (first < L->tri_vn_len && L->tri_vn[3 * first] == SCENE_NONE) first++;
+    size_t n = L->tri_vn_len - first;
+    if (n) {
+        vec3 *c = malloc(3 * n * sizeof *c);
+        memhint_fresh(c, 3 * n * sizeof *c);
+        if (!c) return -1;
+        corner_normals_job J = {L, first, c};
+        par_run(n, par_parts_touch(n, 1 << 14), fill_corner_normals, &J);
+        s->corner_normals = c;
+        s->corner_normals_first = (uint32_t)first;
+        s->corner_normal_tris = (uint32_t)n;
+    }
+    free(L->vn);
+    free(L->tri_vn);
+    L->vn = NULL;
+    L->tri_vn = NULL;
+    return 0;
+}
+
+/* Move the per-corner attributes into the scene: the normals as corner
+ * normals, the uvs indexed (SCENE_NONE past the last triangle that has
+ * any). Returns 0 or -1 when out of memory. */
 static int assemble_attributes(loader *L) {
     scene *s = L->s;
     static const uint32_t none[3] = {SCENE_NONE, SCENE_NONE, SCENE_NONE};
-    if (L->tri_vn_len) {
-        if (L->tri_count > L->tri_vn_len && set_corners(&L->tri_vn, &L->tri_vn_len, &L->tri_vn_cap, L->tri_count - 1, none))
-            return -1;
-        s->vertex_normals = L->vn;
-        s->vertex_normal_count = (uint32_t)L->vn_count;
-        s->triangle_vertex_normals = L->tri_vn;
-        L->vn = NULL;
-        L->tri_vn = NULL;
-    }
+    if (L->tri_vn_len && assemble_corner_normals(L)) return -1;
     if (L->tri_vt_len) {
         if (L->tri_count > L->tri_vt_len && set_corners(&L->tri_vt, &L->tri_vt_len, &L->tri_vt_cap, L->tri_count - 1, none))
             return -1;
@@ -1299,8 +1335,7 @@ void scene_free(scene *s) {
     free(s->triangle_info);
     free(s->info_runs);
     free(s->triangle_normals);
-    free(s->vertex_normals);
-    free(s->triangle_vertex_normals);
+    free(s->corner_normals);
     free(s->uvs);
     free(s->triangle_uvs);
     free(s->spheres);

@@ -21,31 +21,36 @@
 #include "scene.h"
 #include "vec.h"
 
-/* Ask for the line of triangle prim's vertex-normal indices, which
+/* Triangle prim's three corner normals (scene.h), or NULL when it is
+ * outside the scene's range of triangles that may have them. */
+static inline const vec3 *shading_corner_normals(const scene *s, uint32_t prim) {
+    uint32_t k = prim - s->corner_normals_first; /* wraps below the range */
+    return s->corner_normals && k < s->corner_normal_tris ? s->corner_normals + 3 * (size_t)k : NULL;
+}
+
+/* Ask for the lines of triangle prim's corner normals, which
  * shading_normal_at will read if prim turns out to be the hit: the wide
- * walk calls it on each new closest candidate, so that the index is in
- * cache when the walk ends and only the normals' own load waits (the two
- * were loads in series after the walk). ico7 with normals made from faces
- * (perf, one thread, 128x128x64): the index's load 14.5% of the
- * integrator's samples before, 8.5% after, the integrator 17.9% -> 16.2%
- * of all; bench/pair.sh render CPU 0.925, 0.965, 1.012, 1.002 (10, 10, 10
- * and 16 rounds): about 1%, within this host's noise. No effect on
- * results. */
+ * walk calls it on each new closest candidate, so that they are in cache
+ * when the walk ends. Until the twenty-ninth session the normals were
+ * indexed: the walk could only ask for the index's line, and the
+ * normals' load waited for it after the walk. No effect on results. */
 static inline void shading_normal_prefetch(const scene *s, uint32_t prim) {
-    if (s->triangle_vertex_normals) __builtin_prefetch(s->triangle_vertex_normals + 3 * (size_t)prim);
+    const vec3 *c = shading_corner_normals(s, prim);
+    if (c) {
+        __builtin_prefetch(c);
+        __builtin_prefetch((const char *)c + 3 * sizeof *c - 1);
+    }
 }
 
 /* Shading normal of triangle prim at barycentrics (b0, b1, b2) into *ns, and
  * *ng turned to the side the vertex normals point to (their side wins over
  * the winding, as in pbrt). Returns 1, or 0 (leaving both alone) when the
- * triangle has no vertex normals or they cancel out. */
+ * triangle has no vertex normals (zero corners) or they cancel out. */
 static inline int shading_normal_at(const scene *s, uint32_t prim, float b0, float b1, float b2, vec3 *ng,
                                     vec3 *ns) {
-    if (!s->triangle_vertex_normals) return 0;
-    const uint32_t *idx = s->triangle_vertex_normals + 3 * (size_t)prim;
-    if (idx[0] == SCENE_NONE) return 0;
-    vec3 n = vec3_add(vec3_add(vec3_scale(s->vertex_normals[idx[0]], b0), vec3_scale(s->vertex_normals[idx[1]], b1)),
-                      vec3_scale(s->vertex_normals[idx[2]], b2));
+    const vec3 *c = shading_corner_normals(s, prim);
+    if (!c) return 0;
+    vec3 n = vec3_add(vec3_add(vec3_scale(c[0], b0), vec3_scale(c[1], b1)), vec3_scale(c[2], b2));
     float len = vec3_length(n);
     if (!(len > 1e-6f) || !isfinite(len)) return 0;
     *ns = vec3_scale(n, 1.0f / len);
