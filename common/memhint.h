@@ -73,14 +73,13 @@ void memhint_set_figures(double small_ms, double huge_ms, double sampled);
 int memhint_rule_cheap(double small_ms, double huge_ms);
 
 /* Buffers of at least this many bytes are sampled before they are given
- * huge pages (memhint_fresh_huge): their first
- * MEMHINT_PROBE_BYTES go on huge pages, are faulted in at once
- * (MADV_POPULATE_WRITE, which leaves the contents as they are: zero) and
- * timed, and that time becomes huge pages' latest figure, which then
- * decides for the rest of the buffer. Only where none of those pages is
- * resident yet (a grown buffer's front is not a first touch), and not
- * when TESSERA_HUGE_PAGES decides. Smaller buffers follow the figure
- * without a sample. */
+ * huge pages (memhint_fresh_huge): their first MEMHINT_PROBE_BYTES go on
+ * huge pages, are faulted in at once (MADV_POPULATE_WRITE, which leaves
+ * the contents as they are: zero) and timed, and that time becomes huge
+ * pages' latest figure, which then decides for the rest of the buffer.
+ * Only where none of those pages is resident yet (a grown buffer's front
+ * is not a first touch), and not when TESSERA_HUGE_PAGES decides. Smaller
+ * buffers follow the figure without a sample. */
 #define MEMHINT_SAMPLE_MIN_BYTES ((size_t)16 << 20)
 
 /* A big buffer about to be written for the first time, all of it: on huge

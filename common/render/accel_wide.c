@@ -101,6 +101,7 @@ typedef WIDE_LEAF(8) wide_leaf8;
  * ones, a one-pixel 2.6M render took 1.02-1.12 s against 2.01-2.29 s
  * with every big buffer on huge pages (docs/meshes.md). */
 #define ARENA_CHUNK_MIN ((size_t)4 << 20)
+#define ARENA_CHUNK_MAX ((size_t)128 << 20)
 
 /* The arena's hint for a long render: huge pages, asked for without a
  * probe (bump_arena_hint_fn). */
@@ -108,7 +109,6 @@ static int hint_huge(void *chunk, size_t bytes) {
     memhint_huge(chunk, bytes);
     return 1;
 }
-#define ARENA_CHUNK_MAX ((size_t)128 << 20)
 
 struct accel_wide {
     accel_embree_device dev;

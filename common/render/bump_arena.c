@@ -9,7 +9,6 @@
 #include <stdlib.h>
 #include <sys/mman.h>
 
-
 #define HUGE_PAGE ((size_t)2 << 20)
 
 typedef struct chunk {

@@ -1154,7 +1154,7 @@ static int assemble(loader *L) {
     size_t tri_bytes = (L->tri_count + 1) * sizeof(triangle);
     s->triangles_on_huge_pages = scene_render_is_long(s, L->tri_count + L->sphere_count) ||
                                  memhint_fresh_huge(s->triangles, tri_bytes);
-    if (s->triangles_on_huge_pages) { /* the two smaller arrays as the triangles */
+    if (s->triangles_on_huge_pages) { /* (again, for a short render: a no-op) and the two smaller arrays */
         memhint_huge(s->triangles, tri_bytes);
         memhint_huge(s->triangle_info, (L->tri_count + 1) * sizeof(prim_info));
         memhint_huge(s->triangle_normals, (L->tri_count + 1) * sizeof(vec3));
