@@ -2,6 +2,7 @@
 #include "util.h"
 
 #include "harness.h"
+#include "render/shading_normal.h"
 
 #include <arpa/inet.h>
 #include <fcntl.h>
@@ -249,12 +250,8 @@ void util_resume_counts(const char *log, int *resumed, int *from_journal, int *r
 }
 
 int util_corner_normal(const scene *s, uint32_t prim, int k, vec3 *out) {
-    uint32_t t = prim - s->corner_normals_first;
-    if (!s->corner_normals || t >= s->corner_normal_tris) return 0;
-    const vec3 *c = s->corner_normals + 3 * (size_t)t;
-    if (c[0].x == 0.0f && c[0].y == 0.0f && c[0].z == 0.0f && c[1].x == 0.0f && c[1].y == 0.0f &&
-        c[1].z == 0.0f && c[2].x == 0.0f && c[2].y == 0.0f && c[2].z == 0.0f)
-        return 0;
+    const vec3 *c = shading_corner_normals(s, prim);
+    if (!c || (vec3_is_zero(c[0]) && vec3_is_zero(c[1]) && vec3_is_zero(c[2]))) return 0;
     *out = c[k];
     return 1;
 }
