@@ -239,7 +239,8 @@ fuzz: $(FUZZ_BINS)
 	done; echo "fuzz: $(words $(FUZZ_TARGETS)) targets, no failures"
 
 -include $(FUZZ_COMMON_OBJ:.o=.d)
--include $(COMMON_OBJ:.o=.d) $(TEST_OBJ:.o=.d) $(COORD_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(BUILD)/bench/loadgen.d $(BUILD)/bench/seal_speed.d $(BUILD)/bench/accel_speed.d
+-include $(COMMON_OBJ:.o=.d) $(TEST_OBJ:.o=.d) $(COORD_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(BUILD)/bench/loadgen.d $(BUILD)/bench/seal_speed.d $(BUILD)/bench/accel_speed.d \
+         $(BUILD)/walk_count/bench/accel_speed.d $(BUILD)/walk_count/common/render/accel_wide.d
 
 # ---- make install (issue 18) -------------------------------------------------
 # `make install [PREFIX=/usr/local] [DESTDIR=]` copies tessera and tessera-worker
@@ -363,6 +364,20 @@ ACCEL_SPEED := $(BUILD)/bin/accel-speed
 $(ACCEL_SPEED): $(BUILD)/bench/accel_speed.o $(foreach l,render image net base,$(call layer_lib,$(l)))
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
+# `make walk-count`: accel-speed that also counts the wide BVH's walks,
+# node tests and leaf tests (its own accel_wide.o, compiled with
+# -DTESSERA_WALK_COUNT, linked before the library's): compare two trees by
+# counts, which have no noise (docs/meshes.md, thirtieth session).
+WALK_COUNT := $(BUILD)/bin/walk-count
+$(BUILD)/walk_count/%.o: %.c | $(DEPS_STAMP)
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) -O3 -DTESSERA_WALK_COUNT -c $< -o $@
+$(WALK_COUNT): $(BUILD)/walk_count/bench/accel_speed.o $(BUILD)/walk_count/common/render/accel_wide.o \
+               $(foreach l,render image net base,$(call layer_lib,$(l)))
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
+.PHONY: walk-count
+walk-count: $(WALK_COUNT)
 
 # What sealed links and audited tiles cost: five configurations of the local
 # farm run interleaved (bench/trust.sh; printed, not asserted).

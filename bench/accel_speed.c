@@ -13,7 +13,12 @@
  * BVH also its walk (the widest this CPU runs, or as TESSERA_NO_AVX512 /
  * TESSERA_NO_AVX2 say), its nodes and leaves and bytes per primitive.
  * --pair-both runs each kind twice a round: shadow rays traced alongside
- * the next ray (the default) and each at once (integrator_options.no_pair). */
+ * the next ray (the default) and each at once (integrator_options.no_pair).
+ *
+ * Built with -DTESSERA_WALK_COUNT over a copy of accel_wide.c compiled
+ * likewise (`make walk-count`: build/release/bin/walk-count), it also
+ * prints each round's walks, node tests and leaf tests through the wide
+ * BVH: a tree's quality measured without timing noise. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -87,6 +92,10 @@ int main(int argc, char **argv) {
             opt.no_pair = v % pairings;
             trace_stats st = {0};
             memset(accum, 0, px * 3 * sizeof(double));
+#ifdef TESSERA_WALK_COUNT
+            accel_wide_walk_counts c0, c1;
+            accel_wide_get_walk_counts(&c0);
+#endif
             double t0 = thread_cpu();
             int ref = r == 0 && i == 0; /* the first picture: the others are compared with it */
             render_tile_means(s, &opt, &all, s->settings.spp, 1, accum, ref ? first : rgb, &st, NULL);
@@ -95,6 +104,14 @@ int main(int argc, char **argv) {
             printf("round %d %-7s%s render CPU %.3f s, %.3f Mrays per CPU s, %s\n", r + 1, names[k],
                    opt.no_pair ? " (shadow rays unpaired)" : "", cpu,
                    (double)(st.rays + st.shadow_rays) / cpu * 1e-6, same ? "same picture" : "PICTURE DIFFERS");
+#ifdef TESSERA_WALK_COUNT
+            accel_wide_get_walk_counts(&c1);
+            unsigned long long walks = c1.walks - c0.walks, nodes = c1.nodes - c0.nodes, leaves = c1.leaves - c0.leaves;
+            if (walks)
+                printf("round %d %-7s walks %llu, node tests %llu (%.3f per walk), leaf tests %llu (%.3f per walk)\n",
+                       r + 1, names[k], walks, nodes, (double)nodes / (double)walks, leaves,
+                       (double)leaves / (double)walks);
+#endif
             fflush(stdout);
         }
     s->accel = NULL;

@@ -125,6 +125,16 @@ struct accel_wide {
 
 static void choose_walk(accel_wide *w);
 
+/* The walks' counters (accel_wide_get_walk_counts), compiled in only with
+ * -DTESSERA_WALK_COUNT; else the hooks in accel_wide_walk.h are empty. */
+#ifdef TESSERA_WALK_COUNT
+static _Thread_local accel_wide_walk_counts walk_counts;
+#define WALK_COUNT(field) (walk_counts.field++)
+void accel_wide_get_walk_counts(accel_wide_walk_counts *out) { *out = walk_counts; }
+#else
+#define WALK_COUNT(field) ((void)0)
+#endif
+
 /* What the build callbacks share. */
 typedef struct {
     const scene *s;

@@ -77,6 +77,17 @@ void accel_wide_get_stats(const accel_wide *w, accel_wide_stats *out);
 /* Closest hit with 0 < t < tmax. Returns 1 and fills *h, or 0 for a miss. */
 int accel_wide_intersect(const accel_wide *w, const scene *s, const ray *r, float tmax, hit *h);
 
+#ifdef TESSERA_WALK_COUNT
+/* Only in a build with -DTESSERA_WALK_COUNT (build/release/bin/walk-count,
+ * never the library): the walks started, node tests and leaf tests of the
+ * calling thread's walks since it started. Counts depend on the tree and
+ * the rays alone, so two trees compare without timing noise. */
+typedef struct {
+    unsigned long long walks, nodes, leaves;
+} accel_wide_walk_counts;
+void accel_wide_get_walk_counts(accel_wide_walk_counts *out);
+#endif
+
 /* Any hit with 0 < t < tmax (shadow rays). Returns 1 if occluded. */
 int accel_wide_occluded(const accel_wide *w, const scene *s, const ray *r, float tmax);
 

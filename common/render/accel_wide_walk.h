@@ -16,7 +16,9 @@
  * Before including, define WALK(name) (the name with a width suffix),
  * WALK_TARGET (a function attribute or nothing) and WALK_LANES (4 or 8:
  * lanes of the node test's vectors and of a leaf; NODE_W must be a
- * multiple). This file undefines them at its end. Not a public header. */
+ * multiple), and WALK_COUNT(field) (accel_wide.c: a counter's increment,
+ * or nothing). This file undefines the first three at its end. Not a
+ * public header. */
 
 /* The leaves' kernel at WALK_LANES lanes, compiled for this walk's target
  * (the 4-lane walk has none: the flat kernel's 4-lane build). */
@@ -174,6 +176,7 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(leaf_test)(uin
                                                                             float tmax, hit *h, int any_hit) {
     const WALK(leaf) *l = (const WALK(leaf) *)(ref & ~REF_TAGS);
     int found = 0;
+    WALK_COUNT(leaves);
     lint ids = *(const lint *)l->id;
     WALK(f4_group) g;
     /* Lanes without a triangle have NaN vertices: never candidates. */
@@ -237,6 +240,7 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(start)(const a
     h->b1 = h->b2 = 0.0f;
     h->corners = NULL;
     st->h = h;
+    WALK_COUNT(walks);
     st->cur = wb->root;
     st->sp = st->found = 0;
     if (!st->cur) return 0;
@@ -267,6 +271,7 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(step)(const sc
         const wide_node *n = (const wide_node *)cur;
         /* The children's line, fetched with the boxes' rather than after the test. */
         __builtin_prefetch(n->child);
+        WALK_COUNT(nodes);
         float tn[NODE_W] __attribute__((aligned(32)));
         unsigned bits = WALK(node_test)(n, &st->w, WALK(nsplat)(st->cull), tn);
         if (bits) {
