@@ -77,6 +77,14 @@ void accel_wide_get_stats(const accel_wide *w, accel_wide_stats *out);
 /* Closest hit with 0 < t < tmax. Returns 1 and fills *h, or 0 for a miss. */
 int accel_wide_intersect(const accel_wide *w, const scene *s, const ray *r, float tmax, hit *h);
 
+/* Any hit with 0 < t < tmax (shadow rays). Returns 1 if occluded. */
+int accel_wide_occluded(const accel_wide *w, const scene *s, const ray *r, float tmax);
+
+/* accel_wide_intersect of r and accel_wide_occluded of sh (*occluded set
+ * to its answer) in one call, the two walks interleaved: the same answers. */
+int accel_wide_intersect_occluded(const accel_wide *w, const scene *s, const ray *r, float tmax, hit *h,
+                                  const ray *sh, float sh_tmax, int *occluded);
+
 #ifdef TESSERA_WALK_COUNT
 /* Only in a build with -DTESSERA_WALK_COUNT (build/release/bin/walk-count,
  * never the library): the walks started, node tests and leaf tests of the
@@ -87,13 +95,5 @@ typedef struct {
 } accel_wide_walk_counts;
 void accel_wide_get_walk_counts(accel_wide_walk_counts *out);
 #endif
-
-/* Any hit with 0 < t < tmax (shadow rays). Returns 1 if occluded. */
-int accel_wide_occluded(const accel_wide *w, const scene *s, const ray *r, float tmax);
-
-/* accel_wide_intersect of r and accel_wide_occluded of sh (*occluded set
- * to its answer) in one call, the two walks interleaved: the same answers. */
-int accel_wide_intersect_occluded(const accel_wide *w, const scene *s, const ray *r, float tmax, hit *h,
-                                  const ray *sh, float sh_tmax, int *occluded);
 
 #endif
