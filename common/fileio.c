@@ -31,10 +31,14 @@ static int read_exactly(int fd, char *buf, size_t n, off_t off) {
 
 /* A big file is read in ranges of at least READ_PART_MIN bytes, one per
  * core (par.h), each by its own pread: the copy out of the page cache into
- * fresh memory runs at one core's speed (ico9's 217 MB OBJ: 0.14-0.17 s on
- * one thread, 0.07-0.09 s on two; a scratch program, 3 alternations,
- * 2026-11-28). The bytes are the same either way. */
-#define READ_PART_MIN ((size_t)32 << 20)
+ * fresh memory, and the kernel's clearing of that memory, run at one
+ * core's speed (ico9's 217 MB OBJ: 0.14-0.17 s on one thread, 0.07-0.09 s
+ * on two; a scratch program, 3 alternations, 2026-11-28). From 32 MiB to
+ * 4 MiB in the thirty-first session, so that the 38-51 MB OBJs of the
+ * benchmark's 2.0-2.6M scenes are read in two: ico8's in 84-123 against
+ * 22-63 ms (6 alternations, each a fresh process; docs/meshes.md). The
+ * bytes are the same either way. */
+#define READ_PART_MIN ((size_t)4 << 20)
 
 typedef struct {
     int fd;
