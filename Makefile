@@ -145,11 +145,11 @@ run: $(TESSERA) $(WORKER)
 	@mkdir -p out
 	$(TESSERA) render scenes/cornell-box.json -o out/cornell-box.png
 
-test: $(TESSERA) $(WORKER) $(TEST_BIN)
+test: $(TESSERA) $(WORKER) $(TEST_BIN) $(WALK_COUNT)
 	TESSERA_BIN=$(TESSERA) $(TEST_BIN)
 
 test-asan:
-	$(MAKE) VARIANT=asan all build/asan/bin/run-tests
+	$(MAKE) VARIANT=asan all build/asan/bin/run-tests build/asan/bin/walk-count
 	@rm -rf $(ASAN_REPORTS) && mkdir -p $(ASAN_REPORTS)
 	ASAN_OPTIONS=detect_leaks=1:log_path=$(CURDIR)/$(ASAN_REPORTS)/asan TESSERA_BIN=build/asan/bin/tessera build/asan/bin/run-tests; \
 	rc=$$?; if compgen -G "$(ASAN_REPORTS)/*" > /dev/null; then rc=1; \
