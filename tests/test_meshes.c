@@ -1662,12 +1662,13 @@ TEST(mesh_triangle_info_runs_give_every_triangles_info) {
 /* ---- the wide tree's quality, counted (make walk-count) ---- */
 
 /* One walk-count round's counts, from its "walks W, node tests N (...),
- * leaf tests L (...)" line; 0 when the line is missing. */
+ * leaf tests L (...)" line. */
 typedef struct {
     unsigned long long walks, nodes, leaves;
 } walk_counts;
 
-/* The counts of round `round` (1-based) in walk-count's output out. */
+/* The counts of round `round` (1-based) in walk-count's output out into
+ * *c. Returns 0 (and zero counts) when that round's line is missing. */
 static int parse_walk_counts(const char *out, int round, walk_counts *c) {
     char key[64];
     snprintf(key, sizeof key, "round %d wide    walks ", round);
@@ -1680,7 +1681,7 @@ static int parse_walk_counts(const char *out, int round, walk_counts *c) {
 /* walk-count (the binary beside the tessera under test, built by make test
  * and make test-asan) over ICO_SCENE's wide tree: two rounds count the same
  * (the counts depend on the tree and the rays alone) and make the same
- * picture, every walk tests the root (the tree has 145 nodes), and the
+ * picture, every walk tests at least the root (a node, not a leaf), and the
  * SAH tree stays within 10% of the node and leaf tests per walk it took
  * when this test was written (thirty-first session: 1.599 and 2.031 for
  * the 8-lane walks' leaves of 8, 1.884 and 2.037 for the SSE walk's leaves
