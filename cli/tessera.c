@@ -341,10 +341,14 @@ static void print_wide_stats(const accel_wide_stats *ws) {
                  ws->build_threads == 1 ? "" : "s");
     else
         snprintf(how, sizeof how, "Embree's %s build, device \"%s\"", ws->builder, ws->config);
+    char spare[96] = "";
+    if (ws->spare_bytes)
+        snprintf(spare, sizeof spare, " (%.1f MiB of the loader's freed buffers offered)",
+                 (double)ws->spare_bytes / 1048576.0);
     fprintf(stderr, "intersector: wide (%d-wide BVH, Tessera's %s walk and tests; %s), %zu nodes, %zu leaves, "
-            "%.1f KiB%s, peak %.1f KiB while building, built in %.3f ms\n", ws->node_width, ws->walk_isa, how,
+            "%.1f KiB%s%s, peak %.1f KiB while building, built in %.3f ms\n", ws->node_width, ws->walk_isa, how,
             ws->node_count, ws->leaf_count, (double)ws->memory_bytes / 1024.0,
-            ws->huge_pages ? " on huge pages" : "", (double)ws->peak_bytes / 1024.0, ws->build_seconds * 1e3);
+            ws->huge_pages ? " on huge pages" : "", spare, (double)ws->peak_bytes / 1024.0, ws->build_seconds * 1e3);
 }
 
 /* -v's line for the page figures (memhint.h), when a big buffer asked for them. */
@@ -609,6 +613,7 @@ static int cmd_render(int argc, char **argv) {
         return 1;
     }
     a.ov.no_accel = 1; /* the workers build their own; this process, below, if it renders */
+    a.ov.keep_spare = 1; /* for that build; released below when there is none */
     scene *s = scene_load_bundle(&b, &a.ov, err, sizeof err);
     if (!s) {
         fprintf(stderr, "tessera: %s\n", err);
@@ -638,7 +643,7 @@ static int cmd_render(int argc, char **argv) {
     uint64_t scene_tris = 0, scene_bytes = farm_mode ? 0 : scene_memory_estimate_loaded(&b, s->triangle_count, &scene_tris);
     if (!farm_mode && render_fits_memory(&a, s, scene_bytes, scene_tris)) rc = -1;
     if (!farm_mode && rc == 0) {
-        scene_bundle_free(&b); /* the scene has what it needs: the mesh files' text goes before the build */
+        scene_bundle_free_keeping(&b, s); /* the scene has what it needs: the mesh files' text goes before the build */
         if (scene_build_accel(s, err, sizeof err)) {
             fprintf(stderr, "tessera: %s\n", err);
             rc = -1;
@@ -648,6 +653,7 @@ static int cmd_render(int argc, char **argv) {
         fprintf(stderr, "tessera: %s\n", err);
         rc = -1;
     }
+    scene_release_spare(s); /* no build here (a farm's workers build theirs), or done */
     if (a.verbose) print_scene_info(s);
     image img = {0};
     if (rc == 0 && farm_mode) rc = render_fits_memory(&a, s, 0, 0);

@@ -1723,3 +1723,90 @@ TEST(mesh_walk_count_bounds_the_wide_tree_quality) {
           "Morton tree: %llu walks (SAH %llu), %llu node tests (SAH %llu): the counters do not tell the trees apart",
           morton.walks, sah[0].walks, morton.nodes, sah[0].nodes);
 }
+
+/* ---- spare memory for the tree's arena (bump_arena_take_spare) ---- */
+
+/* Spare blocks become an arena's first chunks, whole and zeroed, in the
+ * order given, before any chunk is mapped: a 3 MiB block filled with 0xab
+ * and a 1 MiB one, then a block that fits neither (passed over), then
+ * fresh 2 MiB chunks. The arena frees the blocks (ASan's leak check in
+ * make test-asan fails otherwise); a spare nobody takes frees its own. */
+TEST(mesh_bump_arena_takes_spare_blocks_first) {
+    size_t big = 3u << 20, small = 1u << 20;
+    unsigned char *b1 = malloc(big), *b2 = malloc(small);
+    CHECK(b1 && b2, "out of memory");
+    if (!b1 || !b2) return free(b1), free(b2);
+    memset(b1, 0xab, big);
+    memset(b2, 0xcd, small);
+    bump_spare *sp = NULL;
+    bump_spare_add(&sp, b1, big);
+    bump_spare_add(&sp, b2, small);
+    CHECK(bump_spare_bytes(sp) == big + small, "the spare holds %zu bytes, not %zu", bump_spare_bytes(sp), big + small);
+    bump_arena *a = bump_arena_new(2u << 20, NULL);
+    CHECK(a != NULL, "bump_arena_new failed");
+    if (!a) return bump_spare_free(sp);
+    bump_arena_take_spare(a, sp);
+    CHECK(bump_spare_bytes(sp) == 0, "the spare still holds %zu bytes after the arena took them", bump_spare_bytes(sp));
+    bump_spare_free(sp);
+    size_t in_b1 = 0, in_b2 = 0, elsewhere = 0, not_zero = 0, order_bad = 0, bad_align = 0;
+    int phase = 0; /* 0: b1, 1: b2, 2: mapped */
+    for (int i = 0; i < 200; i++) {
+        unsigned char *p = bump_arena_alloc(a, 64 * 1024);
+        CHECK(p != NULL, "allocation %d refused", i);
+        if (!p) break;
+        if ((uintptr_t)p % BUMP_ARENA_ALIGN) bad_align++;
+        int where = p >= b1 && p + 64 * 1024 <= b1 + big ? 0 : p >= b2 && p + 64 * 1024 <= b2 + small ? 1 : 2;
+        if (where < phase) order_bad++;
+        phase = where;
+        in_b1 += where == 0, in_b2 += where == 1, elsewhere += where == 2;
+        for (size_t k = 0; k < 64 * 1024; k += 4096)
+            if (p[k]) not_zero++;
+        memset(p, 0x11, 64 * 1024);
+    }
+    /* 3 MiB less the block's alignment to 64 bytes: 47 or 48 blocks. */
+    CHECK(in_b1 >= 47 && in_b1 <= 48 && in_b2 >= 15 && in_b2 <= 16 && elsewhere == 200 - in_b1 - in_b2,
+          "blocks: %zu in the first spare block, %zu in the second, %zu mapped", in_b1, in_b2, elsewhere);
+    CHECK(order_bad == 0, "%zu blocks came from a chunk before the one already in use", order_bad);
+    CHECK(not_zero == 0 && bad_align == 0, "%zu blocks not zeroed, %zu misaligned", not_zero, bad_align);
+    CHECK(bump_arena_on_huge_pages(a) == 0, "an arena with spare chunks claims huge pages");
+    bump_arena_free(a);
+
+    unsigned char *b3 = malloc(small);
+    CHECK(b3 != NULL, "out of memory");
+    bump_spare *left = NULL;
+    bump_spare_add(&left, b3, small);
+    bump_spare_free(left); /* frees b3 */
+}
+
+/* The loader's freed buffers as the wide tree's chunks
+ * (TESSERA_ARENA_SPARE_MIN low enough for ICO_SCENE's few KiB; a short
+ * render, 8x8x1 against 2,573 primitives): -v says they were offered, and
+ * the picture is the one without them (TESSERA_ARENA_SPARE=0), in process
+ * and on a local farm of forked workers. A long render offers none. */
+TEST(mesh_spare_buffers_give_the_same_picture) {
+    char ref[512], img[512], cmd[2048], out[8192];
+    snprintf(ref, sizeof ref, "%s", util_temp_path("spare-ref.pfm"));
+    snprintf(img, sizeof img, "%s", util_temp_path("spare.pfm"));
+    const char *const runs[] = {"--workers 0", "--workers 2"};
+    for (int k = 0; k < 2; k++) {
+        snprintf(cmd, sizeof cmd,
+                 "TESSERA_ARENA_SPARE=0 %s render " ICO_SCENE " %s --width 8 --height 8 --spp 1 --no-progress -v -o %s",
+                 harness_tessera(), runs[k], ref);
+        int rc = util_run(cmd, out, sizeof out);
+        CHECK(rc == 0 && !strstr(out, "freed buffers offered"), "%s (%d): %s", cmd, rc, out);
+        snprintf(cmd, sizeof cmd,
+                 "TESSERA_ARENA_SPARE_MIN=1 %s render " ICO_SCENE " %s --width 8 --height 8 --spp 1 --no-progress -v -o %s",
+                 harness_tessera(), runs[k], img);
+        rc = util_run(cmd, out, sizeof out);
+        CHECK(rc == 0 && (k == 1 || strstr(out, "freed buffers offered")), "%s (%d): no spare offered: %s", cmd, rc,
+              out);
+        CHECK(util_same_file(img, ref), "%s: the picture differs from the one without spare buffers", cmd);
+    }
+    snprintf(cmd, sizeof cmd,
+             "TESSERA_ARENA_SPARE_MIN=1 %s render " ICO_SCENE " --workers 0 --width 32 --height 32 --spp 4 --no-progress "
+             "-v -o %s",
+             harness_tessera(), img);
+    int rc = util_run(cmd, out, sizeof out);
+    CHECK(rc == 0 && !strstr(out, "freed buffers offered"), "a long render offered spare buffers: %s (%d): %s", cmd,
+          rc, out);
+}

@@ -168,11 +168,11 @@ static int job_ensure_scene(pool *p, pool_job *j) {
         double t0 = pool_clock();
         /* no_accel: the intersector is built below, once the bundle is gone */
         scene_overrides ov = {.width = sc->width, .height = sc->height, .spp = sc->spp, .max_depth = sc->max_depth,
-                              .has_seed = 1, .seed = sc->seed, .no_accel = 1, .cancelled = pool_leaving,
+                              .has_seed = 1, .seed = sc->seed, .no_accel = 1, .keep_spare = 1, .cancelled = pool_leaving,
                               .cancel_ctx = p};
         sc->s = scene_memory_check(&sc->bundle, sc->load_error, sizeof sc->load_error) ? NULL
                 : scene_load_bundle(&sc->bundle, &ov, sc->load_error, sizeof sc->load_error);
-        scene_bundle_free(&sc->bundle); /* the scene holds what it needs: the meshes' text goes before the build */
+        scene_bundle_free_keeping(&sc->bundle, sc->s); /* the scene holds what it needs: the meshes' text goes before the build */
         if (sc->s && scene_build_accel(sc->s, sc->load_error, sizeof sc->load_error)) {
             scene_free(sc->s);
             sc->s = NULL;

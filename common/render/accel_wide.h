@@ -51,6 +51,7 @@ typedef struct {
     const char *builder;   /* "binned SAH" (Tessera's) or "Morton" (Embree's; ACCEL_WIDE_MORTON_MIN_PRIMITIVES) */
     int build_threads;     /* the SAH build's threads (0 for the Morton build: Embree's device decides) */
     int huge_pages;        /* 1 when every chunk of the tree asked for transparent huge pages (accel_wide.c) */
+    size_t spare_bytes;    /* the loader's freed buffers offered to the tree's arena (scene.spare; short renders) */
 } accel_wide_stats;
 
 /* From this many primitives the tree is built by Embree's Morton-code

@@ -26,7 +26,8 @@ bump_arena *bump_arena_new(size_t chunk_bytes, bump_arena_hint_fn hint);
  * with a hint, 0 with no hint). Call when no thread allocates. */
 int bump_arena_on_huge_pages(const bump_arena *a);
 
-/* A block of `bytes` (at most the chunk size), BUMP_ARENA_ALIGN-aligned and
+/* A block of `bytes` (at most the chunk size; a spare block smaller than
+ * that is passed over when the block does not fit), BUMP_ARENA_ALIGN-aligned and
  * zero-filled as fresh pages are, owned by the arena. Any thread, at once.
  * Returns NULL when no chunk can be mapped. */
 void *bump_arena_alloc(bump_arena *a, size_t bytes);
@@ -36,7 +37,35 @@ void *bump_arena_alloc(bump_arena *a, size_t bytes);
  * included). Call when no thread allocates. */
 size_t bump_arena_bytes(const bump_arena *a);
 
-/* Unmap every chunk and free the arena; NULL is allowed. */
+/* Unmap every chunk, free the blocks it took (bump_arena_take_spare) and
+ * the arena; NULL is allowed. */
 void bump_arena_free(bump_arena *a);
+
+/* Spare memory: big buffers a loader is done with, already faulted in,
+ * kept for an arena's chunks instead of being returned to the kernel. On
+ * this VM the first touch of fresh memory costs 1-2 ms per MB of kernel
+ * time, a memset of memory already touched about 0.07 (docs/meshes.md,
+ * thirty-first session). */
+typedef struct bump_spare bump_spare;
+
+#define BUMP_SPARE_MAX 16 /* blocks one spare holds; more are freed at once */
+
+/* Give *sp the block at `block` (from malloc, `bytes` of it usable),
+ * making *sp first when it is NULL. *sp owns the block from here (freed by
+ * bump_spare_free or by the arena that takes it); when *sp cannot be made
+ * or is full, the block is freed at once. */
+void bump_spare_add(bump_spare **sp, void *block, size_t bytes);
+
+/* The bytes sp holds (0 for NULL). */
+size_t bump_spare_bytes(const bump_spare *sp);
+
+/* Free sp's blocks and sp; NULL is allowed. */
+void bump_spare_free(bump_spare *sp);
+
+/* Move sp's blocks into a: each becomes one of its next chunks, whole
+ * (zeroed as fresh memory is, no hint given), before any is mapped; a
+ * frees them with itself. sp is left empty; NULL is allowed. Call before
+ * the first bump_arena_alloc. */
+void bump_arena_take_spare(bump_arena *a, bump_spare *sp);
 
 #endif

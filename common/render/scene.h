@@ -93,6 +93,8 @@ typedef struct {
     int roulette_depth;
     int no_accel; /* 1: leave scene.accel NULL (a coordinator that only hands the scene out, or a
                    * caller that frees the bundle first, then calls scene_build_accel) */
+    int keep_spare; /* with no_accel: scene_build_accel follows, so keep scene.spare for it (a
+                     * load that builds its intersector itself keeps it anyway) */
     scene_cancel_cb cancelled; /* NULL: never; kept in the scene for scene_build_accel */
     void *cancel_ctx;
 } scene_overrides;
@@ -243,6 +245,15 @@ typedef struct scene {
      * scene_build_accel's build too; NULL for none. */
     scene_cancel_cb cancelled;
     void *cancel_ctx;
+
+    /* The loader's big freed buffers, kept for the wide tree's arena of a
+     * short render (render/bump_arena.h: memory already faulted in costs
+     * this VM a fraction of fresh memory); taken by the build, the rest
+     * freed by scene_build_accel, scene_release_spare or scene_free. NULL
+     * for none. keeps_spare: the load decided to keep them (and the
+     * bundle's text, scene_keep_bundle_text). */
+    struct bump_spare *spare;
+    int keeps_spare;
 } scene;
 
 /* Load and validate a scene file. On success returns the scene (free it with
@@ -262,6 +273,14 @@ scene *scene_load_bundle(const scene_bundle *b, const scene_overrides *overrides
  * mesh text: the build is the load's peak). Returns 0, or -1 with err
  * "FILE: shapes: building the intersector: WHY" (s->accel stays NULL). */
 int scene_build_accel(scene *s, char *err, size_t err_len);
+
+/* Free s->spare (the loader's buffers kept for the build) now: for a
+ * caller that loaded with keep_spare and then builds no intersector. */
+void scene_release_spare(scene *s);
+
+/* Free bundle b (loaded into s), its big files' text going to s->spare
+ * when s keeps it (keeps_spare), as the loader's own buffers did. */
+void scene_bundle_free_keeping(scene_bundle *b, scene *s);
 
 /* Frame s's automatic camera (s->auto_camera.framed) for the aspect ratio
  * of s->settings.width and height, as the load does: a worker renders a

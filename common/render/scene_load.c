@@ -11,12 +11,14 @@
  * and triangles run in ranges on every core (par.h), with the same result.
  * Every refusal names the file and the field; docs/scene-format.md
  * describes the format. */
+#include <malloc.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "accel.h"
+#include "bump_arena.h"
 #include "import.h"
 #include "json_field.h"
 #include "memhint.h"
@@ -107,7 +109,38 @@ typedef struct {
     size_t shade_count, shade_cap;
     import_camera import_cam;
     int imported, imported_lights;
+    const scene_overrides *ov; /* as given to the load (NULL: none) */
 } loader;
+
+/* Buffers of at least this many bytes go to scene.spare (keep_buffer);
+ * $TESSERA_ARENA_SPARE_MIN overrides it (the tests' small scenes). */
+#define SPARE_MIN ((size_t)16 << 20)
+
+static size_t spare_min(void) {
+    const char *e = getenv("TESSERA_ARENA_SPARE_MIN");
+    return e && *e ? (size_t)strtoull(e, NULL, 10) : SPARE_MIN;
+}
+
+/* Whether L's scene keeps the loader's big buffers for its build: the
+ * build follows in this process (L->ov), the render is short
+ * (scene_render_is_long: a long one's tree goes on huge pages, which its
+ * walks repay; these buffers are mostly on 4 KiB pages) and
+ * $TESSERA_ARENA_SPARE is not "0". 10.5M triangles at 256x256x16: 6.06-6.68
+ * s against 6.73-7.35 s (docs/meshes.md, thirty-first session). */
+static int keeps_spare(const loader *L) {
+    const char *e = getenv("TESSERA_ARENA_SPARE");
+    if (!L->s || (e && strcmp(e, "0") == 0) || (L->ov && L->ov->no_accel && !L->ov->keep_spare)) return 0;
+    return !scene_render_is_long(L->s, L->tri_count + L->sphere_count);
+}
+
+/* Free one of the loader's buffers, or give it to L->s->spare when it is
+ * big and L keeps them (keeps_spare). */
+static void keep_buffer(loader *L, void *p) {
+    if (L->s) L->s->keeps_spare = keeps_spare(L);
+    size_t bytes = p && L->s && L->s->keeps_spare ? malloc_usable_size(p) : 0;
+    if (bytes && bytes >= spare_min()) bump_spare_add(&L->s->spare, p, bytes);
+    else free(p);
+}
 
 /* Make room for one more element; returns the slot or NULL (out of memory). */
 static void *push(void **arr, size_t *count, size_t *cap, size_t size) {
@@ -1163,7 +1196,7 @@ static int assemble(loader *L) {
     memset(&s->triangle_info[L->tri_count], 0, sizeof(prim_info));
     memset(&s->triangle_normals[L->tri_count], 0, sizeof(vec3));
     par_run(L->tri_count, par_parts_touch(L->tri_count, 1 << 14), assemble_triangles, L);
-    free(L->wv); /* not needed past here: the scene's peak memory is the intersector's build */
+    keep_buffer(L, L->wv); /* not needed past here: the scene's peak memory is the intersector's build */
     L->wv = NULL;
     for (size_t i = 0; i < L->sphere_count; i++) {
         s->spheres[i].center = to_internal(s, L->spheres[i].c);
@@ -1238,9 +1271,14 @@ void scene_feature_names(uint32_t features, char *buf, size_t len) {
     }
 }
 
-/* Free the loader's temporaries (the scene and the JSON stay); it can be
+/* Free the loader's temporaries (the scene and the JSON stay; the pool
+ * and the records may go to the scene's spare, keep_buffer); it can be
  * called again. */
 static void loader_free(loader *L) {
+    keep_buffer(L, L->wv);
+    keep_buffer(L, L->tris);
+    L->wv = NULL;
+    L->tris = NULL;
     void *temps[] = {(void *)L->material_names, L->wv, L->tris, L->spheres, L->emitters, L->points, L->shade_uv,
                      L->shade_flags, L->vn, L->vt, L->tri_vn, L->tri_vt};
     for (size_t i = 0; i < sizeof temps / sizeof temps[0]; i++) free(temps[i]);
@@ -1283,9 +1321,26 @@ int scene_build_accel(scene *s, char *err, size_t err_len) {
         return -1;
     }
     s->accel = accel_build_err(s, s->settings.accel, why, sizeof why);
+    scene_release_spare(s); /* what the build did not take */
     if (s->accel) return 0;
     snprintf(err, err_len, "%s: shapes: building the intersector: %s", s->path, why);
     return -1;
+}
+
+void scene_release_spare(scene *s) {
+    bump_spare_free(s->spare);
+    s->spare = NULL;
+    s->keeps_spare = 0;
+}
+
+void scene_bundle_free_keeping(scene_bundle *b, scene *s) {
+    for (size_t i = 0; s && s->keeps_spare && i < b->count; i++) {
+        size_t bytes = b->files[i].data ? malloc_usable_size(b->files[i].data) : 0;
+        if (!bytes || bytes < spare_min()) continue;
+        bump_spare_add(&s->spare, b->files[i].data, bytes);
+        b->files[i].data = NULL;
+    }
+    scene_bundle_free(b);
 }
 
 scene *scene_load_bundle(const scene_bundle *b, const scene_overrides *ov, char *err, size_t err_len) {
@@ -1300,6 +1355,7 @@ scene *scene_load_bundle(const scene_bundle *b, const scene_overrides *ov, char 
     L.j.err = err;
     L.j.err_len = err_len;
     L.bundle = b;
+    L.ov = ov;
     L.s = calloc(1, sizeof(scene));
     if (L.s && ov) {
         L.s->cancelled = ov->cancelled;
@@ -1345,5 +1401,6 @@ void scene_free(scene *s) {
     free(s->corner_uvs);
     for (uint32_t i = 0; s->textures && i < s->texture_count; i++) texture_free(&s->textures[i]);
     free(s->textures);
+    bump_spare_free(s->spare);
     free(s);
 }
