@@ -1728,9 +1728,9 @@ TEST(mesh_walk_count_bounds_the_wide_tree_quality) {
 
 /* Spare blocks become an arena's first chunks, whole and zeroed, in the
  * order given, before any chunk is mapped: a 3 MiB block filled with 0xab
- * and a 1 MiB one, then a block that fits neither (passed over), then
- * fresh 2 MiB chunks. The arena frees the blocks (ASan's leak check in
- * make test-asan fails otherwise); a spare nobody takes frees its own. */
+ * and a 1 MiB one, then fresh 2 MiB chunks. The arena frees the blocks
+ * (ASan's leak check in make test-asan fails otherwise); a spare nobody
+ * takes frees its own; an arena takes no more than max_bytes. */
 TEST(mesh_bump_arena_takes_spare_blocks_first) {
     size_t big = 3u << 20, small = 1u << 20;
     unsigned char *b1 = malloc(big), *b2 = malloc(small);
@@ -1745,7 +1745,7 @@ TEST(mesh_bump_arena_takes_spare_blocks_first) {
     bump_arena *a = bump_arena_new(2u << 20, NULL);
     CHECK(a != NULL, "bump_arena_new failed");
     if (!a) return bump_spare_free(sp);
-    bump_arena_take_spare(a, sp);
+    bump_arena_take_spare(a, sp, SIZE_MAX);
     CHECK(bump_spare_bytes(sp) == 0, "the spare still holds %zu bytes after the arena took them", bump_spare_bytes(sp));
     bump_spare_free(sp);
     size_t in_b1 = 0, in_b2 = 0, elsewhere = 0, not_zero = 0, order_bad = 0, bad_align = 0;
@@ -1776,6 +1776,26 @@ TEST(mesh_bump_arena_takes_spare_blocks_first) {
     bump_spare *left = NULL;
     bump_spare_add(&left, b3, small);
     bump_spare_free(left); /* frees b3 */
+
+    /* At most max_bytes taken: the first block only, the second freed at
+     * once (ASan's leak check sees it otherwise). */
+    unsigned char *b4 = malloc(small), *b5 = malloc(small);
+    CHECK(b4 && b5, "out of memory");
+    bump_spare *two = NULL;
+    bump_spare_add(&two, b4, small);
+    bump_spare_add(&two, b5, small);
+    bump_arena *a2 = bump_arena_new(2u << 20, NULL);
+    CHECK(a2 != NULL, "bump_arena_new failed");
+    if (!a2) return bump_spare_free(two);
+    bump_arena_take_spare(a2, two, 1);
+    bump_spare_free(two);
+    size_t in_b4 = 0;
+    for (int i = 0; i < 20; i++) {
+        unsigned char *p = bump_arena_alloc(a2, 64 * 1024);
+        in_b4 += p && p >= b4 && p + 64 * 1024 <= b4 + small;
+    }
+    CHECK(in_b4 >= 15 && in_b4 <= 16, "%zu of 20 blocks in the one spare block taken (15 or 16 expected)", in_b4);
+    bump_arena_free(a2);
 }
 
 /* The loader's freed buffers as the wide tree's chunks

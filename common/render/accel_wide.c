@@ -405,10 +405,11 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
         return NULL;
     }
     /* A short render's chunks come first from the loader's freed buffers,
-     * already faulted in (s->spare: bump_arena.h), then from fresh memory;
-     * a long render's stay on huge pages. */
+     * already faulted in (s->spare: bump_arena.h), as many as the tree's
+     * estimate can use, then from fresh memory; a long render's stay on
+     * huge pages. */
     w->stats.spare_bytes = long_render ? 0 : bump_spare_bytes(s->spare);
-    if (!long_render) bump_arena_take_spare(w->arena, s->spare);
+    if (!long_render) bump_arena_take_spare(w->arena, s->spare, tree);
     build_ctx b = {.s = s, .arena = w->arena, .leaf_lanes = w->leaf_lanes};
     size_t peak = 0;
     w->root = (uintptr_t)(morton ? build_morton(w, &b, n, &peak) : build_sah(&b, n, &peak));

@@ -153,13 +153,16 @@ void bump_spare_free(bump_spare *sp) {
     free(sp);
 }
 
-void bump_arena_take_spare(bump_arena *a, bump_spare *sp) {
+void bump_arena_take_spare(bump_arena *a, bump_spare *sp, size_t max_bytes) {
     if (!sp) return;
+    size_t taken = 0;
+    for (size_t i = 0; i < a->taken_count; i++) taken += a->taken_bytes[i];
     for (size_t k = 0; k < sp->count; k++) {
-        if (a->taken_count == BUMP_SPARE_MAX) { /* not reached: a spare holds as many */
+        if (taken >= max_bytes || a->taken_count == BUMP_SPARE_MAX) {
             free(sp->block[k]);
             continue;
         }
+        taken += sp->bytes[k];
         a->taken[a->taken_count] = sp->block[k];
         a->taken_bytes[a->taken_count++] = sp->bytes[k];
     }

@@ -43,9 +43,9 @@ void bump_arena_free(bump_arena *a);
 
 /* Spare memory: big buffers a loader is done with, already faulted in,
  * kept for an arena's chunks instead of being returned to the kernel. On
- * this VM the first touch of fresh memory costs 1-2 ms per MB of kernel
- * time, a memset of memory already touched about 0.07 (docs/meshes.md,
- * thirty-first session). */
+ * this VM the first touch of fresh memory costs 1-2 ms of kernel time per
+ * MB, a memset of memory already touched about 0.07 ms (docs/meshes.md,
+ * twenty-seventh and thirty-first sessions). */
 typedef struct bump_spare bump_spare;
 
 #define BUMP_SPARE_MAX 16 /* blocks one spare holds; more are freed at once */
@@ -62,10 +62,12 @@ size_t bump_spare_bytes(const bump_spare *sp);
 /* Free sp's blocks and sp; NULL is allowed. */
 void bump_spare_free(bump_spare *sp);
 
-/* Move sp's blocks into a: each becomes one of its next chunks, whole
- * (zeroed as fresh memory is, no hint given), before any is mapped; a
- * frees them with itself. sp is left empty; NULL is allowed. Call before
- * the first bump_arena_alloc. */
-void bump_arena_take_spare(bump_arena *a, bump_spare *sp);
+/* Move sp's blocks into a, in order, until a holds max_bytes of them (the
+ * last may pass it): each becomes one of its next chunks, whole (zeroed as
+ * fresh memory is, no hint given), before any is mapped; a frees them with
+ * itself. The blocks past max_bytes are freed now, so that memory the
+ * arena will not use is not held through its build. sp is left empty;
+ * NULL is allowed. Call before the first bump_arena_alloc. */
+void bump_arena_take_spare(bump_arena *a, bump_spare *sp, size_t max_bytes);
 
 #endif

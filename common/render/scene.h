@@ -251,7 +251,7 @@ typedef struct scene {
      * this VM a fraction of fresh memory); taken by the build, the rest
      * freed by scene_build_accel, scene_release_spare or scene_free. NULL
      * for none. keeps_spare: the load decided to keep them (and the
-     * bundle's text, scene_keep_bundle_text). */
+     * bundle's text, scene_bundle_free_keeping). */
     struct bump_spare *spare;
     int keeps_spare;
 } scene;
