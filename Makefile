@@ -145,7 +145,8 @@ run: $(TESSERA) $(WORKER)
 	@mkdir -p out
 	$(TESSERA) render scenes/cornell-box.json -o out/cornell-box.png
 
-test: $(TESSERA) $(WORKER) $(TEST_BIN) $(WALK_COUNT)
+# (walk-count by its path: WALK_COUNT is defined further down, after this rule is read)
+test: $(TESSERA) $(WORKER) $(TEST_BIN) $(BUILD)/bin/walk-count
 	TESSERA_BIN=$(TESSERA) $(TEST_BIN)
 
 test-asan:
