@@ -345,9 +345,9 @@ static void print_wide_stats(const accel_wide_stats *ws) {
     if (ws->spare_bytes)
         snprintf(spare, sizeof spare, " (%.1f MiB of the loader's freed buffers offered)",
                  (double)ws->spare_bytes / 1048576.0);
-    fprintf(stderr, "intersector: wide (%d-wide BVH, Tessera's %s walk and tests; %s), %zu nodes, %zu leaves, "
-            "%.1f KiB%s%s, peak %.1f KiB while building, built in %.3f ms\n", ws->node_width, ws->walk_isa, how,
-            ws->node_count, ws->leaf_count, (double)ws->memory_bytes / 1024.0,
+    fprintf(stderr, "intersector: wide (%d-wide BVH, Tessera's %s walk and tests; %s), %zu nodes (%zu of %d slots), "
+            "%zu leaves, %.1f KiB%s%s, peak %.1f KiB while building, built in %.3f ms\n", ws->node_width, ws->walk_isa,
+            how, ws->node_count, ws->wide_node_count, ws->node_width, ws->leaf_count, (double)ws->memory_bytes / 1024.0,
             ws->huge_pages ? " on huge pages" : "", spare, (double)ws->peak_bytes / 1024.0, ws->build_seconds * 1e3);
 }
 

@@ -20,9 +20,9 @@
  * (under a lock: the builder's threads make them at once) to be freed. */
 typedef struct tnode {
     int leaf;
-    unsigned count;          /* a leaf's primitives */
-    void *child[8];
-    float lo[8][3], hi[8][3];
+    unsigned count;          /* a leaf's primitives; an inner node's children as create_node announced them */
+    void *child[SAH_MAX_WIDTH];
+    float lo[SAH_MAX_WIDTH][3], hi[SAH_MAX_WIDTH][3];
     uint32_t ids[8];
     struct tnode *next_alloc;
 } tnode;
@@ -47,7 +47,11 @@ static tnode *tnode_new(tree *t) {
     return n;
 }
 
-static void *cb_node(void *user) { return tnode_new(user); }
+static void *cb_node(unsigned count, void *user) {
+    tnode *n = tnode_new(user);
+    if (n) n->count = count;
+    return n;
+}
 
 static void cb_child(void *node, unsigned k, void *child, const float lo[3], const float hi[3], void *user) {
     tnode *n = node;
@@ -60,7 +64,7 @@ static void cb_child(void *node, unsigned k, void *child, const float lo[3], con
 /* An inner node's children: those set, from the first. */
 static unsigned children_of(const tnode *n) {
     unsigned k = 0;
-    while (k < 8 && n->child[k]) k++;
+    while (k < SAH_MAX_WIDTH && n->child[k]) k++;
     return k;
 }
 
@@ -102,6 +106,7 @@ typedef struct {
     size_t n;
     unsigned char *seen;
     size_t dup, missing, bad_box, bad_node, deepest;
+    unsigned width;
 } audit;
 
 /* The union of the subtree's primitives' boxes into lo/hi; checks that
@@ -122,8 +127,8 @@ static void audit_tree(audit *A, const tnode *n, size_t depth, float lo[3], floa
     }
     if (depth + 1 > A->deepest) A->deepest = depth + 1;
     unsigned count = children_of(n);
-    if (count < 2) A->bad_node++;
-    for (unsigned k = count; k < 8; k++)
+    if (count < 2 || count > A->width || count != n->count) A->bad_node++; /* or create_node was told otherwise */
+    for (unsigned k = count; k < SAH_MAX_WIDTH; k++)
         if (n->child[k]) A->bad_node++; /* a gap before it */
     for (unsigned k = 0; k < count; k++) {
         float clo[3], chi[3];
@@ -192,8 +197,11 @@ static sah_prim *prims_of(const float (*b)[6], size_t n) {
     return p;
 }
 
+/* The builder's width in build_and_check (sah_args.width). */
+static unsigned test_width = 8;
+
 static sah_args args_for(tree *t, unsigned leaf_min, unsigned leaf_max, unsigned max_depth) {
-    return (sah_args){.width = 8, .leaf_min = leaf_min, .leaf_max = leaf_max, .block = leaf_max,
+    return (sah_args){.width = test_width, .leaf_min = leaf_min, .leaf_max = leaf_max, .block = leaf_max,
                       .max_depth = max_depth, .trav_cost = 1.0f, .isect_cost = 1.0f, .create_node = cb_node,
                       .set_child = cb_child, .create_leaf = cb_leaf, .cancelled = cb_cancelled, .user = t};
 }
@@ -210,15 +218,15 @@ static void build_and_check(const char *what, int kind, size_t n, unsigned leaf_
     tnode *root = sah_build(&a, p, n);
     CHECK(root != NULL, "%s, %zu boxes: the build failed", what, n);
     if (root) {
-        audit A = {.box = (const float (*)[6])b, .n = n, .seen = calloc(n, 1)};
+        audit A = {.box = (const float (*)[6])b, .n = n, .seen = calloc(n, 1), .width = test_width};
         float lo[3], hi[3];
         audit_tree(&A, root, 0, lo, hi);
         for (size_t i = 0; i < n; i++) A.missing += !A.seen[i];
         CHECK(A.dup == 0 && A.missing == 0, "%s, %zu boxes: %zu in two leaves, %zu in none", what, n, A.dup,
               A.missing);
         CHECK(A.bad_box == 0, "%s, %zu boxes: %zu child boxes are not their subtree's union", what, n, A.bad_box);
-        CHECK(A.bad_node == 0, "%s, %zu boxes: %zu nodes with fewer than 2 children or a bad id", what, n,
-              A.bad_node);
+        CHECK(A.bad_node == 0, "%s, %zu boxes: %zu nodes with fewer than 2 or more than %u children, not as many as "
+              "announced, or a bad id", what, n, A.bad_node, test_width);
         CHECK(A.deepest <= max_depth, "%s, %zu boxes: %zu levels of nodes, the limit is %u", what, n, A.deepest,
               max_depth);
         CHECK(!atomic_load(&t.bad_leaf), "%s, %zu boxes: a leaf outside 1..%u primitives or out of id order", what,
@@ -246,10 +254,17 @@ TEST(sah_build_trees_hold_every_primitive_once) {
         for (size_t i = 0; i < sizeof sizes / sizeof sizes[0]; i++) {
             build_and_check(kinds[k].what, kinds[k].kind, sizes[i], 8, 8, 40, NULL); /* the 8-lane walks' leaves */
             build_and_check(kinds[k].what, kinds[k].kind, sizes[i], 3, 4, 40, NULL); /* the SSE walk's */
+            test_width = 16; /* the wide BVH's (accel_wide.c) */
+            build_and_check(kinds[k].what, kinds[k].kind, sizes[i], 8, 8, 40, NULL);
+            build_and_check(kinds[k].what, kinds[k].kind, sizes[i], 3, 4, 40, NULL);
+            test_width = 8;
         }
     /* The depth limit reached: below it sets are cut by index. */
     build_and_check("uniform, depth 12", UNIFORM, 100000, 8, 8, 12, NULL);
     build_and_check("geometric, depth 14", GEOMETRIC, 4000, 3, 4, 14, NULL);
+    test_width = 16;
+    build_and_check("uniform, depth 12, 16 wide", UNIFORM, 100000, 8, 8, 12, NULL);
+    test_width = 8;
 }
 
 /* The same tree, bit for bit, on 1, 2 and 3 threads (above the size where

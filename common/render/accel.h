@@ -3,7 +3,7 @@
  * Four structures answer the same two questions (closest hit, any hit):
  *  - ACCEL_BVH: a binary bounding volume hierarchy (bvh.h), for scenes of
  *    hundreds of primitives;
- *  - ACCEL_WIDE: an 8-wide BVH with SIMD node and leaf tests (accel_wide.h),
+ *  - ACCEL_WIDE: a wide BVH (8 or 16 children a node) with SIMD node and leaf tests (accel_wide.h),
  *    for scenes of thousands to hundreds of thousands of primitives;
  *  - ACCEL_EMBREE: Embree's BVH walk with Tessera's tests at the leaves
  *    (accel_embree.h), for the largest scenes;

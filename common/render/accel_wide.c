@@ -1,6 +1,7 @@
-/* accel_wide.c - the 8-wide BVH of accel_wide.h: Tessera's binned SAH
- * builder (or, from ACCEL_WIDE_MORTON_MIN_PRIMITIVES, Embree's Morton-code
- * builder) makes it, Tessera walks it and decides every hit.
+/* accel_wide.c - the wide BVH of accel_wide.h (nodes of up to 16
+ * children): Tessera's binned SAH builder (or, from
+ * ACCEL_WIDE_MORTON_MIN_PRIMITIVES, Embree's Morton-code builder, up to 8
+ * children a node) makes it, Tessera walks it and decides every hit.
  *
  * Build: one padded box per primitive (accel_padded_box), handed to
  * sah_build (sah_build.h; par.h's threads) or to rtcBuildBVH (the Embree
@@ -11,7 +12,7 @@
  * Walk (accel_wide_walk.h, compiled for SSE, AVX2 and AVX-512VL; the
  * widest the CPU runs is chosen at build time): a node holds its children's
  * boxes as structure of arrays, so one 8-lane slab test (one AVX register,
- * or two SSE ones) covers all eight; the children hit are visited nearest
+ * or two SSE ones) covers eight, two a node of 16; the children hit are visited nearest
  * first, the others kept on a fixed-size stack with their entry distance
  * and dropped when they come up behind the culling distance. A leaf holds
  * up to 8 primitives for the AVX walks, 4 for the SSE walk: its triangles'
@@ -48,27 +49,43 @@
 #include <emmintrin.h>
 #endif
 
-/* Children per node: 8 measured 3-8% faster than 4 (docs/meshes.md). The
- * walk's bytes do not depend on it; -DNODE_W=4 builds the 4-wide tree. */
-#ifndef NODE_W
-#define NODE_W 8
-#endif
+/* Children per node at most. A node the builder gives more than
+ * NODE_SMALL children has NODE_W slots (NODE16_TAG on its reference),
+ * others NODE_SMALL: the binned SAH fills a node up to NODE_W children, so
+ * the top of a tree is 16 wide and a walk tests fewer nodes (node tests
+ * per walk at 2.6M triangles 2.83 -> 2.22), while the sparse nodes near
+ * the leaves (3-4 children on average) keep 256 bytes (docs/meshes.md,
+ * thirty-second session). 8 slots measured 3-8% faster than 4. The
+ * walk's bytes depend on neither. */
+#define NODE_W 16
+#define NODE_SMALL 8
 
 
 #define WIDE_MAX_DEPTH 40                       /* the builder's limit on the tree's depth */
 #define WIDE_STACK ((NODE_W - 1) * WIDE_MAX_DEPTH + NODE_W) /* NODE_W - 1 siblings kept per level at most */
 #define LEAF_TAG ((uintptr_t)1)                 /* low bit of a child reference: a leaf */
 #define SPHERE_TAG ((uintptr_t)2)               /* next bit, of a leaf's: it holds spheres */
-#define REF_TAGS (LEAF_TAG | SPHERE_TAG)
+#define NODE16_TAG ((uintptr_t)4)               /* of an inner node's: it has NODE_W slots, not NODE_SMALL */
+#define REF_TAGS (LEAF_TAG | SPHERE_TAG | NODE16_TAG)
 #define SLAB_WIDEN (1.0f + 3.0f / 8388608.0f)   /* 1 + 3 * 2^-23 >= pbrt's 1 + 2 gamma(3) */
 
-/* An inner node: the boxes of its (up to) NODE_W children, box[2a][k] the lower
- * and box[2a + 1][k] the upper bound of child k on axis a; an absent child
- * has the empty box (lower +inf, upper -inf), which no ray enters. */
-typedef struct {
-    float box[6][NODE_W];
-    uintptr_t child[NODE_W]; /* node pointer, or leaf pointer | LEAF_TAG (| SPHERE_TAG) */
-} wide_node;
+/* An inner node of W slots (NODE_SMALL or NODE_W): the boxes of its
+ * children as 6 rows of W floats, row 2a the lower and row 2a + 1 the
+ * upper bounds on axis a (child k's in lane k), then its W child
+ * references (node pointer (| NODE16_TAG), or leaf pointer | LEAF_TAG (|
+ * SPHERE_TAG)), filled from slot 0; an absent child has reference 0 and
+ * the empty box (lower +inf, upper -inf), which no ray enters. 256 or 512
+ * bytes. */
+#define NODE_BYTES(W) (6 * sizeof(float) * (W) + sizeof(uintptr_t) * (W))
+
+/* The slots of the node ref refers to, its rows and its references. */
+static inline unsigned node_slots(uintptr_t ref) { return ref & NODE16_TAG ? NODE_W : NODE_SMALL; }
+static inline float *node_row(uintptr_t ref, int row) {
+    return (float *)(ref & ~REF_TAGS) + (size_t)row * node_slots(ref);
+}
+static inline uintptr_t *node_children(uintptr_t ref) {
+    return (uintptr_t *)((char *)(ref & ~REF_TAGS) + 6 * sizeof(float) * node_slots(ref));
+}
 
 /* A leaf of up to L primitives, one per lane: a triangle's lane holds its
  * vertices (vertex k's axis a at v[k][a][lane]) and id; a sphere's lane NaN
@@ -140,7 +157,7 @@ typedef struct {
     const scene *s;
     bump_arena *arena;
     unsigned leaf_lanes; /* 4 (wide_leaf4) or 8 (wide_leaf8) */
-    atomic_size_t nodes, leaves;
+    atomic_size_t nodes, leaves, wide_nodes; /* wide_nodes: those of NODE_W slots */
     atomic_size_t oversized; /* a leaf the builder made with more than leaf_lanes primitives (0: none) */
     atomic_int cancelled;    /* the scene's cancel callback said so (cb_progress) */
     int threads;             /* the SAH build's (build_sah) */
@@ -165,37 +182,39 @@ static bool cb_progress(void *user, double done) {
     return !build_cancelled(user);
 }
 
+/* A node for child_count children (NODE_W slots for more than
+ * NODE_SMALL), all slots empty, as a tagged reference; NULL when out of
+ * memory. */
 static void *cb_create_node(RTCThreadLocalAllocator alloc, unsigned int child_count, void *user) {
     build_ctx *b = user;
-    (void)child_count;
     (void)alloc;
-    wide_node *n = bump_arena_alloc(b->arena, sizeof *n);
+    unsigned slots = child_count > NODE_SMALL ? NODE_W : NODE_SMALL;
+    char *n = bump_arena_alloc(b->arena, NODE_BYTES(slots));
     if (!n) return NULL;
-    for (int k = 0; k < NODE_W; k++) {
-        for (int a = 0; a < 3; a++) {
-            n->box[2 * a][k] = INFINITY;
-            n->box[2 * a + 1][k] = -INFINITY;
-        }
-        n->child[k] = 0;
-    }
+    uintptr_t ref = (uintptr_t)n | (slots == NODE_W ? NODE16_TAG : 0);
+    for (int a = 0; a < 3; a++)
+        for (unsigned k = 0; k < slots; k++) node_row(ref, 2 * a)[k] = INFINITY, node_row(ref, 2 * a + 1)[k] = -INFINITY;
+    memset(node_children(ref), 0, sizeof(uintptr_t) * slots);
     atomic_fetch_add_explicit(&b->nodes, 1, memory_order_relaxed);
-    return n;
+    if (slots == NODE_W) atomic_fetch_add_explicit(&b->wide_nodes, 1, memory_order_relaxed);
+    return (void *)ref;
 }
 
 static void cb_set_children(void *node, void **children, unsigned int count, void *user) {
-    wide_node *n = node;
     (void)user;
-    for (unsigned k = 0; k < count && k < NODE_W; k++) n->child[k] = (uintptr_t)children[k];
+    uintptr_t ref = (uintptr_t)node;
+    for (unsigned k = 0; k < count && k < node_slots(ref); k++) node_children(ref)[k] = (uintptr_t)children[k];
 }
 
-/* Child k's box into n's rows (wide_node). */
-static void node_set_box(wide_node *n, unsigned k, const float lo[3], const float hi[3]) {
-    for (int a = 0; a < 3; a++) n->box[2 * a][k] = lo[a], n->box[2 * a + 1][k] = hi[a];
+/* Child k's box into the rows of the node ref refers to. */
+static void node_set_box(void *node, unsigned k, const float lo[3], const float hi[3]) {
+    uintptr_t ref = (uintptr_t)node;
+    for (int a = 0; a < 3; a++) node_row(ref, 2 * a)[k] = lo[a], node_row(ref, 2 * a + 1)[k] = hi[a];
 }
 
 static void cb_set_bounds(void *node, const struct RTCBounds **bounds, unsigned int count, void *user) {
     (void)user;
-    for (unsigned k = 0; k < count && k < NODE_W; k++) {
+    for (unsigned k = 0; k < count && k < node_slots((uintptr_t)node); k++) {
         const struct RTCBounds *b = bounds[k];
         node_set_box(node, k, (const float[3]){b->lower_x, b->lower_y, b->lower_z},
                      (const float[3]){b->upper_x, b->upper_y, b->upper_z});
@@ -255,13 +274,12 @@ static void *cb_create_leaf(RTCThreadLocalAllocator alloc, const struct RTCBuild
 }
 
 /* sah_build's callbacks (sah_build.h), into the same nodes and leaves. */
-static void *sah_create_node(void *user) { return cb_create_node(NULL, NODE_W, user); }
+static void *sah_create_node(unsigned count, void *user) { return cb_create_node(NULL, count, user); }
 
 static void sah_set_child(void *node, unsigned k, void *child, const float lo[3], const float hi[3], void *user) {
-    wide_node *n = node;
     (void)user;
-    n->child[k] = (uintptr_t)child;
-    node_set_box(n, k, lo, hi);
+    node_children((uintptr_t)node)[k] = (uintptr_t)child;
+    node_set_box(node, k, lo, hi);
 }
 
 static void *sah_create_leaf(const sah_prim *prims, size_t count, void *user) {
@@ -351,7 +369,7 @@ static void *build_morton(accel_wide *w, build_ctx *b, size_t n, size_t *peak) {
     }
     struct RTCBuildArguments args = rtcDefaultBuildArguments();
     args.buildQuality = RTC_BUILD_QUALITY_LOW;
-    args.maxBranchingFactor = NODE_W;
+    args.maxBranchingFactor = NODE_SMALL; /* Embree's limit: 8 */
     args.maxDepth = WIDE_MAX_DEPTH;
     args.sahBlockSize = b->leaf_lanes;
     args.maxLeafSize = b->leaf_lanes;
@@ -388,14 +406,14 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
         return NULL;
     }
     w->stats.config = w->dev.config;
-    w->stats.node_width = NODE_W;
+    w->stats.node_width = morton ? NODE_SMALL : NODE_W;
     w->stats.builder = morton ? "Morton" : "binned SAH";
     choose_walk(w);
     w->stats.primitive_count = n;
     if (n == 0) return w; /* nothing to hit: root 0 */
     /* Chunks of about a tenth of the tree (a node and a leaf per 8
      * primitives), 4 to 128 MiB. */
-    size_t tree = n / 8 * (sizeof(wide_node) + sizeof(wide_leaf8)), chunk = tree / 10;
+    size_t tree = n / 8 * (NODE_BYTES(NODE_SMALL) + sizeof(wide_leaf8)), chunk = tree / 10;
     chunk = chunk < ARENA_CHUNK_MIN ? ARENA_CHUNK_MIN : chunk > ARENA_CHUNK_MAX ? ARENA_CHUNK_MAX : chunk;
     int long_render = scene_render_is_long(s, n);
     bump_arena_hint_fn hint = long_render ? hint_huge : tree >= MEMHINT_MIN_BYTES ? memhint_fresh_huge : NULL;
@@ -428,6 +446,7 @@ accel_wide *accel_wide_build(const scene *s, char *err, size_t err_len) {
     }
     w->stats.build_threads = b.threads;
     w->stats.node_count = atomic_load(&b.nodes);
+    w->stats.wide_node_count = atomic_load(&b.wide_nodes);
     w->stats.leaf_count = atomic_load(&b.leaves);
     w->stats.memory_bytes = bump_arena_bytes(w->arena);
     w->stats.huge_pages = bump_arena_on_huge_pages(w->arena);
@@ -446,15 +465,18 @@ void accel_wide_free(accel_wide *w) {
 void accel_wide_get_stats(const accel_wide *w, accel_wide_stats *out) { *out = w->stats; }
 
 /* For each octant of a ray's direction (bit a set: it goes down axis a),
- * the byte offsets in a wide_node of the rows of boxes it enters by on
- * axes x, y, z, then of those it leaves by. Row 2a holds axis a's lower
- * bounds, row 2a + 1 its upper ones: a ray going up axis a enters by the
- * lower. */
-#define ROW(a, up) (sizeof(float) * NODE_W * (2 * (a) + !(up)))
-#define OCTANT(o)                                                                                                   \
-    {ROW(0, !((o) & 1)), ROW(1, !((o) & 2)), ROW(2, !((o) & 4)), ROW(0, (o) & 1), ROW(1, (o) & 2), ROW(2, (o) & 4)}
-static const size_t octant_rows[8][6] = {OCTANT(0), OCTANT(1), OCTANT(2), OCTANT(3),
-                                         OCTANT(4), OCTANT(5), OCTANT(6), OCTANT(7)};
+ * the byte offsets in a node of W slots of the rows of boxes it enters by
+ * on axes x, y, z, then of those it leaves by: [0] for NODE_SMALL slots,
+ * [1] for NODE_W. Row 2a holds axis a's lower bounds, row 2a + 1 its upper
+ * ones: a ray going up axis a enters by the lower. */
+#define ROW(W, a, up) (sizeof(float) * (W) * (2 * (a) + !(up)))
+#define OCTANT(W, o)                                                                                            \
+    {ROW(W, 0, !((o) & 1)), ROW(W, 1, !((o) & 2)), ROW(W, 2, !((o) & 4)), ROW(W, 0, (o) & 1), ROW(W, 1, (o) & 2), \
+     ROW(W, 2, (o) & 4)}
+#define OCTANTS(W) \
+    {OCTANT(W, 0), OCTANT(W, 1), OCTANT(W, 2), OCTANT(W, 3), OCTANT(W, 4), OCTANT(W, 5), OCTANT(W, 6), OCTANT(W, 7)}
+static const size_t octant_rows[2][8][6] = {OCTANTS(NODE_SMALL), OCTANTS(NODE_W)};
+#undef OCTANTS
 #undef OCTANT
 #undef ROW
 
@@ -467,14 +489,14 @@ typedef struct {
  * for later: it is then in cache when popped). */
 static inline void prefetch_ref(uintptr_t ref) { __builtin_prefetch((const void *)(ref & ~REF_TAGS)); }
 
-/* Push the children of n in `bits` (two or more) with their entry
+/* Push the children child[k] for k in `bits` (two or more) with their entry
  * distances tn[k], the nearest last (so popped first), prefetching each;
  * returns the new top. */
-static inline int push_sorted(stack_entry *stack, int sp, const wide_node *n, unsigned bits, const float *tn) {
+static inline int push_sorted(stack_entry *stack, int sp, const uintptr_t *child, unsigned bits, const float *tn) {
     int first = sp;
     for (; bits; bits &= bits - 1) {
         int k = __builtin_ctz(bits);
-        stack_entry e = {n->child[k], tn[k]};
+        stack_entry e = {child[k], tn[k]};
         prefetch_ref(e.ref);
         int j = sp++;
         while (j > first && stack[j - 1].tnear < e.tnear) { /* farther ones below */
@@ -493,7 +515,7 @@ static inline int push_sorted(stack_entry *stack, int sp, const wide_node *n, un
 #define WALK_LANES 4
 #include "accel_wide_walk.h"
 
-#if defined(__x86_64__) && defined(__GNUC__) && NODE_W == 8
+#if defined(__x86_64__) && defined(__GNUC__)
 #define HAVE_WALK8 1
 #define WALK(name) walk8_##name
 #define WALK_TARGET __attribute__((target("avx2")))

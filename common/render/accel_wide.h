@@ -1,8 +1,9 @@
-/* accel_wide.h - Tessera's own 8-wide BVH for large scenes: built in
- * parallel by Tessera's binned SAH builder (sah_build.h; from
- * ACCEL_WIDE_MORTON_MIN_PRIMITIVES by Embree's Morton-code builder,
- * rtcBuildBVH, over boxes Tessera supplies), walked by Tessera with one SIMD slab test for a node's
- * eight children, leaves of up to eight triangles (four without AVX2)
+/* accel_wide.h - Tessera's own wide BVH for large scenes: built in
+ * parallel by Tessera's binned SAH builder (sah_build.h; nodes of up to 16
+ * children) or, from ACCEL_WIDE_MORTON_MIN_PRIMITIVES, by Embree's
+ * Morton-code builder (rtcBuildBVH, up to 8), over boxes Tessera supplies;
+ * walked by Tessera with one SIMD slab test for every eight children of a
+ * node, leaves of up to eight triangles (four without AVX2)
  * tested at once by the flat kernel's watertight test (accel_flat.h),
  * spheres by the scalar test.
  *
@@ -41,7 +42,8 @@ typedef struct accel_wide accel_wide;
 typedef struct {
     double build_seconds;  /* wall time of the whole build, boxes included */
     size_t node_count;     /* inner nodes */
-    int node_width;        /* children per inner node at most (8) */
+    size_t wide_node_count; /* of them, those of 16 slots (more than 8 children) */
+    int node_width;        /* children per inner node at most (16 from the SAH, 8 from the Morton build) */
     const char *walk_isa;  /* the walk this CPU runs: "sse2", "avx2" or "avx512" */
     size_t leaf_count;     /* leaves (8 primitives each at most; 4 for the SSE walk) */
     size_t primitive_count;

@@ -101,7 +101,7 @@ WALK_TARGET static inline unsigned WALK(nle_bits)(lfloat a, lfloat b) {
 typedef struct {
     WALK(f4_ray) lanes;
     nvec o[3], inv[3];
-    const size_t *rows; /* octant_rows[the direction's octant] */
+    const size_t *rows8, *rows16; /* octant_rows[0 and 1][the direction's octant] */
     size_t k[3];
 } WALK(ray);
 
@@ -125,7 +125,8 @@ WALK_TARGET __attribute__((always_inline)) static inline void WALK(prepare)(cons
     inv[0] = safe_inverse(in->d.x), inv[1] = safe_inverse(in->d.y), inv[2] = safe_inverse(in->d.z);
     down = (signbit(inv[0]) != 0) | (signbit(inv[1]) != 0) << 1 | (signbit(inv[2]) != 0) << 2;
 #endif
-    w->rows = octant_rows[down & 7];
+    w->rows8 = octant_rows[0][down & 7];
+    w->rows16 = octant_rows[1][down & 7];
     w->o[0] = WALK(nsplat)(o[0]), w->o[1] = WALK(nsplat)(o[1]), w->o[2] = WALK(nsplat)(o[2]);
     w->inv[0] = WALK(nsplat)(inv[0]), w->inv[1] = WALK(nsplat)(inv[1]), w->inv[2] = WALK(nsplat)(inv[2]);
     /* The leaves' lanes (accel_flat.h's ray_splat, without a count). */
@@ -141,20 +142,23 @@ WALK_TARGET __attribute__((always_inline)) static inline void WALK(prepare)(cons
     w->k[2] = sizeof(float) * WALK_LANES * (size_t)r->kz;
 }
 
-/* The slab test of n's children against [0, cull]: returns the bits of the
+/* The slab test of the children of the node at n, of W slots (rows: its
+ * octant's row offsets for W), against [0, cull]: returns the bits of the
  * children the ray may enter and writes their entry distances to tnear. */
-WALK_TARGET static inline unsigned WALK(node_test)(const wide_node *n, const WALK(ray) *w, nvec cull,
-                                                   float tnear[NODE_W]) {
+WALK_TARGET __attribute__((always_inline)) static inline unsigned WALK(node_test)(const char *n, const unsigned W,
+                                                                               const size_t *rows,
+                                                                               const WALK(ray) *w, nvec cull,
+                                                                               float tnear[NODE_W]) {
     const nvec zero = WALK(nsplat)(0.0f), widen = WALK(nsplat)(SLAB_WIDEN);
     unsigned bits = 0;
-    for (int i = 0; i < NODE_W; i += WALK_LANES) {
-        const char *b = (const char *)&n->box[0][i];
-        nvec nx = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->rows[0]), w->o[0]), w->inv[0]);
-        nvec ny = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->rows[1]), w->o[1]), w->inv[1]);
-        nvec nz = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->rows[2]), w->o[2]), w->inv[2]);
-        nvec fx = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->rows[3]), w->o[0]), w->inv[0]);
-        nvec fy = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->rows[4]), w->o[1]), w->inv[1]);
-        nvec fz = WALK(nmul)(WALK(nsub)(WALK(nload)(b + w->rows[5]), w->o[2]), w->inv[2]);
+    for (unsigned i = 0; i < W; i += WALK_LANES) {
+        const char *b = n + sizeof(float) * i;
+        nvec nx = WALK(nmul)(WALK(nsub)(WALK(nload)(b + rows[0]), w->o[0]), w->inv[0]);
+        nvec ny = WALK(nmul)(WALK(nsub)(WALK(nload)(b + rows[1]), w->o[1]), w->inv[1]);
+        nvec nz = WALK(nmul)(WALK(nsub)(WALK(nload)(b + rows[2]), w->o[2]), w->inv[2]);
+        nvec fx = WALK(nmul)(WALK(nsub)(WALK(nload)(b + rows[3]), w->o[0]), w->inv[0]);
+        nvec fy = WALK(nmul)(WALK(nsub)(WALK(nload)(b + rows[4]), w->o[1]), w->inv[1]);
+        nvec fz = WALK(nmul)(WALK(nsub)(WALK(nload)(b + rows[5]), w->o[2]), w->inv[2]);
         nvec tn = WALK(nmax)(WALK(nmax)(nx, ny), WALK(nmax)(nz, zero));
         nvec tf = WALK(nmin)(WALK(nmin)(fx, fy), WALK(nmin)(fz, cull));
         WALK(nstore)(tnear + i, tn);
@@ -268,20 +272,22 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(step)(const sc
     stack_entry *stack = st->stack;
     int sp = st->sp;
     if (!(cur & LEAF_TAG)) {
-        const wide_node *n = (const wide_node *)cur;
+        const uintptr_t *child = node_children(cur);
         /* The children's line, fetched with the boxes' rather than after the test. */
-        __builtin_prefetch(n->child);
+        __builtin_prefetch(child);
         WALK_COUNT(nodes);
         float tn[NODE_W] __attribute__((aligned(32)));
-        unsigned bits = WALK(node_test)(n, &st->w, WALK(nsplat)(st->cull), tn);
+        const char *n = (const char *)(cur & ~REF_TAGS);
+        unsigned bits = cur & NODE16_TAG ? WALK(node_test)(n, NODE_W, st->w.rows16, &st->w, WALK(nsplat)(st->cull), tn)
+                                         : WALK(node_test)(n, NODE_SMALL, st->w.rows8, &st->w, WALK(nsplat)(st->cull), tn);
         if (bits) {
             int k = __builtin_ctz(bits);
-            cur = n->child[k];
+            cur = child[k];
             unsigned rest = bits & (bits - 1);
             if (!rest) return st->cur = cur, 1;
             if (any_hit) { /* any order will do: keep the others as they come */
                 for (; rest; rest &= rest - 1) {
-                    uintptr_t c = n->child[__builtin_ctz(rest)];
+                    uintptr_t c = child[__builtin_ctz(rest)];
                     prefetch_ref(c);
                     stack[sp++].ref = c;
                 }
@@ -289,14 +295,14 @@ WALK_TARGET __attribute__((always_inline)) static inline int WALK(step)(const sc
             }
             if (!(rest & (rest - 1))) { /* two: keep the farther */
                 int j = __builtin_ctz(rest);
-                uintptr_t other = n->child[j];
+                uintptr_t other = child[j];
                 float t = tn[j];
-                if (tn[j] < tn[k]) t = tn[k], other = cur, cur = n->child[j];
+                if (tn[j] < tn[k]) t = tn[k], other = cur, cur = child[j];
                 prefetch_ref(other);
                 stack[sp++] = (stack_entry){other, t};
                 return st->cur = cur, st->sp = sp, 1;
             }
-            sp = push_sorted(stack, sp, n, bits, tn);
+            sp = push_sorted(stack, sp, child, bits, tn);
             st->cur = stack[--sp].ref;
             st->sp = sp;
             return 1;

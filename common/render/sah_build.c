@@ -475,7 +475,7 @@ static void attach(build *B, void *node, unsigned k, void *child, const set *c) 
 
 /* A node over children[0 .. count): each built now, or deferred. */
 static void *make_node(build *B, set *children, unsigned count, unsigned depth) {
-    void *node = B->a->create_node(B->a->user);
+    void *node = B->a->create_node(count, B->a->user);
     if (!node) return NULL;
     for (unsigned k = 0; k < count; k++) {
         const set *c = &children[k];
@@ -494,7 +494,7 @@ static void *make_node(build *B, set *children, unsigned count, unsigned depth) 
 static void *build_large(build *B, const set *s, unsigned depth) {
     size_t n = s->end - s->begin;
     if (n <= B->a->leaf_max) return make_leaf(B, s);
-    set children[8];
+    set children[SAH_MAX_WIDTH];
     unsigned count = B->a->width;
     size_t per = (n + count - 1) / count;
     if (per < B->a->leaf_max) per = B->a->leaf_max;
@@ -503,7 +503,7 @@ static void *build_large(build *B, const set *s, unsigned depth) {
         children[c] = set_new(b, b + per < s->end ? b + per : s->end);
         for (size_t i = children[c].begin; i < children[c].end; i++) set_grow(&children[c], &B->prims[i]);
     }
-    void *node = B->a->create_node(B->a->user);
+    void *node = B->a->create_node(c, B->a->user);
     if (!node) return NULL;
     for (unsigned k = 0; k < c; k++) {
         void *child = build_large(B, &children[k], depth + 1);
@@ -530,7 +530,7 @@ static void *build_set(build *B, const set *s, unsigned depth) {
         float split_cost = a->trav_cost * area + a->isect_cost * sp.cost;
         if (leaf_cost <= split_cost) return make_leaf(B, s);
     }
-    set children[8];
+    set children[SAH_MAX_WIDTH];
     if (partition(B, s, &sp, &children[0], &children[1]) != 0) return atomic_store(&B->failed, 1), NULL;
     unsigned count = 2;
     while (count < a->width) {

@@ -31,6 +31,8 @@
 /* One primitive's box and id: 32 bytes, the lower corner then the upper
  * (the builder loads each row as one SSE register, or the whole as one AVX
  * register): an array of them must be 32-byte aligned. */
+#define SAH_MAX_WIDTH 16 /* sah_args.width at most */
+
 typedef struct {
     float lo[3];
     uint32_t id;
@@ -39,15 +41,15 @@ typedef struct {
 } sah_prim;
 
 typedef struct {
-    unsigned width;     /* children per inner node at most, 2 to 8 */
+    unsigned width;     /* children per inner node at most, 2 to SAH_MAX_WIDTH */
     unsigned leaf_min;  /* a set this small is always a leaf (>= 1) */
     unsigned leaf_max;  /* a leaf holds this many at most (>= leaf_min) */
     unsigned block;     /* the SAH counts primitives in blocks of this many (>= 1) */
     unsigned max_depth; /* inner nodes on a path from the root, at most (>= 12) */
     float trav_cost, isect_cost;
-    /* A new inner node with no children yet; NULL when out of memory (the
-     * build then fails). Any thread, at once. */
-    void *(*create_node)(void *user);
+    /* A new inner node for `count` children (2 to width), none set yet;
+     * NULL when out of memory (the build then fails). Any thread, at once. */
+    void *(*create_node)(unsigned count, void *user);
     /* Child k of node: its reference (as create_node or create_leaf returned
      * it) and its box. Called once per child, from any thread. */
     void (*set_child)(void *node, unsigned k, void *child, const float lo[3], const float hi[3], void *user);
