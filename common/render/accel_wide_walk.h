@@ -1,9 +1,9 @@
 /* accel_wide_walk.h - the wide BVH's walk (accel_wide.c), written once for
  * any vector width: accel_wide.c includes it for 4 lanes (two SSE
- * registers per row of a node's 8 children, leaves of 4 triangles; any
- * x86-64) and for 8 lanes (one AVX register per row, leaves of 8; compiled
- * for AVX2 and, for its 32 registers, for AVX-512VL), and picks the widest
- * the CPU has at run time.
+ * registers per row of 8 children, four for a node of 16; leaves of 4
+ * triangles; any x86-64) and for 8 lanes (one AVX register per row of 8
+ * children, leaves of 8; compiled for AVX2 and, for its 32 registers, for
+ * AVX-512VL), and picks the widest the CPU has at run time.
  *
  * Every width computes the same numbers: each lane of the node test is the
  * scalar (box - o) * inv_d, max, min and tnear <= tfar * SLAB_WIDEN, and
