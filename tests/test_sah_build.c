@@ -330,5 +330,20 @@ TEST(sah_build_fails_cleanly) {
         }
         unsetenv("TESSERA_LOAD_THREADS");
     }
+    /* A width the builder's arrays cannot hold (or less than 2): refused
+     * before any callback. */
+    static const unsigned widths[] = {1, SAH_MAX_WIDTH + 1};
+    for (size_t w = 0; w < 2; w++) {
+        sah_prim *p = prims_of((const float (*)[6])b, 1000);
+        tree t;
+        tree_init(&t, 8);
+        sah_args a = args_for(&t, 8, 8, 40);
+        a.width = widths[w];
+        void *root = sah_build(&a, p, 1000);
+        CHECK(root == NULL && t.all == NULL, "width %u: the build was not refused (root %p, %s made)", widths[w], root,
+              t.all ? "nodes or leaves" : "nothing");
+        tree_free(&t);
+        free(p);
+    }
     free(b);
 }

@@ -592,6 +592,7 @@ static void bounds_part(void *ctx, size_t begin, size_t end, int part) {
 int sah_build_threads(size_t n) { return par_parts(n, DEFER_MIN); }
 
 void *sah_build(const sah_args *a, sah_prim *prims, size_t n) {
+    if (a->width < 2 || a->width > SAH_MAX_WIDTH) return NULL; /* the children arrays hold SAH_MAX_WIDTH */
     build B = {.a = a, .prims = prims, .bin = choose_binning()};
     B.threads = B.bin_threads = sah_build_threads(n);
     par_bounds *P = malloc(sizeof *P);

@@ -28,11 +28,11 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#define SAH_MAX_WIDTH 16 /* sah_args.width at most */
+
 /* One primitive's box and id: 32 bytes, the lower corner then the upper
  * (the builder loads each row as one SSE register, or the whole as one AVX
  * register): an array of them must be 32-byte aligned. */
-#define SAH_MAX_WIDTH 16 /* sah_args.width at most */
-
 typedef struct {
     float lo[3];
     uint32_t id;
@@ -67,7 +67,8 @@ int sah_build_threads(size_t n);
 
 /* Build over prims[0 .. n) (n >= 1; 32-byte aligned; every box finite,
  * lo <= hi), which the build reorders. Returns the root's reference (a node, or a leaf when n is
- * small), or NULL when a callback returned NULL or the build was cancelled;
+ * small), or NULL when a callback returned NULL, the build was cancelled or
+ * a->width is outside 2 .. SAH_MAX_WIDTH;
  * what the callbacks made belongs to the caller either way. */
 void *sah_build(const sah_args *a, sah_prim *prims, size_t n);
 
